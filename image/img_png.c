@@ -1,0 +1,2 @@
+/* being written */
+typedef int rr_unused_tu;

@@ -1,0 +1,134 @@
+/* scene.h - radray scene files ("format": "radray-scene/1", JSON through cJSON)
+ * and the in-memory scene every pass reads.
+ *
+ * The format is documented in notes/scene-format.md. Loading validates
+ * everything: unknown keys, wrong types, missing values, non-finite numbers,
+ * bad references and unreadable meshes are errors whose one-line message names
+ * the file, the JSON path (e.g. "objects[3].material") and what was expected.
+ * Zero-area triangles are dropped with a warning through opts->warn.
+ *
+ * After scene_load returns, the scene is immutable: every thread may read it.
+ * Ownership: scene_load allocates *out; scene_destroy frees it (NULL is a no-op).
+ * On failure *out is untouched.
+ */
+#ifndef SCENE_H
+#define SCENE_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "mesh.h"
+#include "rr_core.h"
+
+#define SCENE_FORMAT "radray-scene/1"
+#define SCENE_NAME_MAX 64
+
+typedef struct scene_material {
+    char name[SCENE_NAME_MAX];
+    rr_rgb diffuse;   /* the lecture's d: Lambertian reflectance rho, each channel in [0, 1] */
+    double ambient;   /* the lecture's a: weight of the ambient light A */
+    rr_rgb specular;  /* the lecture's s: Phong weight, RGB */
+    double k;         /* the lecture's k: Phong exponent, >= 0 */
+    rr_rgb mirror;    /* mirror reflectance, each channel in [0, 1] */
+    rr_rgb emission;  /* emitted radiance; non-zero makes every surface using it an area light */
+} scene_material;
+
+typedef enum scene_light_type { SCENE_LIGHT_DIRECTIONAL = 0, SCENE_LIGHT_POINT = 1 } scene_light_type;
+
+typedef struct scene_light {
+    char name[SCENE_NAME_MAX];
+    scene_light_type type;
+    rr_vec3 direction; /* directional: unit vector from the scene TOWARDS the light (the lecture's L) */
+    rr_vec3 position;  /* point */
+    rr_rgb intensity;  /* directional: irradiance on a surface facing the light; point: radiant intensity
+                          (irradiance at distance 1, falls off with 1/r^2) */
+} scene_light;
+
+typedef enum scene_object_kind {
+    SCENE_OBJ_MESH = 0,      /* triangles from a mesh file */
+    SCENE_OBJ_TRIANGLES = 1, /* inline vertices + indices */
+    SCENE_OBJ_QUAD = 2,      /* four vertices, split (v0,v1,v2), (v0,v2,v3) */
+    SCENE_OBJ_BOX = 3,       /* axis-aligned box before its transform, 12 outward-facing triangles */
+    SCENE_OBJ_SPHERE = 4     /* analytic sphere (not tessellated) */
+} scene_object_kind;
+
+typedef struct scene_object {
+    char name[SCENE_NAME_MAX]; /* from the file, or "objects[i]" */
+    scene_object_kind kind;
+    uint32_t material;         /* index into scene->materials */
+    int cull_backfaces;        /* resolved from "cull": see notes/scene-format.md */
+    size_t tri_first, tri_count; /* range in scene->tris (0, 0 for spheres) */
+    rr_vec3 center;            /* spheres: world-space centre and radius */
+    double radius;
+    char source[4096];         /* meshes: the resolved file path; "" otherwise */
+    mesh_report report;        /* topology of this object's triangles (meshes, boxes, quads, triangles) */
+    size_t dropped_degenerate; /* zero-area triangles dropped at load */
+} scene_object;
+
+typedef struct scene_tri {
+    uint32_t v[3];    /* indices into scene->verts; counter-clockwise seen from the front */
+    uint32_t object;  /* index into scene->objects */
+    uint32_t material;
+} scene_tri;
+
+typedef struct scene_settings {
+    int spp;                /* samples per pixel, >= 1 (default 1) */
+    uint64_t seed;          /* default 0 */
+    int max_depth;          /* mirror / secondary recursion limit, >= 0 (default 5) */
+    int threads;            /* 0 = all cores (default) */
+    double exposure;        /* PNG preview exposure in stops (default 0) */
+    rr_rgb background;      /* radiance of rays that hit nothing (default black) */
+    rr_rgb ambient;         /* the lecture's ambient light A (default 0) */
+    int light_samples;      /* shadow rays per area light per hit (default 16) */
+    int half_float;         /* EXR pixel type: 0 float (default), 1 half */
+} scene_settings;
+
+typedef struct scene {
+    char path[4096];        /* the file it was loaded from ("<string>" names for in-memory) */
+    char name[SCENE_NAME_MAX];
+    rr_view view;
+    scene_settings settings;
+    scene_material *materials;
+    size_t nmaterials;
+    scene_light *lights;
+    size_t nlights;
+    scene_object *objects;
+    size_t nobjects;
+    rr_vec3 *verts;         /* world space */
+    rr_vec3 *normals;       /* per vertex, unit, or zero vector where the source had none; NULL if none at all */
+    size_t nverts;
+    scene_tri *tris;
+    size_t ntris;
+    uint32_t *emissive_tris; /* indices of triangles whose material emits */
+    size_t nemissive;
+    rr_vec3 bbox_min, bbox_max; /* of all triangles and spheres */
+} scene;
+
+typedef struct scene_load_opts {
+    /* "--set" overrides, each "json.path=value" (e.g. "render.spp=64",
+     * "camera.w=100", "objects[2].material=red"): value is parsed as JSON, and
+     * taken as a string when it is not valid JSON. Applied before validation,
+     * so an override is checked like the file itself. */
+    const char *const *overrides;
+    size_t noverrides;
+    /* Memory allowed for the image buffers (bytes); 0 = half the physical
+     * memory. A resolution whose film would exceed it is refused. */
+    size_t max_image_bytes;
+    rr_warn_sink warn;
+} scene_load_opts;
+
+/* Loads and validates a scene file. opts may be NULL (defaults). */
+rr_status scene_load(const char *path, const scene_load_opts *opts, scene **out, rr_error *err);
+
+/* Same from a string. name is used in messages; relative mesh paths resolve
+ * against base_dir ("" = current folder). */
+rr_status scene_load_string(const char *json, const char *name, const char *base_dir, const scene_load_opts *opts,
+                            scene **out, rr_error *err);
+
+void scene_destroy(scene *s);
+
+/* Geometric (face) normal of triangle i, unit length, from the winding. */
+rr_vec3 scene_tri_normal(const scene *s, size_t i);
+double scene_tri_area(const scene *s, size_t i);
+
+#endif
