@@ -1,0 +1,257 @@
+/* cmd_render.c - `radray render SCENE`: load, render, write EXR + PNG. */
+#include <getopt.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <strings.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "app.h"
+#include "img.h"
+#include "rt.h"
+#include "scene.h"
+
+static const char render_usage[] =
+    "usage: radray render SCENE [options]\n"
+    "\n"
+    "Renders SCENE (a radray-scene/1 JSON file) to a linear float OpenEXR image and\n"
+    "an sRGB PNG preview beside it.\n"
+    "\n"
+    "options:\n"
+    "  -o, --output FILE.exr  EXR output (default out/<scene name>.exr)\n"
+    "      --png FILE.png     PNG preview path (default: the output with .png)\n"
+    "      --no-png           do not write the PNG preview\n"
+    "      --width N          image width in pixels; the height keeps the aspect ratio\n"
+    "      --spp N            samples per pixel (scene key render.spp)\n"
+    "      --seed N           random seed (render.seed)\n"
+    "      --threads N        worker threads, 0 = all cores (render.threads)\n"
+    "      --exposure EV      PNG preview exposure in stops (render.exposure)\n"
+    "      --half             write half-float EXR instead of float (render.half_float)\n"
+    "      --set KEY=VALUE    override any scene value by its JSON path, e.g.\n"
+    "                         --set render.spp=16 --set materials.white.diffuse=[0.7,0.7,0.7]\n"
+    "                         (repeatable; VALUE is JSON, or a string)\n"
+    "  -q, --quiet            print nothing but errors (no progress bar, no summary)\n"
+    "  -h, --help             show this help\n"
+    "\n"
+    "The progress bar is drawn on stderr only when it is a terminal.\n"
+    "Exit codes: 0 ok, 1 runtime error, 2 usage error or bad input.\n";
+
+typedef struct progress_state {
+    int enabled;
+    struct timespec start;
+    int last_pct;
+} progress_state;
+
+static double seconds_since(const struct timespec *t0)
+{
+    struct timespec t;
+    clock_gettime(CLOCK_MONOTONIC, &t);
+    return (double)(t.tv_sec - t0->tv_sec) + 1e-9 * (double)(t.tv_nsec - t0->tv_nsec);
+}
+
+static void draw_progress(void *user, int done, int total)
+{
+    progress_state *p = user;
+    if (!p->enabled)
+        return;
+    int pct = (int)(100.0 * done / total);
+    if (pct == p->last_pct && done != total)
+        return;
+    p->last_pct = pct;
+    char bar[41];
+    int filled = 40 * done / total;
+    for (int i = 0; i < 40; i++)
+        bar[i] = i < filled ? '#' : '.';
+    bar[40] = '\0';
+    fprintf(stderr, "\rrendering [%s] %3d%% %6.1f s", bar, pct, seconds_since(&p->start));
+    if (done == total)
+        fputc('\n', stderr);
+    fflush(stderr);
+}
+
+/* Refuses an output path before any work is done: creates missing folders and
+ * checks that a file can be created there. */
+static int check_writable(const char *path)
+{
+    rr_error err;
+    char tmp[4200];
+    if (rr_file_make_parent_dirs(path, &err) != RR_OK || rr_file_tmpname(path, tmp, sizeof tmp, &err) != RR_OK) {
+        app_error("%s", err.msg);
+        return -1;
+    }
+    remove(tmp);
+    return 0;
+}
+
+static int ends_with(const char *s, const char *suffix)
+{
+    size_t n = strlen(s), m = strlen(suffix);
+    return n >= m && strcasecmp(s + n - m, suffix) == 0;
+}
+
+enum { OPT_PNG = 256, OPT_NO_PNG, OPT_WIDTH, OPT_SPP, OPT_SEED, OPT_THREADS, OPT_EXPOSURE, OPT_HALF, OPT_SET };
+
+int app_cmd_render(int argc, char **argv)
+{
+    static const struct option longopts[] = {
+        {"output", required_argument, NULL, 'o'},     {"png", required_argument, NULL, OPT_PNG},
+        {"no-png", no_argument, NULL, OPT_NO_PNG},    {"width", required_argument, NULL, OPT_WIDTH},
+        {"spp", required_argument, NULL, OPT_SPP},    {"seed", required_argument, NULL, OPT_SEED},
+        {"threads", required_argument, NULL, OPT_THREADS}, {"exposure", required_argument, NULL, OPT_EXPOSURE},
+        {"half", no_argument, NULL, OPT_HALF},        {"set", required_argument, NULL, OPT_SET},
+        {"quiet", no_argument, NULL, 'q'},            {"help", no_argument, NULL, 'h'},
+        {NULL, 0, NULL, 0}};
+    const char *out_exr = NULL, *out_png = NULL;
+    int no_png = 0, quiet = 0;
+    long width = 0;
+    /* Overrides: one per --set, plus those the shorthand options expand to. */
+    char **sets = calloc((size_t)argc + 1, sizeof *sets);
+    size_t nsets = 0;
+    int rc = APP_EXIT_USAGE;
+    scene *sc = NULL;
+    rr_image img = {0};
+    char exr_default[4200], png_default[4200];
+    if (!sets) {
+        app_error("out of memory");
+        return APP_EXIT_RUNTIME;
+    }
+
+    optind = 1;
+    opterr = 0;
+    int c;
+    while ((c = getopt_long(argc, argv, ":o:qh", longopts, NULL)) != -1) {
+        const char *key = NULL;
+        switch (c) {
+        case 'o': out_exr = optarg; break;
+        case OPT_PNG: out_png = optarg; break;
+        case OPT_NO_PNG: no_png = 1; break;
+        case 'q': quiet = 1; break;
+        case 'h':
+            fputs(render_usage, stdout);
+            rc = APP_EXIT_OK;
+            goto done;
+        case OPT_WIDTH:
+            if (app_parse_int(optarg, 1, 1 << 21, &width)) {
+                app_error("--width: expected an integer in [1, %d], got '%s'", 1 << 21, optarg);
+                goto done;
+            }
+            break;
+        case OPT_SPP: key = "render.spp"; break;
+        case OPT_SEED: key = "render.seed"; break;
+        case OPT_THREADS: key = "render.threads"; break;
+        case OPT_EXPOSURE: key = "render.exposure"; break;
+        case OPT_HALF: key = "render.half_float"; break;
+        case OPT_SET:
+            sets[nsets++] = strdup(optarg);
+            break;
+        case ':':
+            app_error("option '%s' needs a value (try 'radray render --help')", argv[optind - 1]);
+            goto done;
+        default:
+            app_error("unknown option '%s' (try 'radray render --help')", argv[optind - 1]);
+            goto done;
+        }
+        if (key) {
+            const char *val = c == OPT_HALF ? "true" : optarg;
+            size_t n = strlen(key) + strlen(val) + 2;
+            sets[nsets] = malloc(n);
+            if (sets[nsets])
+                snprintf(sets[nsets], n, "%s=%s", key, val);
+            nsets++;
+        }
+    }
+    for (size_t i = 0; i < nsets; i++)
+        if (!sets[i]) {
+            app_error("out of memory");
+            rc = APP_EXIT_RUNTIME;
+            goto done;
+        }
+    if (optind != argc - 1) {
+        app_error(optind >= argc ? "render: missing SCENE (try 'radray render --help')"
+                                 : "render: expected one SCENE, got extra arguments (try 'radray render --help')");
+        goto done;
+    }
+    const char *scene_path = argv[optind];
+
+    rr_error err;
+    scene_load_opts lo = {0};
+    lo.overrides = (const char *const *)sets;
+    lo.noverrides = nsets;
+    lo.warn = app_warn_sink();
+    if (scene_load(scene_path, &lo, &sc, &err) != RR_OK) {
+        app_error("%s", err.msg);
+        goto done;
+    }
+    if (width > 0) {
+        rr_view v;
+        if (rr_view_resize(&sc->view, (int)width, &v, &err) != RR_OK) {
+            app_error("--width: %s", err.msg);
+            goto done;
+        }
+        sc->view = v;
+    }
+
+    /* Output names: out/<scene name>.exr by default, PNG beside the EXR. */
+    if (!out_exr) {
+        const char *base = strrchr(scene_path, '/');
+        base = base ? base + 1 : scene_path;
+        size_t n = strcspn(base, ".");
+        snprintf(exr_default, sizeof exr_default, "out/%.*s.exr", (int)n, base);
+        out_exr = exr_default;
+    }
+    if (!ends_with(out_exr, ".exr")) {
+        app_error("-o %s: the output must end in .exr (the PNG preview is written beside it)", out_exr);
+        goto done;
+    }
+    if (!out_png && !no_png) {
+        snprintf(png_default, sizeof png_default, "%.*s.png", (int)(strlen(out_exr) - 4), out_exr);
+        out_png = png_default;
+    }
+    if (check_writable(out_exr) || (!no_png && check_writable(out_png)))
+        goto done;
+    if (rr_image_init(&img, sc->view.width, sc->view.height, &err) != RR_OK) {
+        app_error("%s", err.msg);
+        rc = APP_EXIT_RUNTIME;
+        goto done;
+    }
+
+    progress_state prog = {0};
+    prog.enabled = !quiet && isatty(STDERR_FILENO);
+    prog.last_pct = -1;
+    clock_gettime(CLOCK_MONOTONIC, &prog.start);
+    rt_render_opts ro = {0};
+    ro.spp = sc->settings.spp;
+    ro.seed = sc->settings.seed;
+    ro.threads = sc->settings.threads;
+    ro.progress = draw_progress;
+    ro.progress_user = &prog;
+    rc = APP_EXIT_RUNTIME;
+    if (rt_render_preview(sc, &ro, &img, &err) != RR_OK) {
+        app_error("%s", err.msg);
+        goto done;
+    }
+    double secs = seconds_since(&prog.start);
+    if (img_write_exr(out_exr, &img, NULL, 0, sc->settings.half_float ? IMG_HALF : IMG_FLOAT, &err) != RR_OK) {
+        app_error("%s", err.msg);
+        goto done;
+    }
+    if (!no_png && img_write_png(out_png, &img, sc->settings.exposure, &err) != RR_OK) {
+        app_error("%s", err.msg);
+        goto done;
+    }
+    if (!quiet) {
+        printf("rendered %s: %d x %d, %d spp, %.2f s\n", scene_path, img.width, img.height, sc->settings.spp, secs);
+        printf("wrote %s (linear %s RGB)\n", out_exr, sc->settings.half_float ? "half" : "float");
+        if (!no_png)
+            printf("wrote %s (sRGB preview, exposure %+g)\n", out_png, sc->settings.exposure);
+    }
+    rc = APP_EXIT_OK;
+done:
+    rr_image_free(&img);
+    scene_destroy(sc);
+    for (size_t i = 0; i < nsets; i++)
+        free(sets[i]);
+    free(sets);
+    return rc;
+}
