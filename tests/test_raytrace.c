@@ -1,0 +1,209 @@
+/* test_raytrace.c - the lecture's reference geometry, sphere hits, brute-force
+ * front-most hits and the preview renderer's determinism. */
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <cmocka.h>
+
+#include <string.h>
+
+#include "rt.h"
+
+#define assert_near(a, b, tol) assert_true(fabs((double)(a) - (double)(b)) <= (tol))
+
+static void orientation(void **state)
+{
+    (void)state;
+    rr_vec3 A = rr_v3(0, 0, 0), B = rr_v3(1, 0, 0), C = rr_v3(0, 1, 0);
+    /* AB x AC = +z: D above the plane is on the positive side. */
+    assert_true(rt_orient(A, B, C, rr_v3(0.2, 0.2, 1)));
+    assert_false(rt_orient(A, B, C, rr_v3(0.2, 0.2, -1)));
+    assert_false(rt_orient(A, B, C, rr_v3(5, 5, 0))); /* coplanar: not > 0 */
+    assert_true(rt_front_facing(A, B, C, rr_v3(3, -7, 2)));
+    assert_false(rt_front_facing(A, C, B, rr_v3(3, -7, 2)));
+}
+
+static void lecture_hit_and_depth(void **state)
+{
+    (void)state;
+    /* Triangle in the plane z = -2, counter-clockwise seen from E at the origin. */
+    rr_vec3 A = rr_v3(-1, -1, -2), B = rr_v3(1, -1, -2), C = rr_v3(0, 1, -2);
+    rr_vec3 E = rr_v3(0, 0, 0);
+    assert_true(rt_front_facing(A, B, C, E));
+    rr_vec3 P = rr_v3(0, 0, -1); /* screen at distance 1 */
+    assert_true(rt_ray_hits_tri(E, P, A, B, C));
+    assert_near(rt_dist_along_ray(E, P, A, B, C), 2.0, 1e-15);
+    /* Through a point outside the triangle. */
+    assert_false(rt_ray_hits_tri(E, rr_v3(0.9, 0.9, -1), A, B, C));
+    /* P behind E: the ray points away. */
+    assert_false(rt_ray_hits_tri(E, rr_v3(0, 0, 1), A, B, C));
+    /* Oblique ray: H = E + t EP with EP = (0.25, 0.1, -0.5): plane z=-2 at t=4. */
+    P = rr_v3(0.25, 0.1, -0.5);
+    assert_true(rt_ray_hits_tri(E, P, A, B, C));
+    assert_near(rt_dist_along_ray(E, P, A, B, C), 4.0, 1e-14);
+}
+
+/* Independent check: Moller-Trumbore barycentrics in the test itself. */
+static int mt_hit(rr_vec3 o, rr_vec3 d, rr_vec3 A, rr_vec3 B, rr_vec3 C, double *t, double *margin)
+{
+    rr_vec3 e1 = rr_v3_sub(B, A), e2 = rr_v3_sub(C, A);
+    rr_vec3 p = rr_v3_cross(d, e2);
+    double det = rr_v3_dot(e1, p);
+    *t = 0;
+    *margin = 0;
+    if (fabs(det) < 1e-300)
+        return 0;
+    rr_vec3 s = rr_v3_sub(o, A);
+    double u = rr_v3_dot(s, p) / det;
+    rr_vec3 q = rr_v3_cross(s, e1);
+    double v = rr_v3_dot(d, q) / det;
+    *t = rr_v3_dot(e2, q) / det;
+    *margin = fmin(fmin(u, v), 1 - u - v);
+    return *margin > 0 && *t > 0;
+}
+
+static void lecture_vs_moller_trumbore_random(void **state)
+{
+    (void)state;
+    rr_rng rng = rr_rng_make(2024, 1);
+    int agree = 0, hits = 0, n = 20000;
+    for (int i = 0; i < n; i++) {
+        rr_vec3 v[5];
+        for (int k = 0; k < 5; k++)
+            v[k] = rr_v3(4 * rr_rng_uniform(&rng) - 2, 4 * rr_rng_uniform(&rng) - 2, 4 * rr_rng_uniform(&rng) - 2);
+        rr_vec3 E = v[3], P = v[4], A = v[0], B = v[1], C = v[2];
+        if (!rt_front_facing(A, B, C, E)) {
+            rr_vec3 t = B;
+            B = C;
+            C = t;
+        }
+        double t = 0, margin = 0;
+        int ref = mt_hit(E, rr_v3_sub(P, E), A, B, C, &t, &margin);
+        int lec = rt_ray_hits_tri(E, P, A, B, C);
+        /* Rays within 1e-9 (barycentric) of an edge may legitimately differ. */
+        if (fabs(margin) < 1e-9) {
+            agree++;
+            continue;
+        }
+        if (lec == ref)
+            agree++;
+        if (lec && ref) {
+            hits++;
+            assert_near(rt_dist_along_ray(E, P, A, B, C), t, 1e-9 * fmax(1.0, fabs(t)));
+        }
+    }
+    assert_int_equal(agree, n);
+    assert_true(hits > 500); /* the test did exercise hits */
+}
+
+static void sphere_hits(void **state)
+{
+    (void)state;
+    double t;
+    rr_ray r = {rr_v3(0, 0, 10), rr_v3(0, 0, -1)};
+    /* From outside: entry at 10 - 1. */
+    assert_true(rt_sphere_hit(rr_v3(0, 0, 0), 1.0, r, 0, INFINITY, &t));
+    assert_near(t, 9.0, 1e-12);
+    /* From inside: the exit. */
+    r.o = rr_v3(0, 0, 0.5);
+    assert_true(rt_sphere_hit(rr_v3(0, 0, 0), 1.0, r, 0, INFINITY, &t));
+    assert_near(t, 1.5, 1e-12);
+    /* Miss, and sphere behind the origin. */
+    r.o = rr_v3(0, 2, 10);
+    assert_false(rt_sphere_hit(rr_v3(0, 0, 0), 1.0, r, 0, INFINITY, &t));
+    r.o = rr_v3(0, 0, -10);
+    assert_false(rt_sphere_hit(rr_v3(0, 0, 0), 1.0, r, 0, INFINITY, &t));
+    /* Far away small sphere: no cancellation (b^2 - ac would lose it all). */
+    r.o = rr_v3(0, 0, 0);
+    r.d = rr_v3(0, 0, 1);
+    assert_true(rt_sphere_hit(rr_v3(0, 0, 1e9), 1e-3, r, 0, INFINITY, &t));
+    assert_near(t, 1e9 - 1e-3, 1e-6);
+    /* Unnormalised direction: t scales. */
+    r.d = rr_v3(0, 0, 4);
+    assert_true(rt_sphere_hit(rr_v3(0, 0, 8), 1.0, r, 0, INFINITY, &t));
+    assert_near(t, 7.0 / 4.0, 1e-12);
+}
+
+static const char *k_scene =
+    "{\"format\":\"radray-scene/1\",\"camera\":{\"type\":\"lecture\",\"E\":[0,0,5],\"O\":[0,0,4],"
+    "\"U\":[0,1,0],\"s\":0.25,\"w\":4,\"h\":3},"
+    "\"materials\":{\"a\":{\"diffuse\":[0.5,0.5,0.5]},\"b\":{\"diffuse\":[0.2,0.4,0.6]}},"
+    "\"objects\":["
+    "{\"name\":\"wall\",\"type\":\"quad\",\"material\":\"a\",\"vertices\":[[-3,-3,-1],[3,-3,-1],[3,3,-1],[-3,3,-1]]},"
+    "{\"name\":\"ball\",\"type\":\"sphere\",\"material\":\"b\",\"center\":[0,0,0],\"radius\":0.5}],"
+    "\"render\":{\"spp\":4,\"seed\":9}}";
+
+static void closest_hit_brute_force(void **state)
+{
+    (void)state;
+    scene *s = NULL;
+    rr_error err;
+    assert_int_equal(scene_load_string(k_scene, "test", "", NULL, &s, &err), RR_OK);
+    rt_hit h;
+    /* Straight down the axis: the sphere (t = 4.5) is in front of the wall (t = 6). */
+    rr_ray r = {rr_v3(0, 0, 5), rr_v3(0, 0, -1)};
+    assert_true(rt_ref_closest(s, r, 0, INFINITY, &h));
+    assert_int_equal(h.tri, -1);
+    assert_near(h.t, 4.5, 1e-12);
+    assert_near(h.normal.z, 1.0, 1e-12);
+    /* Beside the sphere: the wall, front side. */
+    r.o = rr_v3(2, 2, 5);
+    assert_true(rt_ref_closest(s, r, 0, INFINITY, &h));
+    assert_true(h.tri >= 0);
+    assert_near(h.t, 6.0, 1e-12);
+    assert_true(h.front);
+    /* From behind the open quad: it is not culled, and the normal faces the ray. */
+    r.o = rr_v3(2, 2, -5);
+    r.d = rr_v3(0, 0, 1);
+    assert_true(rt_ref_closest(s, r, 0, INFINITY, &h));
+    assert_false(h.front);
+    assert_near(h.normal.z, -1.0, 1e-12);
+    /* Nothing out there. */
+    r.o = rr_v3(10, 10, 5);
+    r.d = rr_v3(0, 0, -1);
+    assert_false(rt_ref_closest(s, r, 0, INFINITY, &h));
+    scene_destroy(s);
+}
+
+static void preview_deterministic_across_threads(void **state)
+{
+    (void)state;
+    scene *s = NULL;
+    assert_int_equal(scene_load_string(k_scene, "test", "", NULL, &s, NULL), RR_OK);
+    rr_image a = {0}, b = {0};
+    assert_int_equal(rr_image_init(&a, s->view.width, s->view.height, NULL), RR_OK);
+    assert_int_equal(rr_image_init(&b, s->view.width, s->view.height, NULL), RR_OK);
+    rt_render_opts o = {0};
+    o.spp = 4;
+    o.seed = 9;
+    o.threads = 1;
+    assert_int_equal(rt_render_preview(s, &o, &a, NULL), RR_OK);
+    o.threads = 3;
+    assert_int_equal(rt_render_preview(s, &o, &b, NULL), RR_OK);
+    assert_memory_equal(a.px, b.px, 3 * sizeof(float) * (size_t)a.width * (size_t)a.height);
+    /* The centre pixel sees the sphere: diffuse b times (0.15 + 0.85 |N.V|) ~ b. */
+    rr_rgb c = rr_image_get(&a, 4, 3);
+    assert_near(c.b, 0.6, 0.05);
+    /* A wrongly sized film is refused. */
+    rr_image small = {0};
+    assert_int_equal(rr_image_init(&small, 2, 2, NULL), RR_OK);
+    assert_int_equal(rt_render_preview(s, &o, &small, NULL), RR_ERR_INTERNAL);
+    rr_image_free(&small);
+    rr_image_free(&a);
+    rr_image_free(&b);
+    scene_destroy(s);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(orientation),
+        cmocka_unit_test(lecture_hit_and_depth),
+        cmocka_unit_test(lecture_vs_moller_trumbore_random),
+        cmocka_unit_test(sphere_hits),
+        cmocka_unit_test(closest_hit_brute_force),
+        cmocka_unit_test(preview_deterministic_across_threads),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
