@@ -1,0 +1,278 @@
+/* test_cli.c - the radray command line as a user meets it: help, exit codes,
+ * one-line errors naming the file and the cause, no output file on failure,
+ * a real render read back, and thread-count independence. */
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <cmocka.h>
+
+#include <fcntl.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include "img.h"
+#include "rr_core.h"
+
+static char g_dir[64];
+static char g_out[256]; /* captured stdout + stderr of the last run */
+
+/* Runs radray with args (NULL-terminated); returns its exit code and leaves
+ * its combined output in g_out (truncated). */
+static int run(const char *const *args)
+{
+    char log[128];
+    snprintf(log, sizeof log, "%s/log.txt", g_dir);
+    pid_t pid = fork();
+    if (pid == 0) {
+        int fd = open(log, O_WRONLY | O_CREAT | O_TRUNC, 0644);
+        dup2(fd, 1);
+        dup2(fd, 2);
+        const char *argv[32];
+        int n = 0;
+        argv[n++] = RR_RADRAY_BIN;
+        for (; args[n - 1] && n < 31; n++)
+            argv[n] = args[n - 1];
+        argv[n] = NULL;
+        execv(RR_RADRAY_BIN, (char *const *)argv);
+        _exit(127);
+    }
+    int status = 0;
+    waitpid(pid, &status, 0);
+    char *data = NULL;
+    g_out[0] = '\0';
+    if (rr_file_read_all(log, &data, NULL, NULL) == RR_OK) {
+        snprintf(g_out, sizeof g_out, "%s", data);
+        free(data);
+    }
+    return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+}
+
+static void write_file(const char *name, const void *data, size_t n)
+{
+    char path[256];
+    snprintf(path, sizeof path, "%s/%s", g_dir, name);
+    FILE *f = fopen(path, "wb");
+    assert_non_null(f);
+    assert_int_equal(fwrite(data, 1, n, f), n);
+    fclose(f);
+}
+
+static int exists(const char *name)
+{
+    char path[256];
+    struct stat st;
+    snprintf(path, sizeof path, "%s/%s", g_dir, name);
+    return stat(path, &st) == 0;
+}
+
+static const char *k_head =
+    "{\"format\":\"radray-scene/1\",\"camera\":{\"type\":\"lecture\",\"E\":[0,0,5],\"O\":[0,0,4],"
+    "\"U\":[0,1,0],\"s\":0.25,\"w\":%s,\"h\":4},"
+    "\"materials\":{\"a\":{\"diffuse\":[0.5,0.5,0.5]},\"glow\":{\"diffuse\":[0.5,0.5,0.5],\"emission\":[2,2,2]}},"
+    "\"objects\":[%s]}";
+
+static const char *k_quad =
+    "{\"type\":\"quad\",\"material\":\"a\",\"vertices\":[[-3,-3,-1],[3,-3,-1],[3,3,-1],[-3,3,-1]]}";
+
+/* Writes scene NAME with camera w and objects, returns its path. */
+static const char *scene_file(const char *name, const char *w, const char *objects)
+{
+    static char path[256];
+    char text[4096];
+    snprintf(text, sizeof text, k_head, w, objects);
+    write_file(name, text, strlen(text));
+    snprintf(path, sizeof path, "%s/%s", g_dir, name);
+    return path;
+}
+
+/* Expects: exit 2, one line naming `name`, containing `cause`, and no output. */
+static void expect_bad(const char *const *args, const char *name, const char *cause)
+{
+    int rc = run(args);
+    if (rc != 2 || !strstr(g_out, name) || !strstr(g_out, cause))
+        fail_msg("expected exit 2 naming '%s' with '%s'; got %d: %s", name, cause, rc, g_out);
+    char *nl = strchr(g_out, '\n');
+    assert_true(nl == NULL || nl[1] == '\0' || strstr(g_out, "warning")); /* one line */
+    assert_false(exists("bad.exr"));
+    assert_false(exists("bad.png"));
+}
+
+static char g_bad_out[256];
+
+static void help_and_usage(void **state)
+{
+    (void)state;
+    const char *a1[] = {"--help", NULL};
+    assert_int_equal(run(a1), 0);
+    assert_non_null(strstr(g_out, "render"));
+    assert_non_null(strstr(g_out, "info"));
+    const char *a2[] = {"render", "--help", NULL};
+    assert_int_equal(run(a2), 0);
+    assert_non_null(strstr(g_out, "--spp"));
+    const char *a3[] = {"info", "--help", NULL};
+    assert_int_equal(run(a3), 0);
+    const char *a4[] = {"frobnicate", NULL};
+    assert_int_equal(run(a4), 2);
+    const char *a5[] = {"render", "--bogus", "x.json", NULL};
+    assert_int_equal(run(a5), 2);
+    assert_non_null(strstr(g_out, "--bogus"));
+    const char *a6[] = {"render", NULL};
+    assert_int_equal(run(a6), 2);
+    const char *a7[] = {"render", "x.json", "--width", "-3", NULL};
+    assert_int_equal(run(a7), 2);
+}
+
+static void bad_scenes(void **state)
+{
+    (void)state;
+    /* Missing scene file. */
+    const char *a[] = {"render", "/nonexistent/scene.json", "-o", g_bad_out, NULL};
+    expect_bad(a, "/nonexistent/scene.json", "");
+    /* Invalid JSON: line and column. */
+    write_file("broken.json", "{\n  \"format\": \"radray-scene/1\",\n  \"camera\": [1,,\n}", 48);
+    char p[256];
+    snprintf(p, sizeof p, "%s/broken.json", g_dir);
+    const char *b[] = {"render", p, "-o", g_bad_out, NULL};
+    expect_bad(b, "broken.json", ":3:");
+    /* Unknown key, wrong type. */
+    const char *c[] = {"render", scene_file("unknown.json", "4", "{\"type\":\"quad\",\"material\":\"a\",\"colour\":1,"
+                                                                  "\"vertices\":[[0,0,0],[1,0,0],[1,1,0],[0,1,0]]}"),
+                       "-o", g_bad_out, NULL};
+    expect_bad(c, "unknown.json", "objects[0]");
+    assert_non_null(strstr(g_out, "colour"));
+    const char *d[] = {"render", scene_file("type.json", "\"four\"", k_quad), "-o", g_bad_out, NULL};
+    expect_bad(d, "type.json", "camera.w");
+    /* NaN / infinite coordinates. */
+    const char *e[] = {"render", scene_file("inf.json", "4", "{\"type\":\"quad\",\"material\":\"a\","
+                                                             "\"vertices\":[[0,0,0],[1e999,0,0],[1,1,0],[0,1,0]]}"),
+                       "-o", g_bad_out, NULL};
+    expect_bad(e, "inf.json", "objects[0]");
+    /* Negative resolution, and one that cannot fit in memory. */
+    const char *f[] = {"render", scene_file("neg.json", "-5", k_quad), "-o", g_bad_out, NULL};
+    expect_bad(f, "neg.json", "camera");
+    const char *g[] = {"render", scene_file("huge.json", "1000000", k_quad), "-o", g_bad_out, NULL};
+    expect_bad(g, "huge.json", "camera");
+}
+
+static void bad_meshes(void **state)
+{
+    (void)state;
+    static const char *cases[][2] = {
+        {"missing.obj", NULL}, {"empty.obj", ""}, {"trunc.ply", "ply\nformat binary_little_endian 1.0\nelement vertex 3\n"},
+        {"garbage.stl", "\x01\x02\x03\xff\xfe garbage \x00\x7f\x80 binary junk"},
+        {"nan.off", "OFF\n3 1 0\n0 0 0\nnan 0 0\n0 1 0\n3 0 1 2\n"},
+    };
+    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+        if (cases[i][1])
+            write_file(cases[i][0], cases[i][1], strlen(cases[i][1]) + (i == 3 ? 20 : 0));
+        char obj[256];
+        snprintf(obj, sizeof obj, "{\"type\":\"mesh\",\"material\":\"a\",\"file\":\"%s\"}", cases[i][0]);
+        const char *a[] = {"render", scene_file("mesh.json", "4", obj), "-o", g_bad_out, NULL};
+        expect_bad(a, cases[i][0], "objects[0]");
+    }
+}
+
+static void unwritable_output(void **state)
+{
+    (void)state;
+    const char *sc = scene_file("ok.json", "4", k_quad);
+    /* A folder that cannot be created (its parent is a file). */
+    write_file("afile", "x", 1);
+    char out[256];
+    snprintf(out, sizeof out, "%s/afile/sub/bad.exr", g_dir);
+    const char *a[] = {"render", sc, "-o", out, NULL};
+    expect_bad(a, "afile", "");
+    /* Not an .exr name. */
+    const char *b[] = {"render", sc, "-o", "x.png", NULL};
+    assert_int_equal(run(b), 2);
+}
+
+static void zero_area_warning(void **state)
+{
+    (void)state;
+    char objs[512];
+    snprintf(objs, sizeof objs,
+             "%s,{\"type\":\"triangles\",\"material\":\"a\",\"vertices\":[[0,0,0],[1,0,0],[2,0,0],[0,1,0]],"
+             "\"indices\":[[0,1,2],[0,1,3]]}",
+             k_quad);
+    char out[256];
+    snprintf(out, sizeof out, "%s/zero.exr", g_dir);
+    const char *a[] = {"render", scene_file("zero.json", "4", objs), "-o", out, NULL};
+    assert_int_equal(run(a), 0);
+    assert_non_null(strstr(g_out, "warning"));
+    assert_non_null(strstr(g_out, "zero-area"));
+    assert_true(exists("zero.exr"));
+}
+
+static void render_reads_back_and_is_thread_independent(void **state)
+{
+    (void)state;
+    char objs[512];
+    snprintf(objs, sizeof objs,
+             "%s,{\"type\":\"sphere\",\"material\":\"glow\",\"center\":[0,0,0],\"radius\":0.5}", k_quad);
+    const char *sc = scene_file("good.json", "4", objs);
+    char o1[256], o2[256], png[256];
+    snprintf(o1, sizeof o1, "%s/t1.exr", g_dir);
+    snprintf(o2, sizeof o2, "%s/t2.exr", g_dir);
+    snprintf(png, sizeof png, "%s/t1.png", g_dir);
+    const char *a[] = {"render", sc, "-o", o1, "--threads", "1", "--spp", "4", NULL};
+    assert_int_equal(run(a), 0);
+    assert_non_null(strstr(g_out, "t1.exr"));
+    const char *b[] = {"render", sc, "-o", o2, "--threads", "2", "--spp", "4", "--no-png", NULL};
+    assert_int_equal(run(b), 0);
+    rr_image i1 = {0}, i2 = {0};
+    assert_int_equal(img_read_exr(o1, NULL, &i1, NULL), RR_OK);
+    assert_int_equal(img_read_exr(o2, NULL, &i2, NULL), RR_OK);
+    assert_int_equal(i1.width, 9);
+    assert_int_equal(i1.height, 9);
+    assert_memory_equal(i1.px, i2.px, sizeof(float) * 3 * 81);
+    /* Centre: the emissive sphere (emission 2 + diffuse 0.5 * ~1). */
+    assert_true(rr_image_get(&i1, 4, 4).r > 2.0);
+    unsigned char *rgb8 = NULL;
+    int w = 0, h = 0;
+    assert_int_equal(img_read_png(png, &rgb8, &w, &h, NULL), RR_OK);
+    assert_int_equal(w, 9);
+    assert_int_equal(rgb8[3 * (4 * 9 + 4)], 255); /* clamped */
+    free(rgb8);
+    rr_image_free(&i1);
+    rr_image_free(&i2);
+    /* --width rescales, info describes. */
+    const char *c[] = {"render", sc, "-o", o1, "--width", "17", "-q", NULL};
+    assert_int_equal(run(c), 0);
+    assert_string_equal(g_out, "");
+    assert_int_equal(img_read_exr(o1, NULL, &i1, NULL), RR_OK);
+    assert_int_equal(i1.width, 17);
+    assert_int_equal(i1.height, 17);
+    rr_image_free(&i1);
+    const char *d[] = {"info", sc, NULL};
+    assert_int_equal(run(d), 0);
+    assert_non_null(strstr(g_out, "sphere"));
+}
+
+static int setup(void **state)
+{
+    (void)state;
+    strcpy(g_dir, "/tmp/rr_cli_XXXXXX");
+    if (!mkdtemp(g_dir))
+        return -1;
+    snprintf(g_bad_out, sizeof g_bad_out, "%s/bad.exr", g_dir);
+    return 0;
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(help_and_usage),
+        cmocka_unit_test(bad_scenes),
+        cmocka_unit_test(bad_meshes),
+        cmocka_unit_test(unwritable_output),
+        cmocka_unit_test(zero_area_warning),
+        cmocka_unit_test(render_reads_back_and_is_thread_independent),
+    };
+    return cmocka_run_group_tests(tests, setup, NULL);
+}
