@@ -19,7 +19,7 @@
 #include "rr_core.h"
 
 static char g_dir[64];
-static char g_out[256]; /* captured stdout + stderr of the last run */
+static char g_out[8192]; /* captured stdout + stderr of the last run */
 
 /* Runs radray with args (NULL-terminated); returns its exit code and leaves
  * its combined output in g_out (truncated). */
@@ -164,12 +164,15 @@ static void bad_meshes(void **state)
     (void)state;
     static const char *cases[][2] = {
         {"missing.obj", NULL}, {"empty.obj", ""}, {"trunc.ply", "ply\nformat binary_little_endian 1.0\nelement vertex 3\n"},
-        {"garbage.stl", "\x01\x02\x03\xff\xfe garbage \x00\x7f\x80 binary junk"},
+        {"garbage.stl", "(binary, below)"},
         {"nan.off", "OFF\n3 1 0\n0 0 0\nnan 0 0\n0 1 0\n3 0 1 2\n"},
     };
     for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
-        if (cases[i][1])
-            write_file(cases[i][0], cases[i][1], strlen(cases[i][1]) + (i == 3 ? 20 : 0));
+        static const char garbage[] = "\x01\x02\x03\xff\xfe garbage \x00\x7f\x80 binary junk";
+        if (i == 3)
+            write_file(cases[i][0], garbage, sizeof garbage);
+        else if (cases[i][1])
+            write_file(cases[i][0], cases[i][1], strlen(cases[i][1]));
         char obj[256];
         snprintf(obj, sizeof obj, "{\"type\":\"mesh\",\"material\":\"a\",\"file\":\"%s\"}", cases[i][0]);
         const char *a[] = {"render", scene_file("mesh.json", "4", obj), "-o", g_bad_out, NULL};
