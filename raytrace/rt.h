@@ -55,6 +55,19 @@ int rt_ref_closest(const scene *s, rr_ray ray, double tmin, double tmax, rt_hit 
  * or grazing rays): the smallest t in (tmin, tmax), or 0 when none. */
 int rt_sphere_hit(rr_vec3 center, double radius, rr_ray ray, double tmin, double tmax, double *t);
 
+/* The fast path: a BVH over every triangle and sphere of a scene (binned SAH,
+ * flat 32-byte nodes, watertight triangle test). The accel keeps a pointer to
+ * the scene, which must outlive it. Queries are thread-safe (read-only). */
+typedef struct rt_accel rt_accel;
+
+rr_status rt_accel_build(const scene *s, rt_accel **out, rr_error *err);
+void rt_accel_destroy(rt_accel *a); /* NULL is a no-op */
+size_t rt_accel_node_count(const rt_accel *a);
+/* Same contract as rt_ref_closest (and tested against it). */
+int rt_accel_closest(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_hit *hit);
+/* Any hit with t in (tmin, tmax): for shadow rays; stops at the first occluder. */
+int rt_accel_occluded(const rt_accel *a, rr_ray ray, double tmin, double tmax);
+
 typedef struct rt_render_opts {
     int spp;          /* samples per pixel (stratified in a sqrt(spp) grid when square) */
     uint64_t seed;

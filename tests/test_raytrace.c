@@ -6,6 +6,7 @@
 #include <stdint.h>
 #include <cmocka.h>
 
+#include <stdlib.h>
 #include <string.h>
 
 #include "rt.h"
@@ -195,6 +196,150 @@ static void preview_deterministic_across_threads(void **state)
     scene_destroy(s);
 }
 
+
+/* Builds a scene JSON string with a random triangle soup and a few spheres. */
+static char *random_scene(rr_rng *rng, int ntri, int nsph)
+{
+    size_t cap = (size_t)ntri * 3 * 80 + (size_t)nsph * 200 + 4096, len = 0;
+    char *buf = malloc(cap);
+    len += (size_t)snprintf(buf + len, cap - len,
+                            "{\"format\":\"radray-scene/1\",\"camera\":{\"type\":\"lecture\",\"E\":[0,0,5],"
+                            "\"O\":[0,0,4],\"U\":[0,1,0],\"s\":0.1,\"w\":2,\"h\":2},"
+                            "\"materials\":{\"a\":{\"diffuse\":[0.5,0.5,0.5]}},\"objects\":["
+                            "{\"type\":\"triangles\",\"material\":\"a\",\"vertices\":[");
+    for (int i = 0; i < 3 * ntri; i++)
+        len += (size_t)snprintf(buf + len, cap - len, "%s[%.17g,%.17g,%.17g]", i ? "," : "",
+                                2 * rr_rng_uniform(rng) - 1, 2 * rr_rng_uniform(rng) - 1,
+                                2 * rr_rng_uniform(rng) - 1);
+    len += (size_t)snprintf(buf + len, cap - len, "],\"indices\":[");
+    for (int i = 0; i < ntri; i++)
+        len += (size_t)snprintf(buf + len, cap - len, "%s[%d,%d,%d]", i ? "," : "", 3 * i, 3 * i + 1, 3 * i + 2);
+    len += (size_t)snprintf(buf + len, cap - len, "]}");
+    for (int i = 0; i < nsph; i++)
+        len += (size_t)snprintf(buf + len, cap - len,
+                                ",{\"type\":\"sphere\",\"material\":\"a\",\"center\":[%.17g,%.17g,%.17g],"
+                                "\"radius\":%.17g}",
+                                2 * rr_rng_uniform(rng) - 1, 2 * rr_rng_uniform(rng) - 1,
+                                2 * rr_rng_uniform(rng) - 1, 0.05 + 0.2 * rr_rng_uniform(rng));
+    snprintf(buf + len, cap - len, "]}");
+    return buf;
+}
+
+static rr_vec3 random_point(rr_rng *rng, double r)
+{
+    return rr_v3(r * (2 * rr_rng_uniform(rng) - 1), r * (2 * rr_rng_uniform(rng) - 1),
+                 r * (2 * rr_rng_uniform(rng) - 1));
+}
+
+/* The BVH path agrees with the lecture's brute force on every random ray: same
+ * hit or miss, same primitive, same t to 1e-9 relative. */
+static void bvh_matches_reference_random(void **state)
+{
+    (void)state;
+    rr_rng rng = rr_rng_make(7, 3);
+    char *json = random_scene(&rng, 400, 6);
+    scene *s = NULL;
+    rr_error err;
+    assert_int_equal(scene_load_string(json, "random", "", NULL, &s, &err), RR_OK);
+    free(json);
+    rt_accel *a = NULL;
+    assert_int_equal(rt_accel_build(s, &a, &err), RR_OK);
+    assert_true(rt_accel_node_count(a) > 10);
+    int hits = 0, n = 20000, edge_cases = 0;
+    for (int i = 0; i < n; i++) {
+        rr_ray r;
+        r.o = random_point(&rng, 2.0);
+        r.d = rr_v3_sub(random_point(&rng, 1.0), r.o);
+        rt_hit h1, h2;
+        int f1 = rt_ref_closest(s, r, 1e-9, INFINITY, &h1);
+        int f2 = rt_accel_closest(a, r, 1e-9, INFINITY, &h2);
+        if (f1 != f2 || (f1 && h1.tri != h2.tri)) {
+            /* Only allowed where the reference's strict tests and the watertight
+             * test legitimately differ: a ray within rounding of an edge. */
+            edge_cases++;
+            continue;
+        }
+        assert_int_equal(rt_accel_occluded(a, r, 1e-9, INFINITY), f2);
+        if (f1) {
+            hits++;
+            assert_int_equal(h1.object, h2.object);
+            assert_near(h1.t, h2.t, 1e-9 * fmax(1.0, h1.t));
+            assert_int_equal(h1.front, h2.front);
+            assert_near(rr_v3_dot(h1.normal, h2.normal), 1.0, 1e-9);
+            /* Shadow segment shorter than the hit: not occluded by it. */
+            assert_false(rt_accel_occluded(a, r, 1e-9, h2.t * (1 - 1e-9)) &&
+                         !rt_ref_closest(s, r, 1e-9, h2.t * (1 - 1e-9), &h1));
+        }
+    }
+    assert_true(edge_cases <= 2);
+    assert_true(hits > n / 4);
+    rt_accel_destroy(a);
+    rt_accel_destroy(NULL);
+    scene_destroy(s);
+}
+
+/* Watertightness: a 16 x 16 grid of quads (512 triangles sharing edges and
+ * vertices); rays aimed exactly at shared vertices and at points on shared
+ * edges must all hit. */
+static void bvh_watertight_shared_edges(void **state)
+{
+    (void)state;
+    enum { G = 16 };
+    size_t cap = 64 * (G + 1) * (G + 1) + 40 * 2 * G * G + 1024, len = 0;
+    char *buf = malloc(cap);
+    len += (size_t)snprintf(buf + len, cap - len,
+                            "{\"format\":\"radray-scene/1\",\"camera\":{\"type\":\"lecture\",\"E\":[0,0,5],"
+                            "\"O\":[0,0,4],\"U\":[0,1,0],\"s\":0.1,\"w\":2,\"h\":2},"
+                            "\"materials\":{\"a\":{\"diffuse\":[0.5,0.5,0.5]}},\"objects\":["
+                            "{\"type\":\"triangles\",\"material\":\"a\",\"vertices\":[");
+    /* Irregular spacing so that vertices are not round numbers. */
+    double coord[G + 1];
+    for (int i = 0; i <= G; i++)
+        coord[i] = -1.0 + 2.0 * i / G + (i > 0 && i < G ? 0.013 * sin(7.3 * i) : 0.0);
+    for (int y = 0; y <= G; y++)
+        for (int x = 0; x <= G; x++)
+            len += (size_t)snprintf(buf + len, cap - len, "%s[%.17g,%.17g,%.17g]", x || y ? "," : "", coord[x],
+                                    coord[y], 0.1 * coord[x] * coord[y]);
+    len += (size_t)snprintf(buf + len, cap - len, "],\"indices\":[");
+    for (int y = 0; y < G; y++)
+        for (int x = 0; x < G; x++) {
+            int v = y * (G + 1) + x;
+            len += (size_t)snprintf(buf + len, cap - len, "%s[%d,%d,%d],[%d,%d,%d]", x || y ? "," : "", v, v + 1,
+                                    v + G + 2, v, v + G + 2, v + G + 1);
+        }
+    snprintf(buf + len, cap - len, "]}]}");
+    scene *s = NULL;
+    rr_error err;
+    assert_int_equal(scene_load_string(buf, "grid", "", NULL, &s, &err), RR_OK);
+    free(buf);
+    rt_accel *a = NULL;
+    assert_int_equal(rt_accel_build(s, &a, &err), RR_OK);
+    rr_rng rng = rr_rng_make(11, 0);
+    int misses = 0, n = 0;
+    for (int y = 1; y < G; y++)
+        for (int x = 1; x < G; x++) {
+            rr_vec3 v = s->verts[y * (G + 1) + x];
+            rr_vec3 right = s->verts[y * (G + 1) + x + 1], diag = s->verts[(y + 1) * (G + 1) + x + 1];
+            rr_vec3 targets[3] = {v, rr_v3_add(v, rr_v3_scale(rr_v3_sub(right, v), rr_rng_uniform(&rng))),
+                                  rr_v3_add(v, rr_v3_scale(rr_v3_sub(diag, v), rr_rng_uniform(&rng)))};
+            for (int k = 0; k < 3; k++)
+                for (int rep = 0; rep < 4; rep++) {
+                    rr_ray r;
+                    r.o = rr_v3_add(targets[k], rr_v3(rr_rng_uniform(&rng) - 0.5, rr_rng_uniform(&rng) - 0.5,
+                                                      rep % 2 ? 2.0 : -2.0));
+                    r.d = rr_v3_sub(targets[k], r.o);
+                    rt_hit h;
+                    n++;
+                    misses += !rt_accel_closest(a, r, 0, INFINITY, &h);
+                    misses += !rt_accel_occluded(a, r, 0, INFINITY);
+                }
+        }
+    assert_int_equal(misses, 0);
+    assert_true(n > 2000);
+    rt_accel_destroy(a);
+    scene_destroy(s);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -204,6 +349,8 @@ int main(void)
         cmocka_unit_test(sphere_hits),
         cmocka_unit_test(closest_hit_brute_force),
         cmocka_unit_test(preview_deterministic_across_threads),
+        cmocka_unit_test(bvh_matches_reference_random),
+        cmocka_unit_test(bvh_watertight_shared_edges),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

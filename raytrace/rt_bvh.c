@@ -1,0 +1,285 @@
+/* rt_bvh.c - bounding volume hierarchy over every primitive of a scene, and the
+ * queries all rays go through (closest hit, any hit).
+ *
+ * Build: binned surface area heuristic (16 bins over the centroid bounds, as in
+ * Wald 2007, "On fast construction of SAH-based BVHs"), nodes written straight
+ * into one flat array in depth-first order: an inner node's left child is the
+ * next node, the right child is at `index`; a leaf's primitives are
+ * prims[index .. index+count). Bounds are stored as floats rounded outward, so a
+ * node is 32 bytes and still contains its primitives exactly.
+ *
+ * Primitives: one small closed interface (bounds + intersect) over the kinds in
+ * rt_prim_kind; every query calls the same per-kind intersection function, so
+ * closest-hit and shadow rays cannot disagree about an epsilon.
+ *
+ * Triangles: the watertight test of Woop, Benthin & Wald 2013 ("Watertight
+ * ray/triangle intersection", JCGT 2(1)): the triangle is sheared into a space
+ * where the ray is the +z axis, and the three edge functions are evaluated from
+ * the shared, identically transformed vertices. A ray through an edge shared by
+ * two triangles gets edge values of opposite sign in the two (same numbers,
+ * swapped order), so it cannot slip between them. Exact zeros (ray through an
+ * edge or vertex) are recomputed in long double as the paper advises.
+ */
+#include <float.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "rt_internal.h"
+
+#define RT_BINS 16
+#define RT_LEAF_MAX 8
+#define RT_STACK RT_BVH_STACK
+
+static float round_down(double x)
+{
+    float f = (float)x;
+    return (double)f > x ? nextafterf(f, -INFINITY) : f;
+}
+static float round_up(double x)
+{
+    float f = (float)x;
+    return (double)f < x ? nextafterf(f, INFINITY) : f;
+}
+
+typedef struct box3 {
+    rr_vec3 lo, hi;
+} box3;
+
+static box3 box_empty(void)
+{
+    box3 b = {rr_v3(INFINITY, INFINITY, INFINITY), rr_v3(-INFINITY, -INFINITY, -INFINITY)};
+    return b;
+}
+static box3 box_union(box3 a, box3 b)
+{
+    box3 r = {rr_v3_min(a.lo, b.lo), rr_v3_max(a.hi, b.hi)};
+    return r;
+}
+static box3 box_add(box3 a, rr_vec3 p)
+{
+    box3 r = {rr_v3_min(a.lo, p), rr_v3_max(a.hi, p)};
+    return r;
+}
+static double box_area(box3 b)
+{
+    rr_vec3 d = rr_v3_sub(b.hi, b.lo);
+    if (d.x < 0 || d.y < 0 || d.z < 0)
+        return 0.0;
+    return 2.0 * (d.x * d.y + d.y * d.z + d.z * d.x);
+}
+
+static box3 prim_bounds(const scene *s, rt_prim p)
+{
+    box3 b = box_empty();
+    if (p.kind == RT_PRIM_TRIANGLE) {
+        const scene_tri *t = &s->tris[p.index];
+        for (int k = 0; k < 3; k++)
+            b = box_add(b, s->verts[t->v[k]]);
+    } else {
+        const scene_object *o = &s->objects[p.index];
+        rr_vec3 r = rr_v3(o->radius, o->radius, o->radius);
+        b.lo = rr_v3_sub(o->center, r);
+        b.hi = rr_v3_add(o->center, r);
+    }
+    return b;
+}
+
+typedef struct build_item {
+    box3 box;
+    rr_vec3 centroid;
+    rt_prim prim;
+} build_item;
+
+typedef struct builder {
+    build_item *items;
+    rt_node *nodes;
+    size_t nnodes, cap;
+} builder;
+
+static int push_node(builder *b, size_t *idx)
+{
+    if (b->nnodes == b->cap) {
+        size_t cap = b->cap ? 2 * b->cap : 256;
+        rt_node *n = realloc(b->nodes, cap * sizeof *n);
+        if (!n)
+            return -1;
+        b->nodes = n;
+        b->cap = cap;
+    }
+    *idx = b->nnodes++;
+    return 0;
+}
+
+static void set_bounds(rt_node *n, box3 box)
+{
+    n->lo[0] = round_down(box.lo.x);
+    n->lo[1] = round_down(box.lo.y);
+    n->lo[2] = round_down(box.lo.z);
+    n->hi[0] = round_up(box.hi.x);
+    n->hi[1] = round_up(box.hi.y);
+    n->hi[2] = round_up(box.hi.z);
+}
+
+/* Chooses a split of items[first, first+count) by binned SAH; returns the
+ * number of items put on the left (0 = make a leaf). */
+static size_t sah_partition(build_item *items, size_t count, box3 box, int *axis_out)
+{
+    box3 cb = box_empty();
+    for (size_t i = 0; i < count; i++)
+        cb = box_add(cb, items[i].centroid);
+    double best_cost = (double)count; /* cost of a leaf, in intersection units */
+    int best_axis = -1, best_split = 0;
+    for (int axis = 0; axis < 3; axis++) {
+        double lo = rr_v3_get(cb.lo, axis), hi = rr_v3_get(cb.hi, axis);
+        if (!(hi > lo))
+            continue;
+        box3 bins[RT_BINS];
+        size_t cnt[RT_BINS] = {0};
+        for (int k = 0; k < RT_BINS; k++)
+            bins[k] = box_empty();
+        double scale = RT_BINS / (hi - lo);
+        for (size_t i = 0; i < count; i++) {
+            int k = (int)((rr_v3_get(items[i].centroid, axis) - lo) * scale);
+            k = k < 0 ? 0 : (k >= RT_BINS ? RT_BINS - 1 : k);
+            cnt[k]++;
+            bins[k] = box_union(bins[k], items[i].box);
+        }
+        /* Sweep from the right, then from the left. */
+        double right_area[RT_BINS];
+        size_t right_cnt[RT_BINS];
+        box3 acc = box_empty();
+        size_t n = 0;
+        for (int k = RT_BINS - 1; k > 0; k--) {
+            acc = box_union(acc, bins[k]);
+            n += cnt[k];
+            right_area[k] = box_area(acc);
+            right_cnt[k] = n;
+        }
+        acc = box_empty();
+        n = 0;
+        double inv_area = 1.0 / fmax(box_area(box), DBL_MIN);
+        for (int k = 1; k < RT_BINS; k++) {
+            acc = box_union(acc, bins[k - 1]);
+            n += cnt[k - 1];
+            if (n == 0 || right_cnt[k] == 0)
+                continue;
+            /* Traversal cost 1 relative to one primitive test. */
+            double cost = 1.0 + (box_area(acc) * (double)n + right_area[k] * (double)right_cnt[k]) * inv_area;
+            if (cost < best_cost) {
+                best_cost = cost;
+                best_axis = axis;
+                best_split = k;
+            }
+        }
+    }
+    if (best_axis < 0) {
+        if (count <= RT_LEAF_MAX)
+            return 0;
+        /* All centroids coincide (or SAH prefers a leaf that is too big): split in the middle. */
+        *axis_out = 0;
+        return count / 2;
+    }
+    double lo = rr_v3_get(cb.lo, best_axis), hi = rr_v3_get(cb.hi, best_axis);
+    double scale = RT_BINS / (hi - lo);
+    size_t left = 0;
+    for (size_t i = 0; i < count; i++) {
+        int k = (int)((rr_v3_get(items[i].centroid, best_axis) - lo) * scale);
+        k = k < 0 ? 0 : (k >= RT_BINS ? RT_BINS - 1 : k);
+        if (k < best_split) {
+            build_item t = items[i];
+            items[i] = items[left];
+            items[left++] = t;
+        }
+    }
+    *axis_out = best_axis;
+    return left;
+}
+
+static int build_rec(builder *b, size_t first, size_t count, int depth)
+{
+    size_t idx;
+    if (push_node(b, &idx))
+        return -1;
+    box3 box = box_empty();
+    for (size_t i = 0; i < count; i++)
+        box = box_union(box, b->items[first + i].box);
+    int axis = 0;
+    size_t left = depth >= RT_STACK - 2 ? 0 : sah_partition(b->items + first, count, box, &axis);
+    rt_node *n = &b->nodes[idx];
+    set_bounds(n, box);
+    if (left == 0 || left == count) {
+        RR_CHECK(count <= UINT16_MAX);
+        n->index = (uint32_t)first;
+        n->count = (uint16_t)count;
+        n->axis = 0;
+        return 0;
+    }
+    n->count = 0;
+    n->axis = (uint16_t)axis;
+    if (build_rec(b, first, left, depth + 1))
+        return -1;
+    b->nodes[idx].index = (uint32_t)b->nnodes; /* right child follows the whole left subtree */
+    return build_rec(b, first + left, count - left, depth + 1);
+}
+
+rr_status rt_accel_build(const scene *s, rt_accel **out, rr_error *err)
+{
+    size_t nspheres = 0;
+    for (size_t i = 0; i < s->nobjects; i++)
+        nspheres += s->objects[i].kind == SCENE_OBJ_SPHERE;
+    size_t n = s->ntris + nspheres;
+    if (n > UINT32_MAX / 2)
+        return rr_error_set(err, RR_ERR_LIMIT, "%s: %zu primitives exceed the BVH limit", s->path, n);
+    rt_accel *a = calloc(1, sizeof *a);
+    builder b = {0};
+    b.items = n ? malloc(n * sizeof *b.items) : NULL;
+    if (!a || (n && !b.items))
+        goto nomem;
+    size_t k = 0;
+    for (size_t i = 0; i < s->ntris; i++, k++) {
+        b.items[k].prim.kind = RT_PRIM_TRIANGLE;
+        b.items[k].prim.index = (uint32_t)i;
+    }
+    for (size_t i = 0; i < s->nobjects; i++)
+        if (s->objects[i].kind == SCENE_OBJ_SPHERE) {
+            b.items[k].prim.kind = RT_PRIM_SPHERE;
+            b.items[k].prim.index = (uint32_t)i;
+            k++;
+        }
+    for (size_t i = 0; i < n; i++) {
+        b.items[i].box = prim_bounds(s, b.items[i].prim);
+        b.items[i].centroid = rr_v3_scale(rr_v3_add(b.items[i].box.lo, b.items[i].box.hi), 0.5);
+    }
+    if (n && build_rec(&b, 0, n, 0))
+        goto nomem;
+    a->scene = s;
+    a->nodes = b.nodes;
+    a->nnodes = b.nnodes;
+    a->nprims = n;
+    a->prims = n ? malloc(n * sizeof *a->prims) : NULL;
+    if (n && !a->prims)
+        goto nomem;
+    for (size_t i = 0; i < n; i++)
+        a->prims[i] = b.items[i].prim;
+    free(b.items);
+    *out = a;
+    return RR_OK;
+nomem:
+    free(b.items);
+    free(b.nodes);
+    if (a)
+        free(a->prims);
+    free(a);
+    return rr_error_set(err, RR_ERR_NOMEM, "%s: out of memory building the BVH over %zu primitives", s->path, n);
+}
+
+void rt_accel_destroy(rt_accel *a)
+{
+    if (!a)
+        return;
+    free(a->nodes);
+    free(a->prims);
+    free(a);
+}
+
+size_t rt_accel_node_count(const rt_accel *a) { return a->nnodes; }
