@@ -28,6 +28,11 @@ static const char render_usage[] =
     "      --threads N        worker threads, 0 = all cores (render.threads)\n"
     "      --exposure EV      PNG preview exposure in stops (render.exposure)\n"
     "      --half             write half-float EXR instead of float (render.half_float)\n"
+    "      --mode MODE        whitted (default): direct light, shadows, mirrors, ambient term\n"
+    "                         secondary: diffuse interreflection by Monte Carlo secondary rays\n"
+    "      --indirect KIND    what supplies diffuse interreflection: ambient|secondary|none\n"
+    "                         (overrides the mode's choice)\n"
+    "      --filter F         pixel filter for supersampling: box (default) or tent\n"
     "      --set KEY=VALUE    override any scene value by its JSON path, e.g.\n"
     "                         --set render.spp=16 --set materials.white.diffuse=[0.7,0.7,0.7]\n"
     "                         (repeatable; VALUE is JSON, or a string)\n"
@@ -90,7 +95,29 @@ static int ends_with(const char *s, const char *suffix)
     return n >= m && strcasecmp(s + n - m, suffix) == 0;
 }
 
-enum { OPT_PNG = 256, OPT_NO_PNG, OPT_WIDTH, OPT_SPP, OPT_SEED, OPT_THREADS, OPT_EXPOSURE, OPT_HALF, OPT_SET };
+enum {
+    OPT_PNG = 256,
+    OPT_NO_PNG,
+    OPT_WIDTH,
+    OPT_SPP,
+    OPT_SEED,
+    OPT_THREADS,
+    OPT_EXPOSURE,
+    OPT_HALF,
+    OPT_SET,
+    OPT_MODE,
+    OPT_INDIRECT,
+    OPT_FILTER
+};
+
+/* Looks name up in a NULL-terminated list; returns its index or -1. */
+static int pick(const char *name, const char *const *names)
+{
+    for (int i = 0; names[i]; i++)
+        if (!strcmp(name, names[i]))
+            return i;
+    return -1;
+}
 
 int app_cmd_render(int argc, char **argv)
 {
@@ -101,16 +128,24 @@ int app_cmd_render(int argc, char **argv)
         {"threads", required_argument, NULL, OPT_THREADS}, {"exposure", required_argument, NULL, OPT_EXPOSURE},
         {"half", no_argument, NULL, OPT_HALF},        {"set", required_argument, NULL, OPT_SET},
         {"quiet", no_argument, NULL, 'q'},            {"help", no_argument, NULL, 'h'},
+        {"mode", required_argument, NULL, OPT_MODE},  {"indirect", required_argument, NULL, OPT_INDIRECT},
+        {"filter", required_argument, NULL, OPT_FILTER},
         {NULL, 0, NULL, 0}};
     const char *out_exr = NULL, *out_png = NULL;
     int no_png = 0, quiet = 0;
     long width = 0;
+    static const char *const modes[] = {"whitted", "secondary", NULL};
+    static const char *const indirects[] = {"none", "ambient", "secondary", NULL};
+    static const char *const filters[] = {"box", "tent", NULL};
+    int mode = 0, indirect = -1, filter = RT_FILTER_BOX;
     /* Overrides: one per --set, plus those the shorthand options expand to. */
     char **sets = calloc((size_t)argc + 1, sizeof *sets);
     size_t nsets = 0;
     int rc = APP_EXIT_USAGE;
     scene *sc = NULL;
-    rr_image img = {0};
+    rt_film film;
+    rt_accel *accel = NULL;
+    memset(&film, 0, sizeof film);
     char exr_default[4200], png_default[4200];
     if (!sets) {
         app_error("out of memory");
@@ -134,6 +169,24 @@ int app_cmd_render(int argc, char **argv)
         case OPT_WIDTH:
             if (app_parse_int(optarg, 1, 1 << 21, &width)) {
                 app_error("--width: expected an integer in [1, %d], got '%s'", 1 << 21, optarg);
+                goto done;
+            }
+            break;
+        case OPT_MODE:
+            if ((mode = pick(optarg, modes)) < 0) {
+                app_error("--mode: expected whitted or secondary, got '%s'", optarg);
+                goto done;
+            }
+            break;
+        case OPT_INDIRECT:
+            if ((indirect = pick(optarg, indirects)) < 0) {
+                app_error("--indirect: expected ambient, secondary or none, got '%s'", optarg);
+                goto done;
+            }
+            break;
+        case OPT_FILTER:
+            if ((filter = pick(optarg, filters)) < 0) {
+                app_error("--filter: expected box or tent, got '%s'", optarg);
                 goto done;
             }
             break;
@@ -210,7 +263,8 @@ int app_cmd_render(int argc, char **argv)
     }
     if (check_writable(out_exr) || (!no_png && check_writable(out_png)))
         goto done;
-    if (rr_image_init(&img, sc->view.width, sc->view.height, &err) != RR_OK) {
+    if (rt_film_init(&film, sc->view.width, sc->view.height, &err) != RR_OK ||
+        rt_accel_build(sc, &accel, &err) != RR_OK) {
         app_error("%s", err.msg);
         rc = APP_EXIT_RUNTIME;
         goto done;
@@ -224,31 +278,46 @@ int app_cmd_render(int argc, char **argv)
     ro.spp = sc->settings.spp;
     ro.seed = sc->settings.seed;
     ro.threads = sc->settings.threads;
+    ro.max_depth = sc->settings.max_depth;
+    ro.light_samples = sc->settings.light_samples;
+    ro.indirect = indirect >= 0 ? (rt_indirect)indirect : (mode == 1 ? RT_INDIRECT_SECONDARY : RT_INDIRECT_AMBIENT);
+    ro.filter = (rt_filter)filter;
     ro.progress = draw_progress;
     ro.progress_user = &prog;
     rc = APP_EXIT_RUNTIME;
-    if (rt_render_preview(sc, &ro, &img, &err) != RR_OK) {
+    if (rt_render(sc, accel, &ro, &film, &err) != RR_OK) {
         app_error("%s", err.msg);
         goto done;
     }
     double secs = seconds_since(&prog.start);
-    if (img_write_exr(out_exr, &img, NULL, 0, sc->settings.half_float ? IMG_HALF : IMG_FLOAT, &err) != RR_OK) {
+    img_layer layers[RT_LAYER_COUNT];
+    for (int i = 0; i < RT_LAYER_COUNT; i++) {
+        layers[i].name = rt_layer_name(i);
+        layers[i].image = &film.layer[i];
+    }
+    if (img_write_exr(out_exr, &film.beauty, layers, RT_LAYER_COUNT, sc->settings.half_float ? IMG_HALF : IMG_FLOAT,
+                      &err) != RR_OK) {
         app_error("%s", err.msg);
         goto done;
     }
-    if (!no_png && img_write_png(out_png, &img, sc->settings.exposure, &err) != RR_OK) {
+    if (!no_png && img_write_png(out_png, &film.beauty, sc->settings.exposure, &err) != RR_OK) {
         app_error("%s", err.msg);
         goto done;
     }
     if (!quiet) {
-        printf("rendered %s: %d x %d, %d spp, %.2f s\n", scene_path, img.width, img.height, sc->settings.spp, secs);
-        printf("wrote %s (linear %s RGB)\n", out_exr, sc->settings.half_float ? "half" : "float");
+        printf("rendered %s: %d x %d, %d spp, indirect %s, %.2f s\n", scene_path, film.beauty.width,
+               film.beauty.height, sc->settings.spp, indirects[ro.indirect], secs);
+        printf("wrote %s (linear %s RGB; layers", out_exr, sc->settings.half_float ? "half" : "float");
+        for (int i = 0; i < RT_LAYER_COUNT; i++)
+            printf(" %s", rt_layer_name(i));
+        printf(")\n");
         if (!no_png)
             printf("wrote %s (sRGB preview, exposure %+g)\n", out_png, sc->settings.exposure);
     }
     rc = APP_EXIT_OK;
 done:
-    rr_image_free(&img);
+    rt_film_free(&film);
+    rt_accel_destroy(accel);
     scene_destroy(sc);
     for (size_t i = 0; i < nsets; i++)
         free(sets[i]);

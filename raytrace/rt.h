@@ -1,6 +1,6 @@
 /* rt.h - the ray-tracing pass.
  *
- * Offers, today:
+ * Offers:
  *  - The lecture's reference geometry, kept deliberately literal so that it can
  *    be read next to the lecture notes and so that every fast path has
  *    something to be tested against:
@@ -10,9 +10,10 @@
  *      rt_dist_along_ray  t = (AB x AC).EA / (AB x AC).EP
  *  - rt_ref_closest: front-most hit over the whole scene by brute force
  *    (every triangle with the lecture's tests, every sphere in closed form).
- *  - rt_render_preview: a flat-shaded image of the front-most hits, used by
- *    `radray render` until the full ray tracer (BVH, lights, shadows, mirrors)
- *    replaces it.
+ *  - rt_accel_*: the fast path, a BVH with a watertight triangle test, tested
+ *    against rt_ref_closest.
+ *  - rt_render: the ray-tracing pass (shading, shadows, mirrors, area lights,
+ *    secondary rays) into a film with per-component layers.
  *
  * The scene is read-only here; rendering is multithreaded with OpenMP over
  * rows, every pixel draws from its own RNG stream (rr_rng_make(seed, pixel)),
@@ -68,18 +69,54 @@ int rt_accel_closest(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt
 /* Any hit with t in (tmin, tmax): for shadow rays; stops at the first occluder. */
 int rt_accel_occluded(const rt_accel *a, rr_ray ray, double tmin, double tmax);
 
+/* What supplies the diffuse interreflection. */
+typedef enum rt_indirect {
+    RT_INDIRECT_NONE = 0,      /* direct light only */
+    RT_INDIRECT_AMBIENT = 1,   /* the lecture's a * A * rho (Whitted) */
+    RT_INDIRECT_SECONDARY = 2  /* Monte Carlo secondary rays (unbiased reference) */
+} rt_indirect;
+
+typedef enum rt_filter { RT_FILTER_BOX = 0, RT_FILTER_TENT = 1 } rt_filter;
+
 typedef struct rt_render_opts {
-    int spp;          /* samples per pixel (stratified in a sqrt(spp) grid when square) */
+    int spp;          /* samples per pixel, stratified over the pixel filter */
     uint64_t seed;
     int threads;      /* 0 = OpenMP default */
-    /* Progress, called from one thread at a time with the rows finished so far. */
-    void (*progress)(void *user, int rows_done, int rows_total);
+    int max_depth;    /* mirror recursion limit */
+    int light_samples; /* shadow rays per hit for the area lights */
+    rt_indirect indirect;
+    rt_filter filter;
+    /* Progress, called from one thread at a time with the work units (tiles)
+     * finished so far. */
+    void (*progress)(void *user, int done, int total);
     void *progress_user;
 } rt_render_opts;
 
-/* Preview render: each pixel averages spp jittered primary rays; a hit shows
- * emission + diffuse * (0.15 + 0.85 |N.V|) (a "headlight" flat shade), a miss
- * shows the scene's background. img must be allocated at the view's size. */
-rr_status rt_render_preview(const scene *s, const rt_render_opts *opts, rr_image *img, rr_error *err);
+/* Per-component layers of a render; the beauty image is their sum. */
+enum {
+    RT_LAYER_EMISSION = 0, /* emitters seen directly (and through mirrors) */
+    RT_LAYER_AMBIENT,      /* a * A * rho */
+    RT_LAYER_DIFFUSE,      /* direct diffuse: (rho/pi) E (N.L), shadowed */
+    RT_LAYER_SPECULAR,     /* Phong: s E (R.V)^k, shadowed */
+    RT_LAYER_MIRROR,       /* mirror reflectance times what the mirror ray sees */
+    RT_LAYER_INDIRECT,     /* diffuse interreflection from secondary rays */
+    RT_LAYER_COUNT
+};
+const char *rt_layer_name(int layer);
+
+typedef struct rt_film {
+    rr_image beauty;
+    rr_image layer[RT_LAYER_COUNT];
+} rt_film;
+
+rr_status rt_film_init(rt_film *f, int width, int height, rr_error *err);
+void rt_film_free(rt_film *f); /* NULL and double free are harmless */
+
+/* The ray-tracing pass: for every pixel, spp rays from E through the pixel
+ * (stratified, filtered), front-most hit through the BVH, direct light with
+ * shadow rays, Phong specular, recursive mirrors, and the chosen indirect
+ * term. Deterministic for a seed whatever the thread count (tiles over OpenMP,
+ * one RNG stream per pixel). */
+rr_status rt_render(const scene *s, const rt_accel *a, const rt_render_opts *opts, rt_film *film, rr_error *err);
 
 #endif
