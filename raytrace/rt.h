@@ -36,6 +36,19 @@ int rt_ray_hits_tri(rr_vec3 E, rr_vec3 P, rr_vec3 A, rr_vec3 B, rr_vec3 C);
  * plane must not contain the ray direction (the caller checks facing first). */
 double rt_dist_along_ray(rr_vec3 E, rr_vec3 P, rr_vec3 A, rr_vec3 B, rr_vec3 C);
 
+/* The lecture's shading terms for one light of irradiance E arriving along the
+ * unit direction L at a surface with unit normal N seen along unit V:
+ *   diffuse  += (rho/pi) E (N.L)
+ *   specular += s E (R.V)^k,  R = 2(N.L)N - L
+ * Negative dot products clamp to zero. (The 1/pi: see rt_render.c.) Used by the
+ * renderer for every light sample. */
+void rt_phong(rr_vec3 N, rr_vec3 L, rr_vec3 V, const scene_material *m, rr_rgb E, rr_rgb *diffuse, rr_rgb *specular);
+
+/* ReflectedIntensity(E, H, N, L) = a*A*rho + diffuse + specular for one lit
+ * light of irradiance `light` (V = HE/|HE|). Shadowing is the caller's Lit(H,L). */
+rr_rgb rt_reflected_intensity(rr_vec3 E, rr_vec3 H, rr_vec3 N, rr_vec3 L, const scene_material *m, rr_rgb A,
+                              rr_rgb light);
+
 /* A ray's front-most hit. */
 typedef struct rt_hit {
     double t;          /* along the ray's (unnormalised) direction */
@@ -77,6 +90,12 @@ typedef enum rt_indirect {
 } rt_indirect;
 
 typedef enum rt_filter { RT_FILTER_BOX = 0, RT_FILTER_TENT = 1 } rt_filter;
+
+/* Follows a ray through perfect mirror reflections (surfaces whose material has
+ * any mirror reflectance), R = d - 2(d.N)N, up to max_bounces. Returns the
+ * number of reflections and stores the last ray (the one that left the last
+ * mirror); *escaped is 1 when that ray hits nothing. For tests and tools. */
+int rt_follow_mirrors(const rt_accel *a, rr_ray ray, int max_bounces, rr_ray *last, int *escaped);
 
 typedef struct rt_render_opts {
     int spp;          /* samples per pixel, stratified over the pixel filter */

@@ -160,8 +160,6 @@ static void direct_light(const render_ctx *c, rr_vec3 H, rr_vec3 N, rr_vec3 V, c
                          rr_rgb *diffuse, rr_rgb *specular)
 {
     const scene *s = c->s;
-    rr_rgb rho_pi = rr_rgb_scale(m->diffuse, 1.0 / RR_PI);
-    int want_spec = rr_rgb_max(m->specular) > 0.0;
     for (size_t i = 0; i < s->nlights; i++) {
         const scene_light *l = &s->lights[i];
         rr_vec3 L;
@@ -184,14 +182,7 @@ static void direct_light(const render_ctx *c, rr_vec3 H, rr_vec3 N, rr_vec3 V, c
         rr_vec3 o = offset_origin(c, H, N, L);
         if (!lit(c, o, L, tmax == INFINITY ? INFINITY : tmax * (1.0 - 1e-9)))
             continue;
-        rr_rgb E = rr_rgb_scale(l->intensity, falloff);
-        *diffuse = rr_rgb_add(*diffuse, rr_rgb_scale(rr_rgb_mul(rho_pi, E), ndotl));
-        if (want_spec) {
-            rr_vec3 R = rr_v3_sub(rr_v3_scale(N, 2.0 * ndotl), L);
-            double rv = rr_v3_dot(R, V);
-            if (rv > 0.0)
-                *specular = rr_rgb_add(*specular, rr_rgb_scale(rr_rgb_mul(m->specular, E), pow(rv, m->k)));
-        }
+        rt_phong(N, L, V, m, rr_rgb_scale(l->intensity, falloff), diffuse, specular);
     }
     /* Area lights: n stratified samples over (emitter choice, point on it). */
     if (c->lights.n == 0)
@@ -221,14 +212,8 @@ static void direct_light(const render_ctx *c, rr_vec3 H, rr_vec3 N, rr_vec3 V, c
             continue;
         double pdf_area = pick_pdf / c->lights.area[li];
         rr_rgb Le = s->materials[s->tris[t].material].emission;
-        rr_rgb E = rr_rgb_scale(Le, cos_x * cos_y / (d2 * pdf_area * n));
-        *diffuse = rr_rgb_add(*diffuse, rr_rgb_mul(rho_pi, E));
-        if (want_spec) {
-            rr_vec3 R = rr_v3_sub(rr_v3_scale(N, 2.0 * cos_x), L);
-            double rv = rr_v3_dot(R, V);
-            if (rv > 0.0)
-                *specular = rr_rgb_add(*specular, rr_rgb_scale(rr_rgb_mul(m->specular, E), pow(rv, m->k)));
-        }
+        /* Irradiance estimate of this sample: Le cos_y / d^2 / pdf, then N.L = cos_x in rt_phong. */
+        rt_phong(N, L, V, m, rr_rgb_scale(Le, cos_y / (d2 * pdf_area * n)), diffuse, specular);
     }
 }
 
@@ -384,4 +369,32 @@ rr_status rt_render(const scene *s, const rt_accel *a, const rt_render_opts *o, 
     }
     light_table_free(&c.lights);
     return RR_OK;
+}
+
+int rt_follow_mirrors(const rt_accel *a, rr_ray ray, int max_bounces, rr_ray *last, int *escaped)
+{
+    const scene *s = a->scene;
+    rr_vec3 ext = rr_v3_sub(s->bbox_max, s->bbox_min);
+    render_ctx c;
+    memset(&c, 0, sizeof c);
+    c.s = s;
+    c.a = a;
+    c.eps_scale = fmax(ext.x, fmax(ext.y, ext.z));
+    int n = 0;
+    *escaped = 0;
+    for (;;) {
+        rt_hit h;
+        if (!rt_accel_closest(a, ray, 0.0, INFINITY, &h)) {
+            *escaped = 1;
+            break;
+        }
+        if (n >= max_bounces || rr_rgb_max(s->materials[h.material].mirror) <= 0.0)
+            break;
+        rr_vec3 R = rr_v3_madd(ray.d, h.normal, -2.0 * rr_v3_dot(ray.d, h.normal));
+        ray.o = offset_origin(&c, h.point, h.normal, R);
+        ray.d = R;
+        n++;
+    }
+    *last = ray;
+    return n;
 }
