@@ -458,6 +458,99 @@ static void bvh_watertight_shared_edges(void **state)
     scene_destroy(s);
 }
 
+/* ReflectedIntensity against hand-computed values: N = z, L = (0, .6, .8),
+ * E placed so that V = (0, -.6, .8): then R = 2(N.L)N - L = V, (R.V)^k = 1. */
+static void lecture_reflected_intensity(void **state)
+{
+    (void)state;
+    scene_material m;
+    memset(&m, 0, sizeof m);
+    m.diffuse = rr_rgb_make(0.5, 0.25, 1.0);
+    m.specular = rr_rgb_make(0.3, 0.3, 0.3);
+    m.k = 10;
+    m.ambient = 0.4;
+    rr_vec3 H = rr_v3(1, 2, 3), N = rr_v3(0, 0, 1), L = rr_v3(0, 0.6, 0.8);
+    rr_vec3 E = rr_v3_add(H, rr_v3_scale(rr_v3(0, -0.6, 0.8), 7.0));
+    rr_rgb A = rr_rgb_make(0.1, 0.2, 0.3), light = rr_rgb_make(2, 2, 2);
+    rr_rgb I = rt_reflected_intensity(E, H, N, L, &m, A, light);
+    /* a*A*rho + (rho/pi) E (N.L) + s E (R.V)^k */
+    assert_near(I.r, 0.4 * 0.1 * 0.5 + 0.5 / RR_PI * 2 * 0.8 + 0.3 * 2, 1e-12);
+    assert_near(I.g, 0.4 * 0.2 * 0.25 + 0.25 / RR_PI * 2 * 0.8 + 0.3 * 2, 1e-12);
+    /* Rotate V away from R by 60 degrees: (R.V)^k = 0.5^10. */
+    rr_vec3 R = rr_v3(0, -0.6, 0.8), X = rr_v3(1, 0, 0);
+    rr_vec3 Vr = rr_v3_add(rr_v3_scale(R, 0.5), rr_v3_scale(X, sqrt(0.75)));
+    rr_rgb I2 = rt_reflected_intensity(rr_v3_add(H, Vr), H, N, L, &m, rr_rgb_make(0, 0, 0), light);
+    assert_near(I2.b, 1.0 / RR_PI * 2 * 0.8 + 0.3 * 2 * pow(0.5, 10), 1e-12);
+    /* Light behind the surface: only the ambient term. */
+    rr_rgb I3 = rt_reflected_intensity(E, H, N, rr_v3(0, 0.6, -0.8), &m, A, light);
+    assert_near(I3.r, 0.4 * 0.1 * 0.5, 1e-15);
+}
+
+static scene *load_scene_file(const char *rel)
+{
+    char path[512];
+    snprintf(path, sizeof path, "%s/%s", RR_SOURCE_DIR, rel);
+    scene *s = NULL;
+    rr_error err;
+    if (scene_load(path, NULL, &s, &err) != RR_OK)
+        fail_msg("%s", err.msg);
+    return s;
+}
+
+/* Two mirrors at 90 degrees (x = 0 and z = 0): a ray into the corner leaves
+ * after exactly 2 reflections with (dx, dz) reversed and dy kept. */
+static void mirror_corner_two(void **state)
+{
+    (void)state;
+    scene *s = load_scene_file("scenes/mirror-corner-2.json");
+    rt_accel *a = NULL;
+    assert_int_equal(rt_accel_build(s, &a, NULL), RR_OK);
+    rr_rng rng = rr_rng_make(5, 5);
+    for (int i = 0; i < 1000; i++) {
+        rr_ray r;
+        r.o = rr_v3(0.4 + 0.4 * rr_rng_uniform(&rng), 1.8 + 0.4 * rr_rng_uniform(&rng),
+                    0.4 + 0.4 * rr_rng_uniform(&rng));
+        double ax = 0.2 + rr_rng_uniform(&rng), az = 0.2 + rr_rng_uniform(&rng);
+        r.d = rr_v3(-ax, 0.1 * (ax + az) * (rr_rng_uniform(&rng) - 0.5), -az);
+        rr_ray out;
+        int escaped;
+        int n = rt_follow_mirrors(a, r, 10, &out, &escaped);
+        if (n != 2)
+            fail_msg("ray %d: %d reflections", i, n);
+        rr_vec3 d0 = rr_v3_norm(r.d), d1 = rr_v3_norm(out.d);
+        assert_near(d1.x, -d0.x, 1e-12);
+        assert_near(d1.y, d0.y, 1e-12);
+        assert_near(d1.z, -d0.z, 1e-12);
+    }
+    rt_accel_destroy(a);
+    scene_destroy(s);
+}
+
+/* Corner cube: any ray into it comes back antiparallel after exactly 3. */
+static void mirror_corner_three(void **state)
+{
+    (void)state;
+    scene *s = load_scene_file("scenes/mirror-corner-3.json");
+    rt_accel *a = NULL;
+    assert_int_equal(rt_accel_build(s, &a, NULL), RR_OK);
+    rr_rng rng = rr_rng_make(6, 6);
+    for (int i = 0; i < 1000; i++) {
+        rr_ray r;
+        r.o = rr_v3(0.5 + 0.5 * rr_rng_uniform(&rng), 1.6 + 0.4 * rr_rng_uniform(&rng),
+                    0.5 + 0.5 * rr_rng_uniform(&rng));
+        r.d = rr_v3(-(0.3 + rr_rng_uniform(&rng)), 0.3 + rr_rng_uniform(&rng), -(0.3 + rr_rng_uniform(&rng)));
+        rr_ray out;
+        int escaped;
+        int n = rt_follow_mirrors(a, r, 10, &out, &escaped);
+        if (n != 3)
+            fail_msg("ray %d: %d reflections", i, n);
+        rr_vec3 d0 = rr_v3_norm(r.d), d1 = rr_v3_norm(out.d);
+        assert_near(rr_v3_dot(d0, d1), -1.0, 1e-12);
+    }
+    rt_accel_destroy(a);
+    scene_destroy(s);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -468,6 +561,9 @@ int main(void)
         cmocka_unit_test(closest_hit_brute_force),
         cmocka_unit_test(render_direct_light_and_shadow),
         cmocka_unit_test(white_furnace),
+        cmocka_unit_test(lecture_reflected_intensity),
+        cmocka_unit_test(mirror_corner_two),
+        cmocka_unit_test(mirror_corner_three),
         cmocka_unit_test(bvh_matches_reference_random),
         cmocka_unit_test(bvh_watertight_shared_edges),
     };
