@@ -52,6 +52,16 @@ rr_status rr_file_tmpname(const char *path, char *tmp, size_t tmp_size, rr_error
             return rr_error_set(err, RR_ERR_IO, "%s: cannot write: folder '%s' does not exist", path, dir);
         return rr_error_set(err, RR_ERR_IO, "%s: cannot write in folder '%s': %s", path, dir, strerror(errno));
     }
+    /* mkstemp creates 0600; outputs are ordinary files, so give them the mode
+     * fopen would have (0666 less the umask) before they are renamed into place. */
+    mode_t mask = umask(0);
+    umask(mask);
+    if (fchmod(fd, 0666 & ~mask) != 0) {
+        int e = errno;
+        close(fd);
+        remove(tmp);
+        return rr_error_set(err, RR_ERR_IO, "%s: cannot set the mode of '%s': %s", path, tmp, strerror(e));
+    }
     close(fd);
     return RR_OK;
 }
