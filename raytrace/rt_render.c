@@ -236,8 +236,10 @@ static rr_rgb radiance(const render_ctx *c, rr_ray ray, int depth, int bounce, i
     const scene *s = c->s;
     rt_hit h;
     if (!rt_accel_closest(c->a, ray, 0.0, INFINITY, &h)) {
-        if (out)
+        if (out) {
+            memset(out, 0, sizeof *out);
             out->c[RT_LAYER_EMISSION] = s->settings.background;
+        }
         return s->settings.background;
     }
     const scene_material *m = &s->materials[h.material];
