@@ -705,6 +705,56 @@ static void bvh_watertight_million_rays(void **state)
     scene_destroy(s);
 }
 
+/* Lit(H, L) is robust: a floor lit at a grazing 10 degrees shows no acne (every
+ * lit pixel has exactly (rho/pi) E (N.L)), and a wall 1e-4 thick throws a
+ * complete shadow (no light leaks through it). */
+static void shadows_no_acne_no_leaks(void **state)
+{
+    (void)state;
+    double el = 10.0 * RR_PI / 180.0;
+    char json[2048];
+    snprintf(json, sizeof json,
+             "{\"format\":\"radray-scene/1\",\"camera\":{\"type\":\"lecture\",\"E\":[0.00005,0.3,10],"
+             "\"O\":[0.00005,0.3,9],\"U\":[0,1,0],\"s\":0.02,\"w\":20,\"h\":20},"
+             "\"materials\":{\"f\":{\"diffuse\":[0.5,0.5,0.5]}},"
+             "\"lights\":[{\"type\":\"directional\",\"direction\":[%.17g,0,%.17g],\"intensity\":1}],"
+             "\"objects\":[{\"type\":\"quad\",\"material\":\"f\",\"vertices\":[[-50,-50,0],[50,-50,0],[50,50,0],"
+             "[-50,50,0]]},{\"type\":\"box\",\"material\":\"f\",\"min\":[0,-20,0],\"max\":[0.0001,20,1]}]}",
+             cos(el), sin(el));
+    scene *s = NULL;
+    rr_error err;
+    if (scene_load_string(json, "grazing", "", NULL, &s, &err) != RR_OK)
+        fail_msg("%s", err.msg);
+    rt_accel *a = NULL;
+    assert_int_equal(rt_accel_build(s, &a, NULL), RR_OK);
+    rt_film f;
+    assert_int_equal(rt_film_init(&f, s->view.width, s->view.height, NULL), RR_OK);
+    rt_render_opts o = default_opts();
+    assert_int_equal(rt_render(s, a, &o, &f, NULL), RR_OK);
+    double lit_value = 0.5 / RR_PI * sin(el);
+    int lit = 0, dark = 0;
+    for (int row = 0; row < f.beauty.height; row++)
+        for (int col = 0; col < f.beauty.width; col++) {
+            rt_hit h;
+            rr_ray r = rr_view_ray(&s->view, col, row, 0, 0);
+            assert_true(rt_accel_closest(a, r, 0, INFINITY, &h));
+            double v = rr_image_get(&f.layer[RT_LAYER_DIFFUSE], col, row).r;
+            if (h.point.z > 1e-9)
+                continue; /* the top of the wall */
+            if (h.point.x < 0) {
+                assert_near(v, 0.0, 0.0);
+                dark++;
+            } else {
+                assert_near(v, lit_value, 1e-7);
+                lit++;
+            }
+        }
+    assert_true(lit > 300 && dark > 300);
+    rt_film_free(&f);
+    rt_accel_destroy(a);
+    scene_destroy(s);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -715,6 +765,7 @@ int main(void)
         cmocka_unit_test(closest_hit_brute_force),
         cmocka_unit_test(render_direct_light_and_shadow),
         cmocka_unit_test(white_furnace),
+        cmocka_unit_test(shadows_no_acne_no_leaks),
         cmocka_unit_test(render_thread_independent_with_misses),
         cmocka_unit_test(lecture_reflected_intensity),
         cmocka_unit_test(mirror_corner_two),
