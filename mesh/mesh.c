@@ -226,6 +226,11 @@ rr_status mesh_analyze(const mesh_tri *m, mesh_report *rep, rr_error *err)
     memset(rep, 0, sizeof *rep);
     if (m->ntris > SIZE_MAX / 3)
         return rr_error_set(err, RR_ERR_LIMIT, "mesh has too many triangles to analyse");
+    /* A mesh_tri may be built by hand: check indices before using them. */
+    for (size_t i = 0; i < 3 * m->ntris; i++)
+        if (m->tris[i] >= m->nverts)
+            return rr_error_set(err, RR_ERR_INVALID, "triangle %zu refers to vertex %u, but the mesh has %zu vertices",
+                                i / 3, (unsigned)m->tris[i], m->nverts);
     uint32_t *weld = mesh__weld(m);
     mesh__edge *edges = mesh__malloc_array(3 * m->ntris, sizeof *edges);
     if (!weld || !edges) {

@@ -40,7 +40,25 @@ typedef struct mesh_report {
 
 /* Loads the file at path; the format is chosen by extension (case-insensitive:
  * .obj .ply .off .stl). Polygons are triangulated. Degenerate triangles are
- * kept (mesh_report counts them; the scene decides what to do). */
+ * kept (mesh_report counts them; the scene decides what to do).
+ *
+ * Details worth knowing (OpenMesh 9.0 underneath, see mesh_openmesh.cpp):
+ *  - Polygons are ear-clipped in their best-fit plane, keeping their winding
+ *    (a fan for polygons over 1024 corners or self-intersecting ones).
+ *  - Vertex order and numbering follow the file, counting from 0 (error
+ *    messages too), except STL, whose reader merges equal positions and drops
+ *    triangles that collapse. OBJ's reader drops repeated corners of a face.
+ *  - Coordinates pass through single precision (OpenMesh reads into floats);
+ *    values beyond FLT_MAX, nan and inf are errors naming the vertex.
+ *  - normals: OBJ vn and PLY nx/ny/nz, when every vertex a face uses has one;
+ *    normalised; NULL as a whole if any is zero-length. OFF normals are not
+ *    returned.
+ *  - Refused as unsupported rather than misread: binary OFF; PLY list
+ *    properties other than the face's vertex_indices (first in the face),
+ *    integer-typed coordinates, and binary PLY with a comment or blank line
+ *    right before end_header.
+ *  - Calls are serialised by a lock (OpenMesh's readers keep state), and
+ *    OpenMesh's own log output and std::cerr are silenced during a read. */
 rr_status mesh_load(const char *path, mesh_tri **out, rr_error *err);
 
 /* Builds a mesh from arrays (copies them). normals may be NULL. */

@@ -267,7 +267,8 @@ rr_status mesh__load(const char *path, mesh_tri **out, rr_error *err)
         const double *a = &pos[0], *b = &pos[pos.size() - 3];
         for (int k = 0; k < 3; k++)
             if (float(a[k]) != ex.first[k] || float(b[k]) != ex.last[k])
-                return mesh__fail(err, RR_ERR_PARSE, path, "OpenMesh misread the vertex data of this PLY file");
+                return mesh__fail(err, RR_ERR_PARSE, path, "OpenMesh misread the vertex data of this %s file",
+                                  mesh__ext_name(fmt) + 1);
     }
     std::vector<uint32_t> idx(rec.idx.size());
     std::vector<unsigned char> used(rec.verts.size(), 0);
