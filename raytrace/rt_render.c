@@ -156,8 +156,8 @@ static rr_vec3 tri_point(const scene *s, uint32_t t, double u1, double u2)
 }
 
 /* Direct light at H: diffuse and specular, every light, shadow rays. */
-static void direct_light(const render_ctx *c, rr_vec3 H, rr_vec3 N, rr_vec3 V, const scene_material *m, rr_rng *rng,
-                         rr_rgb *diffuse, rr_rgb *specular)
+static void direct_light(const render_ctx *c, rr_vec3 H, rr_vec3 N, rr_vec3 V, const scene_material *m, int nsamples,
+                         rr_rng *rng, rr_rgb *diffuse, rr_rgb *specular)
 {
     const scene *s = c->s;
     for (size_t i = 0; i < s->nlights; i++) {
@@ -187,7 +187,7 @@ static void direct_light(const render_ctx *c, rr_vec3 H, rr_vec3 N, rr_vec3 V, c
     /* Area lights: n stratified samples over (emitter choice, point on it). */
     if (c->lights.n == 0)
         return;
-    int n = c->o->light_samples > 0 ? c->o->light_samples : 1;
+    int n = nsamples > 0 ? nsamples : 1;
     for (int k = 0; k < n; k++) {
         double pick_pdf;
         double u0 = ((double)k + rr_rng_uniform(rng)) / n;
@@ -251,7 +251,11 @@ static rr_rgb radiance(const render_ctx *c, rr_ray ray, int depth, int bounce, i
         local.c[RT_LAYER_EMISSION] = m->emission;
     int diffuse = rr_rgb_max(m->diffuse) > 0.0;
     if (diffuse || rr_rgb_max(m->specular) > 0.0)
-        direct_light(c, h.point, N, V, m, rng, &local.c[RT_LAYER_DIFFUSE], &local.c[RT_LAYER_SPECULAR]);
+        /* Soft shadows get light_samples at the points the eye sees (and mirrors
+         * show); deeper diffuse bounces take one sample each, as their noise
+         * averages out over the many paths through a pixel. */
+        direct_light(c, h.point, N, V, m, bounce == 0 ? c->o->light_samples : 1, rng, &local.c[RT_LAYER_DIFFUSE],
+                     &local.c[RT_LAYER_SPECULAR]);
     if (diffuse && c->o->indirect == RT_INDIRECT_AMBIENT)
         local.c[RT_LAYER_AMBIENT] = rr_rgb_scale(rr_rgb_mul(m->diffuse, s->settings.ambient), m->ambient);
     if (rr_rgb_max(m->mirror) > 0.0 && depth < c->o->max_depth) {
