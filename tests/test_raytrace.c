@@ -755,6 +755,51 @@ static void shadows_no_acne_no_leaks(void **state)
     scene_destroy(s);
 }
 
+/* Mean of one channel of a layer over a pixel rectangle. */
+static double region_mean(const rr_image *im, int x0, int y0, int x1, int y1, int ch)
+{
+    double sum = 0;
+    int n = 0;
+    for (int y = y0; y < y1; y++)
+        for (int x = x0; x < x1; x++, n++)
+            sum += rr_image_at(im, x, y)[ch];
+    return sum / n;
+}
+
+/* The Cornell box with secondary rays shows colour bleeding: the indirect light
+ * on the white back wall is redder next to the red wall (image left) and greener
+ * next to the green wall (image right); the Whitted render has no indirect term. */
+static void cornell_colour_bleeding(void **state)
+{
+    (void)state;
+    scene *s = load_scene_file("scenes/cornell.json");
+    rr_view v;
+    assert_int_equal(rr_view_resize(&s->view, 51, &v, NULL), RR_OK);
+    s->view = v;
+    rt_accel *a = NULL;
+    assert_int_equal(rt_accel_build(s, &a, NULL), RR_OK);
+    rt_film f;
+    assert_int_equal(rt_film_init(&f, v.width, v.height, NULL), RR_OK);
+    rt_render_opts o = default_opts();
+    o.spp = 16;
+    o.threads = 2;
+    o.indirect = RT_INDIRECT_SECONDARY;
+    assert_int_equal(rt_render(s, a, &o, &f, NULL), RR_OK);
+    /* Back wall, upper part (above the blocks), next to each side wall. */
+    const rr_image *ind = &f.layer[RT_LAYER_INDIRECT];
+    double lr = region_mean(ind, 12, 10, 16, 22, 0), lg = region_mean(ind, 12, 10, 16, 22, 1);
+    double rr = region_mean(ind, 35, 10, 39, 22, 0), rg = region_mean(ind, 35, 10, 39, 22, 1);
+    if (!(lr / lg > 1.15 * (rr / rg)))
+        fail_msg("no colour bleeding: left R/G %.3f, right R/G %.3f", lr / lg, rr / rg);
+    assert_true(lr > 0 && rg > 0);
+    o.indirect = RT_INDIRECT_AMBIENT;
+    assert_int_equal(rt_render(s, a, &o, &f, NULL), RR_OK);
+    assert_near(region_mean(&f.layer[RT_LAYER_INDIRECT], 0, 0, v.width, v.height, 0), 0.0, 0.0);
+    rt_film_free(&f);
+    rt_accel_destroy(a);
+    scene_destroy(s);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -770,6 +815,7 @@ int main(void)
         cmocka_unit_test(lecture_reflected_intensity),
         cmocka_unit_test(mirror_corner_two),
         cmocka_unit_test(mirror_corner_three),
+        cmocka_unit_test(cornell_colour_bleeding),
         cmocka_unit_test(bvh_matches_reference_random),
         cmocka_unit_test(bvh_watertight_shared_edges),
         cmocka_unit_test(bvh_matches_reference_large),
