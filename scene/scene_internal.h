@@ -1,0 +1,120 @@
+/* scene_internal.h - shared by the scene loader's translation units; not a
+ * public header (nothing outside scene/ includes it).
+ *
+ * The loader runs in three stages, one file each:
+ *   scene_json.c     text -> cJSON tree (line:column syntax errors), "--set"
+ *                    overrides, and the typed getters every stage uses
+ *   scene_syntax.c   why and where a text is not JSON (for the message)
+ *   scene_parse.c    camera, render settings, materials, lights
+ *   scene_xform.c    an object's transform steps
+ *   scene_objects.c  objects: shapes, transforms, triangles into the scene
+ *   scene.c          the public API, the top level, and the finishing passes
+ *                    (bounding box, emissive triangle list)
+ *
+ * Every message is "<file>: <json path>: <what is wrong>". The getters take
+ * the JSON path of the enclosing value and the key, so that each caller states
+ * its path once and every message comes out the same way.
+ */
+#ifndef SCENE_INTERNAL_H
+#define SCENE_INTERNAL_H
+
+#include <cjson/cJSON.h>
+
+#include "scene.h"
+
+/* JSON paths are at most a few keys deep; material names are limited to
+ * SCENE_NAME_MAX, so this is room enough (longer paths are cut, never overrun). */
+#define SP_PATH_MAX 384
+
+typedef struct sp_ctx {
+    const char *file;     /* the scene's name in messages */
+    const char *base_dir; /* relative mesh paths resolve against it */
+    const scene_load_opts *opts;
+    rr_error *err;
+} sp_ctx;
+
+typedef enum sp_need { SP_OPTIONAL = 0, SP_REQUIRED = 1 } sp_need;
+
+/* ---- scene_json.c ---- */
+
+/* Parses text into *root (a JSON object or anything else; the caller checks).
+ * Syntax errors read "<file>:<line>:<col>: invalid JSON near '...'". */
+rr_status sp_parse_text(const sp_ctx *c, const char *text, cJSON **root);
+
+/* scene_syntax.c: NULL when text is valid JSON (RFC 8259), otherwise the
+ * culprit character, with the reason in *why. */
+const char *sp_json_locate(const char *text, const char **why);
+
+/* Applies opts->overrides to root, in order. */
+rr_status sp_apply_overrides(const sp_ctx *c, cJSON *root);
+
+/* Records "<file>: <path>: <message>" (path may be "" for the whole file) in
+ * c->err and returns code. */
+#if defined(__GNUC__)
+__attribute__((format(printf, 4, 5)))
+#endif
+rr_status sp_fail(const sp_ctx *c, rr_status code, const char *path, const char *fmt, ...);
+
+/* out = parent.key / parent[i] (out has SP_PATH_MAX bytes; parent may be ""). */
+void sp_key(char *out, const char *parent, const char *key);
+void sp_idx(char *out, const char *parent, size_t i);
+
+/* "a string", "an array of 2 items", ... for "got ..." in messages. */
+const char *sp_describe(const cJSON *v, char *buf, size_t n);
+
+/* Checks that v is a JSON object, that every key is one of allowed
+ * (NULL-terminated) and that no key appears twice (cJSON keeps duplicates and
+ * would silently use the first). The message for an unknown key lists the
+ * allowed ones. */
+rr_status sp_check_object(const sp_ctx *c, const cJSON *v, const char *path, const char *const *allowed);
+
+/* Typed getters. With SP_OPTIONAL a missing key leaves *out unchanged (the
+ * caller stores the default first); with SP_REQUIRED it is an error that says
+ * what was expected. The _item forms validate a value already in hand. */
+const cJSON *sp_get(const cJSON *obj, const char *key);
+rr_status sp_missing(const sp_ctx *c, const char *path, const char *key, const char *expected);
+
+rr_status sp_number_item(const sp_ctx *c, const cJSON *v, const char *path, double *out);
+rr_status sp_number(const sp_ctx *c, const cJSON *obj, const char *path, const char *key, sp_need need,
+                    double *out);
+/* A finite number in [lo, hi]. */
+rr_status sp_number_range(const sp_ctx *c, const cJSON *obj, const char *path, const char *key, sp_need need,
+                          double lo, double hi, double *out);
+/* An integer (no fractional part) in [lo, hi]; lo and hi within +-2^53. */
+rr_status sp_int_item(const sp_ctx *c, const cJSON *v, const char *path, double lo, double hi, double *out);
+rr_status sp_int(const sp_ctx *c, const cJSON *obj, const char *path, const char *key, sp_need need, double lo,
+                 double hi, double *out);
+rr_status sp_bool(const sp_ctx *c, const cJSON *obj, const char *path, const char *key, sp_need need, int *out);
+/* A string of at most out_size - 1 bytes; empty strings are refused when
+ * nonempty is set. */
+rr_status sp_string(const sp_ctx *c, const cJSON *obj, const char *path, const char *key, sp_need need,
+                    int nonempty, char *out, size_t out_size);
+rr_status sp_vec3_item(const sp_ctx *c, const cJSON *v, const char *path, rr_vec3 *out);
+rr_status sp_vec3(const sp_ctx *c, const cJSON *obj, const char *path, const char *key, sp_need need,
+                  rr_vec3 *out);
+/* A colour: a number (grey) or [r, g, b], each channel in [lo, hi]. */
+rr_status sp_color(const sp_ctx *c, const cJSON *obj, const char *path, const char *key, sp_need need, double lo,
+                   double hi, rr_rgb *out);
+/* An array of exactly n items (n = 0: any length >= 1). */
+rr_status sp_array(const sp_ctx *c, const cJSON *v, const char *path, int n, const char *expected);
+
+/* ---- scene_parse.c ---- */
+
+rr_status sp_parse_camera(const sp_ctx *c, const cJSON *root, scene *s);
+rr_status sp_parse_render(const sp_ctx *c, const cJSON *root, scene *s);
+rr_status sp_parse_materials(const sp_ctx *c, const cJSON *root, scene *s);
+rr_status sp_parse_lights(const sp_ctx *c, const cJSON *root, scene *s);
+
+/* ---- scene_xform.c ---- */
+
+/* Composes obj's "transform" (steps applied in order: the first step acts on
+ * the object first) into *out, checked finite and non-singular. *has is 0
+ * (and *out the identity) when the object has none. */
+rr_status sp_parse_transform(const sp_ctx *c, const cJSON *obj, const char *opath, rr_xform *out, int *has);
+
+/* ---- scene_objects.c ---- */
+
+/* Fills s->objects, s->verts, s->normals and s->tris. Needs s->materials. */
+rr_status sp_parse_objects(const sp_ctx *c, const cJSON *root, scene *s);
+
+#endif
