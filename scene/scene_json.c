@@ -28,15 +28,23 @@ rr_status sp_fail(const sp_ctx *c, rr_status code, const char *path, const char 
     return rr_error_set(c->err, code, "%s: %s", c->file, what);
 }
 
+/* Paths longer than SP_PATH_MAX are cut (snprintf already terminates them);
+ * looking at the length keeps -Wformat-truncation honest about it. */
+static void sp_cut(char *out, int n)
+{
+    if (n < 0)
+        out[0] = '\0';
+}
+
 void sp_key(char *out, const char *parent, const char *key)
 {
     if (parent && parent[0])
-        snprintf(out, SP_PATH_MAX, "%s.%s", parent, key);
+        sp_cut(out, snprintf(out, SP_PATH_MAX, "%s.%s", parent, key));
     else
-        snprintf(out, SP_PATH_MAX, "%s", key);
+        sp_cut(out, snprintf(out, SP_PATH_MAX, "%s", key));
 }
 
-void sp_idx(char *out, const char *parent, size_t i) { snprintf(out, SP_PATH_MAX, "%s[%zu]", parent, i); }
+void sp_idx(char *out, const char *parent, size_t i) { sp_cut(out, snprintf(out, SP_PATH_MAX, "%s[%zu]", parent, i)); }
 
 const char *sp_describe(const cJSON *v, char *buf, size_t n)
 {
