@@ -1,0 +1,160 @@
+/* rad.h - the radiosity pass: patches, form factors with visibility, solvers,
+ * and the energy ledger.
+ *
+ * Units. The scene gives emitted *radiance* Le (what the ray tracer uses); the
+ * radiosity pass works in *radiosity* (exitance, power per area) of Lambertian
+ * patches: E = pi * Le emitted, B = E + rho * sum_j F_ij B_j, and a patch shows
+ * radiance B / pi. Power is radiosity times area.
+ *
+ * Pipeline:
+ *   rad_patches_build  scene triangles (and tessellated spheres) -> patches
+ *   rad_ff_compute     sparse form factors F_ij with visibility (BVH rays)
+ *   rad_solve          B per patch and channel (CHOLMOD, or Gauss-Seidel)
+ *   rad_energy         where the emitted power went
+ *
+ * Ownership: every *_build / *_compute allocates what it returns and has a
+ * matching destroy (NULL is a no-op); outputs are untouched on failure.
+ */
+#ifndef RAD_H
+#define RAD_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "rr_core.h"
+#include "rt.h"
+#include "scene.h"
+
+/* ---- patches ---- */
+
+typedef struct rad_patch {
+    uint32_t v[3];     /* corners: indices into rad_patches.verts, counter-clockwise */
+    rr_vec3 normal;    /* unit, from the winding */
+    rr_vec3 centroid;
+    double area;
+    rr_rgb rho;        /* diffuse reflectance of the material */
+    rr_rgb emission;   /* emitted radiosity E = pi * Le */
+    uint32_t object;   /* scene object */
+    int64_t tri;       /* source scene triangle, or -1 for a tessellated sphere */
+} rad_patch;
+
+typedef struct rad_patches {
+    rad_patch *p;
+    size_t n;
+    rr_vec3 *verts;    /* shared corners: patches of one object share their vertices */
+    size_t nverts;
+    /* Lookup from a scene triangle t to its patches: the triangle is split into
+     * level[t]^2 similar sub-triangles, stored from first[t] on (see
+     * rad_patch_locate). */
+    uint32_t *tri_first;
+    uint32_t *tri_level;
+    size_t ntris;
+    /* Tessellated spheres: object o's patches start at sphere_first[o]; a UV
+     * grid of sphere_stacks x sphere_slices cells (2 triangles per cell). */
+    uint32_t *sphere_first;
+    uint32_t sphere_stacks, sphere_slices;
+} rad_patches;
+
+typedef struct rad_patch_opts {
+    double max_area;   /* > 0 */
+    double max_edge;   /* > 0 */
+} rad_patch_opts;
+
+/* Subdivides every triangle of every object into level^2 similar triangles,
+ * with one level per object (the smallest that brings every triangle of the
+ * object under both limits), so edges shared inside an object are split the
+ * same way on both sides: no T-vertices. Spheres are tessellated into a UV grid
+ * fine enough for the same limits. Fails (RR_ERR_LIMIT) beyond 2^31 patches. */
+rr_status rad_patches_build(const scene *s, const rad_patch_opts *o, rad_patches **out, rr_error *err);
+void rad_patches_destroy(rad_patches *P);
+
+/* The patch that contains point p (on the surface) of a hit reported by the
+ * ray tracer (scene triangle tri >= 0, or sphere object obj when tri < 0). */
+uint32_t rad_patch_locate(const rad_patches *P, const scene *s, int64_t tri, uint32_t obj, rr_vec3 p);
+
+/* Barycentric coordinates of p in patch k (for interpolation). */
+void rad_patch_barycentric(const rad_patches *P, uint32_t k, rr_vec3 p, double b[3]);
+
+/* ---- form factors ---- */
+
+/* Sparse rows (CSR): F_ij for j in col[rowptr[i] .. rowptr[i+1]), zero entries
+ * (back-facing, coplanar, occluded) not stored. */
+typedef struct rad_ff {
+    size_t n;
+    size_t *rowptr; /* n + 1 */
+    uint32_t *col;
+    double *val;
+} rad_ff;
+
+typedef enum rad_ff_method {
+    RAD_FF_MONTE_CARLO = 0, /* cosine-weighted rays from each patch: F_ij = hits on j / rays */
+    RAD_FF_QUADRATURE = 1   /* exact point-to-polygon factor at sample points x visibility rays */
+} rad_ff_method;
+
+typedef struct rad_ff_opts {
+    rad_ff_method method;
+    int samples;       /* Monte Carlo: rays per patch; quadrature: points per patch */
+    uint64_t seed;
+    int threads;       /* 0 = OpenMP default */
+    int raw;           /* 1: keep the estimates as computed (for tests of reciprocity);
+                          0 (default): make them reciprocal, F_ij := (A_i F_ij + A_j F_ji) / (2 A_i),
+                          so the solved system conserves energy exactly */
+} rad_ff_opts;
+
+/* Form factors between all patches, visibility by the BVH a (built over s).
+ * Deterministic for a seed whatever the thread count. */
+rr_status rad_ff_compute(const scene *s, const rt_accel *a, const rad_patches *P, const rad_ff_opts *o, rad_ff **out,
+                         rr_error *err);
+void rad_ff_destroy(rad_ff *F);
+
+/* The exact form factor from a differential area at p with unit normal n to
+ * the polygon poly[0..nv) (Lambert's contour integral, Nusselt's analogue):
+ *   F = 1/(2 pi) sum_k  angle_k * (n . unit(r_k x r_k+1)),
+ * with r_k = poly[k] - p. The polygon's side facing p is what counts; a
+ * polygon behind the tangent plane of p must be clipped by the caller. */
+double rad_ff_point_polygon(rr_vec3 p, rr_vec3 n, const rr_vec3 *poly, int nv);
+
+/* ---- solving ---- */
+
+typedef enum rad_solver { RAD_SOLVER_AUTO = 0, RAD_SOLVER_DIRECT = 1, RAD_SOLVER_ITERATIVE = 2 } rad_solver;
+
+typedef struct rad_solve_opts {
+    rad_solver solver;
+    double tolerance;     /* iterative: stop when max relative residual < tolerance */
+    int max_iterations;
+    int allow_rho_ge_1;   /* for tests only: accept reflectance >= 1 */
+    size_t auto_direct_max; /* auto picks direct up to this many patches (0 = default) */
+} rad_solve_opts;
+
+typedef struct rad_solve_stats {
+    rad_solver used;      /* what auto picked */
+    int iterations;
+    double residual;      /* final max relative residual, all channels */
+    double *history;      /* residual after each iteration (iterative), malloc'd; free() it */
+    int nhistory;
+    double seconds;
+} rad_solve_stats;
+
+/* Solves B = E + rho F B for every patch and channel into B[0..n). Fails with
+ * RR_ERR_INVALID when a reflectance is >= 1 (unless allowed) or no patch emits. */
+rr_status rad_solve(const rad_patches *P, const rad_ff *F, const rad_solve_opts *o, rr_rgb *B, rad_solve_stats *stats,
+                    rr_error *err);
+
+/* ---- energy ledger ---- */
+
+typedef struct rad_energy_row {
+    char name[SCENE_NAME_MAX]; /* object name, or "total" */
+    double area;
+    rr_rgb emitted;    /* sum E_i A_i */
+    rr_rgb incident;   /* sum A_i H_i, H_i = sum_j F_ij B_j  (power arriving) */
+    rr_rgb reflected;  /* rho * incident */
+    rr_rgb absorbed;   /* (1 - rho) * incident */
+    rr_rgb escaped;    /* sum B_i A_i (1 - sum_j F_ij): leaves through openings */
+} rad_energy_row;
+
+/* One row per object that has patches, then a "total" row (rows[*nrows-1]).
+ * In the total, emitted = absorbed + escaped up to the solver tolerance. */
+rr_status rad_energy(const scene *s, const rad_patches *P, const rad_ff *F, const rr_rgb *B, rad_energy_row **rows,
+                     size_t *nrows, rr_error *err);
+
+#endif

@@ -1,0 +1,363 @@
+/* rad_patch.c - patches for the radiosity pass.
+ *
+ * Every triangle of an object is split into level^2 similar sub-triangles on
+ * the grid P(i, j) = A + (i/n)(B - A) + (j/n)(C - A). One level per object
+ * means two triangles that share an edge split it at the same points, and the
+ * grid points are shared through a map keyed by (edge, step): no T-vertices,
+ * so radiosity interpolated to vertices is continuous across the object.
+ * Spheres become a UV grid (one-triangle caps at the poles). */
+#include <stdlib.h>
+#include <string.h>
+
+#include "rad.h"
+
+/* ---- a small open-addressing map: (a, b, k) -> vertex index ---- */
+
+typedef struct edge_map {
+    uint64_t *key; /* 0 = empty; else ((a * 2^24 + b) * 2^... packed, +1) */
+    uint32_t *val;
+    size_t cap;
+} edge_map;
+
+static uint64_t edge_key(uint32_t a, uint32_t b, uint32_t k) { return (((uint64_t)a << 32) | b) * 0x9e3779b97f4a7c15ULL ^ ((uint64_t)k << 1) ^ 1; }
+
+typedef struct edge_entry {
+    uint32_t a, b, k;
+} edge_entry;
+
+/* Looks up (a, b, k) (a < b); inserts val when missing. Returns the stored
+ * value, or UINT32_MAX when out of memory. Entries carry their full key in ek. */
+static uint32_t edge_get(edge_map *m, edge_entry *ek, uint32_t a, uint32_t b, uint32_t k, uint32_t val)
+{
+    uint64_t h = edge_key(a, b, k);
+    size_t mask = m->cap - 1;
+    for (size_t i = (size_t)(h >> 17) & mask;; i = (i + 1) & mask) {
+        if (m->key[i] == 0) {
+            m->key[i] = h | 1;
+            m->val[i] = val;
+            ek[i].a = a;
+            ek[i].b = b;
+            ek[i].k = k;
+            return val;
+        }
+        if (m->key[i] == (h | 1) && ek[i].a == a && ek[i].b == b && ek[i].k == k)
+            return m->val[i];
+    }
+}
+
+/* ---- building ---- */
+
+static double tri_area(rr_vec3 a, rr_vec3 b, rr_vec3 c) { return 0.5 * rr_v3_len(rr_v3_cross(rr_v3_sub(b, a), rr_v3_sub(c, a))); }
+
+static uint32_t level_for(double area, double longest, const rad_patch_opts *o)
+{
+    double n1 = ceil(sqrt(area / o->max_area)), n2 = ceil(longest / o->max_edge);
+    double n = fmax(1.0, fmax(n1, n2));
+    return n > 65535.0 ? 65535u : (uint32_t)n;
+}
+
+static void fill_patch(rad_patches *P, size_t k, uint32_t a, uint32_t b, uint32_t c, const scene_material *m,
+                       uint32_t obj, int64_t tri)
+{
+    rad_patch *p = &P->p[k];
+    p->v[0] = a;
+    p->v[1] = b;
+    p->v[2] = c;
+    rr_vec3 A = P->verts[a], B = P->verts[b], C = P->verts[c];
+    rr_vec3 n = rr_v3_cross(rr_v3_sub(B, A), rr_v3_sub(C, A));
+    p->area = 0.5 * rr_v3_len(n);
+    p->normal = rr_v3_norm(n);
+    p->centroid = rr_v3_scale(rr_v3_add(rr_v3_add(A, B), C), 1.0 / 3.0);
+    p->rho = m->diffuse;
+    p->emission = rr_rgb_scale(m->emission, RR_PI);
+    p->object = obj;
+    p->tri = tri;
+}
+
+/* Sphere grid: stacks S (theta from the +z pole), slices L = 2S (phi). */
+static size_t sphere_patch_count(uint32_t S) { return (size_t)2 * S * (2 * S) - 2 * (size_t)(2 * S); }
+
+static rr_vec3 sphere_point(const scene_object *o, uint32_t S, uint32_t i, uint32_t j)
+{
+    double th = RR_PI * i / S, ph = 2.0 * RR_PI * j / (2.0 * S);
+    return rr_v3_add(o->center, rr_v3(o->radius * sin(th) * cos(ph), o->radius * sin(th) * sin(ph), o->radius * cos(th)));
+}
+
+rr_status rad_patches_build(const scene *s, const rad_patch_opts *o, rad_patches **out, rr_error *err)
+{
+    if (!(o->max_area > 0) || !(o->max_edge > 0) || !isfinite(o->max_area) || !isfinite(o->max_edge))
+        return rr_error_set(err, RR_ERR_INVALID, "%s: radiosity: patch area and edge limits must be > 0 (got %g, %g)",
+                            s->path, o->max_area, o->max_edge);
+    rad_patches *P = calloc(1, sizeof *P);
+    uint32_t *olevel = calloc(s->nobjects ? s->nobjects : 1, sizeof *olevel);
+    if (!P || !olevel)
+        goto nomem;
+    /* Levels per object, and the counts. */
+    double npatch = 0, nvert = 0, rmax = 0;
+    for (size_t t = 0; t < s->ntris; t++) {
+        const scene_tri *tr = &s->tris[t];
+        rr_vec3 A = s->verts[tr->v[0]], B = s->verts[tr->v[1]], C = s->verts[tr->v[2]];
+        double longest = fmax(rr_v3_len(rr_v3_sub(B, A)), fmax(rr_v3_len(rr_v3_sub(C, B)), rr_v3_len(rr_v3_sub(A, C))));
+        uint32_t l = level_for(tri_area(A, B, C), longest, o);
+        if (l > olevel[tr->object])
+            olevel[tr->object] = l;
+    }
+    for (size_t i = 0; i < s->nobjects; i++)
+        if (s->objects[i].kind == SCENE_OBJ_SPHERE)
+            rmax = fmax(rmax, s->objects[i].radius);
+    uint32_t S = 0;
+    if (rmax > 0) {
+        /* The largest cells are at the equator: pi r / S on each side, so a
+         * triangle has area (pi r / S)^2 / 2 and a diagonal sqrt(2) pi r / S
+         * (chords are shorter still). */
+        double need = fmax(4.0, fmax(RR_PI * rmax / sqrt(2.0 * o->max_area), sqrt(2.0) * RR_PI * rmax / o->max_edge));
+        S = need > 4096 ? 4096u : (uint32_t)ceil(need);
+    }
+    for (size_t t = 0; t < s->ntris; t++) {
+        double l = olevel[s->tris[t].object];
+        npatch += l * l;
+        nvert += (l + 1) * (l + 2) / 2; /* upper bound before sharing */
+    }
+    for (size_t i = 0; i < s->nobjects; i++)
+        if (s->objects[i].kind == SCENE_OBJ_SPHERE) {
+            npatch += (double)sphere_patch_count(S);
+            nvert += (double)(S - 1) * (2.0 * S) + 2;
+        }
+    if (npatch > (double)(1u << 31) || nvert > (double)(1u << 31)) {
+        free(olevel);
+        free(P);
+        return rr_error_set(err, RR_ERR_LIMIT,
+                            "%s: radiosity: the patch limits would make %.3g patches (more than 2^31); "
+                            "raise the patch area/edge limits",
+                            s->path, npatch);
+    }
+    P->n = (size_t)npatch;
+    P->ntris = s->ntris;
+    P->p = calloc(P->n ? P->n : 1, sizeof *P->p);
+    P->verts = malloc(((size_t)nvert ? (size_t)nvert : 1) * sizeof *P->verts);
+    P->tri_first = malloc((s->ntris ? s->ntris : 1) * sizeof *P->tri_first);
+    P->tri_level = malloc((s->ntris ? s->ntris : 1) * sizeof *P->tri_level);
+    P->sphere_first = malloc((s->nobjects ? s->nobjects : 1) * sizeof *P->sphere_first);
+    uint32_t *corner = malloc((s->nverts ? s->nverts : 1) * sizeof *corner);
+    /* Edge points: at most 3 (l - 1) per triangle; the map is twice that. */
+    size_t edge_pts = 0;
+    for (size_t t = 0; t < s->ntris; t++)
+        edge_pts += 3 * (size_t)(olevel[s->tris[t].object] - 1);
+    edge_map em = {0};
+    em.cap = 16;
+    while (em.cap < 2 * edge_pts + 16)
+        em.cap *= 2;
+    em.key = calloc(em.cap, sizeof *em.key);
+    em.val = malloc(em.cap * sizeof *em.val);
+    edge_entry *ek = malloc(em.cap * sizeof *ek);
+    uint32_t *grid = NULL;
+    if (!P->p || !P->verts || !P->tri_first || !P->tri_level || !P->sphere_first || !corner || !em.key || !em.val || !ek)
+        goto nomem_local;
+    for (size_t i = 0; i < s->nverts; i++)
+        corner[i] = UINT32_MAX;
+    size_t nv = 0, np = 0;
+    uint32_t lmax = 1;
+    for (size_t i = 0; i < s->nobjects; i++)
+        lmax = olevel[i] > lmax ? olevel[i] : lmax;
+    grid = malloc((size_t)(lmax + 1) * (lmax + 1) * sizeof *grid);
+    if (!grid)
+        goto nomem_local;
+    for (size_t t = 0; t < s->ntris; t++) {
+        const scene_tri *tr = &s->tris[t];
+        uint32_t n = olevel[tr->object];
+        uint32_t vid[3] = {tr->v[0], tr->v[1], tr->v[2]};
+        rr_vec3 A = s->verts[vid[0]], B = s->verts[vid[1]], C = s->verts[vid[2]];
+        /* Grid point (i, j), i along AB, j along AC; g = i + j*(n+1). */
+        for (uint32_t j = 0; j <= n; j++)
+            for (uint32_t i = 0; i + j <= n; i++) {
+                uint32_t *g = &grid[i + j * (n + 1)];
+                int corner_id = (i == 0 && j == 0) ? 0 : (i == n ? 1 : (j == n ? 2 : -1));
+                if (corner_id >= 0) {
+                    uint32_t sv = vid[corner_id];
+                    if (corner[sv] == UINT32_MAX) {
+                        corner[sv] = (uint32_t)nv;
+                        P->verts[nv++] = s->verts[sv];
+                    }
+                    *g = corner[sv];
+                    continue;
+                }
+                /* On an edge: identify it by its two scene vertices and the step
+                 * counted from the smaller one, which both triangles agree on. */
+                uint32_t ea = 0, eb = 0, step = 0;
+                int on_edge = 1;
+                if (j == 0) { /* AB, step i from A */
+                    ea = vid[0], eb = vid[1], step = i;
+                } else if (i == 0) { /* AC, step j from A */
+                    ea = vid[0], eb = vid[2], step = j;
+                } else if (i + j == n) { /* BC, step j from B */
+                    ea = vid[1], eb = vid[2], step = j;
+                } else {
+                    on_edge = 0;
+                }
+                rr_vec3 p = rr_v3_add(A, rr_v3_add(rr_v3_scale(rr_v3_sub(B, A), (double)i / n),
+                                                   rr_v3_scale(rr_v3_sub(C, A), (double)j / n)));
+                if (on_edge) {
+                    if (ea > eb) {
+                        uint32_t tmp = ea;
+                        ea = eb;
+                        eb = tmp;
+                        step = n - step;
+                    }
+                    uint32_t got = edge_get(&em, ek, ea, eb, step, (uint32_t)nv);
+                    if (got == nv)
+                        P->verts[nv++] = p;
+                    *g = got;
+                } else {
+                    *g = (uint32_t)nv;
+                    P->verts[nv++] = p;
+                }
+            }
+        P->tri_first[t] = (uint32_t)np;
+        P->tri_level[t] = n;
+        const scene_material *m = &s->materials[tr->material];
+        for (uint32_t j = 0; j < n; j++)
+            for (uint32_t i = 0; i + j < n; i++) {
+                uint32_t g00 = grid[i + j * (n + 1)], g10 = grid[i + 1 + j * (n + 1)], g01 = grid[i + (j + 1) * (n + 1)];
+                fill_patch(P, np++, g00, g10, g01, m, tr->object, (int64_t)t);
+                if (i + j + 1 < n) {
+                    uint32_t g11 = grid[i + 1 + (j + 1) * (n + 1)];
+                    fill_patch(P, np++, g10, g11, g01, m, tr->object, (int64_t)t);
+                }
+            }
+    }
+    P->sphere_stacks = S;
+    P->sphere_slices = 2 * S;
+    for (size_t oi = 0; oi < s->nobjects; oi++) {
+        const scene_object *ob = &s->objects[oi];
+        P->sphere_first[oi] = UINT32_MAX;
+        if (ob->kind != SCENE_OBJ_SPHERE)
+            continue;
+        uint32_t L = 2 * S;
+        /* Vertices: north pole, rings 1..S-1, south pole. */
+        uint32_t base = (uint32_t)nv;
+        P->verts[nv++] = sphere_point(ob, S, 0, 0);
+        for (uint32_t i = 1; i < S; i++)
+            for (uint32_t j = 0; j < L; j++)
+                P->verts[nv++] = sphere_point(ob, S, i, j);
+        P->verts[nv++] = sphere_point(ob, S, S, 0);
+        uint32_t south = (uint32_t)nv - 1;
+#define RV(i, j) ((i) == 0 ? base : ((i) == S ? south : base + 1 + ((i)-1) * L + ((j) % L)))
+        P->sphere_first[oi] = (uint32_t)np;
+        const scene_material *m = &s->materials[ob->material];
+        for (uint32_t i = 0; i < S; i++)
+            for (uint32_t j = 0; j < L; j++) {
+                uint32_t a = RV(i, j), b = RV(i + 1, j), c = RV(i + 1, j + 1), d = RV(i, j + 1);
+                if (i < S - 1)
+                    fill_patch(P, np++, a, b, c, m, (uint32_t)oi, -1);
+                if (i > 0)
+                    fill_patch(P, np++, a, c, d, m, (uint32_t)oi, -1);
+            }
+#undef RV
+    }
+    RR_CHECK(np == P->n);
+    P->nverts = nv;
+    free(grid);
+    free(corner);
+    free(em.key);
+    free(em.val);
+    free(ek);
+    free(olevel);
+    *out = P;
+    return RR_OK;
+nomem_local:
+    free(grid);
+    free(corner);
+    free(em.key);
+    free(em.val);
+    free(ek);
+nomem:
+    free(olevel);
+    rad_patches_destroy(P);
+    return rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory building patches", s->path);
+}
+
+void rad_patches_destroy(rad_patches *P)
+{
+    if (!P)
+        return;
+    free(P->p);
+    free(P->verts);
+    free(P->tri_first);
+    free(P->tri_level);
+    free(P->sphere_first);
+    free(P);
+}
+
+/* ---- lookups ---- */
+
+/* (u, v): p = A + u (B - A) + v (C - A), by least squares in the plane. */
+static void plane_coords(rr_vec3 A, rr_vec3 B, rr_vec3 C, rr_vec3 p, double *u, double *v)
+{
+    rr_vec3 e1 = rr_v3_sub(B, A), e2 = rr_v3_sub(C, A), d = rr_v3_sub(p, A);
+    double a11 = rr_v3_dot(e1, e1), a12 = rr_v3_dot(e1, e2), a22 = rr_v3_dot(e2, e2);
+    double b1 = rr_v3_dot(e1, d), b2 = rr_v3_dot(e2, d);
+    double det = a11 * a22 - a12 * a12;
+    if (!(fabs(det) > 0)) {
+        *u = *v = 0;
+        return;
+    }
+    *u = (b1 * a22 - b2 * a12) / det;
+    *v = (a11 * b2 - a12 * b1) / det;
+}
+
+uint32_t rad_patch_locate(const rad_patches *P, const scene *s, int64_t tri, uint32_t obj, rr_vec3 p)
+{
+    if (tri >= 0) {
+        const scene_tri *tr = &s->tris[tri];
+        double u, v;
+        plane_coords(s->verts[tr->v[0]], s->verts[tr->v[1]], s->verts[tr->v[2]], p, &u, &v);
+        uint32_t n = P->tri_level[tri];
+        double x = fmin(fmax(u * n, 0.0), (double)n), y = fmin(fmax(v * n, 0.0), (double)n);
+        uint32_t j = y >= n ? n - 1 : (uint32_t)y;
+        uint32_t i = x >= n ? n - 1 : (uint32_t)x;
+        if (i + j > n - 1)
+            i = n - 1 - j;
+        double fx = x - i, fy = y - j;
+        int down = fx + fy > 1.0 && i + j + 1 < n;
+        /* Rows before j hold (2(n - j') - 1) patches each: j (2n - j) in all. */
+        uint32_t idx = j * (2 * n - j) + 2 * i + (uint32_t)down;
+        return P->tri_first[tri] + idx;
+    }
+    const scene_object *o = &s->objects[obj];
+    uint32_t S = P->sphere_stacks, L = P->sphere_slices;
+    rr_vec3 d = rr_v3_scale(rr_v3_sub(p, o->center), 1.0 / o->radius);
+    double th = acos(fmin(1.0, fmax(-1.0, d.z))), ph = atan2(d.y, d.x);
+    if (ph < 0)
+        ph += 2.0 * RR_PI;
+    double y = th / RR_PI * S, x = ph / (2.0 * RR_PI) * L;
+    uint32_t i = y >= S ? S - 1 : (uint32_t)y, j = x >= L ? L - 1 : (uint32_t)x;
+    double fy = y - i, fx = x - j;
+    /* Row 0 and row S-1 hold one triangle per cell, the others two (abc, acd). */
+    uint32_t first = P->sphere_first[obj];
+    if (i == 0)
+        return first + j;
+    uint32_t row = L + (i - 1) * 2 * L;
+    if (i == S - 1)
+        return first + row + j;
+    (void)fx;
+    (void)fy;
+    /* The diagonal a-c projects radially onto the great circle through a and
+     * c, so the side of that circle's plane is exact where the (theta, phi)
+     * diagonal is not. */
+    const rad_patch *q = &P->p[first + row + 2 * j];
+    rr_vec3 a = rr_v3_sub(P->verts[q->v[0]], o->center), c = rr_v3_sub(P->verts[q->v[2]], o->center);
+    rr_vec3 b = rr_v3_sub(P->verts[q->v[1]], o->center);
+    double side_p = rr_v3_dot(rr_v3_cross(a, c), rr_v3_sub(p, o->center));
+    double side_b = rr_v3_dot(rr_v3_cross(a, c), b);
+    return first + row + 2 * j + ((side_p > 0) == (side_b > 0) ? 0u : 1u);
+}
+
+void rad_patch_barycentric(const rad_patches *P, uint32_t k, rr_vec3 p, double b[3])
+{
+    const rad_patch *q = &P->p[k];
+    double u, v;
+    plane_coords(P->verts[q->v[0]], P->verts[q->v[1]], P->verts[q->v[2]], p, &u, &v);
+    b[0] = 1.0 - u - v;
+    b[1] = u;
+    b[2] = v;
+}

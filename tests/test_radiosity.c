@@ -1,0 +1,193 @@
+/* test_radiosity.c - patches: limits, conformity (no T-vertices), lookup from
+ * ray hits, units. (Form factors: test_formfactor.c; solvers and the energy
+ * ledger: test_solver.c.) */
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <cmocka.h>
+
+#include <stdlib.h>
+#include <string.h>
+
+#include "rad.h"
+
+#define assert_near(a, b, tol) assert_true(fabs((double)(a) - (double)(b)) <= (tol))
+
+static const char *k_scene =
+    "{\"format\":\"radray-scene/1\",\"camera\":{\"type\":\"lecture\",\"E\":[0,0,5],\"O\":[0,0,4],"
+    "\"U\":[0,1,0],\"s\":0.1,\"w\":2,\"h\":2},"
+    "\"materials\":{\"w\":{\"diffuse\":[0.5,0.6,0.7]},\"l\":{\"diffuse\":0.2,\"emission\":[1,2,3]}},"
+    "\"objects\":["
+    "{\"name\":\"box\",\"type\":\"box\",\"material\":\"w\",\"min\":[-1,-1,-1],\"max\":[1,1.5,1]},"
+    "{\"name\":\"lamp\",\"type\":\"quad\",\"material\":\"l\",\"vertices\":[[-3,2,-3],[-3,2,3],[3,2,3],[3,2,-3]]},"
+    "{\"name\":\"odd\",\"type\":\"triangles\",\"material\":\"w\",\"vertices\":[[5,0,0],[9,0,0],[5,0.5,0],[5,0,7]],"
+    "\"indices\":[[0,1,2],[0,2,3],[0,3,1]]},"
+    "{\"name\":\"ball\",\"type\":\"sphere\",\"material\":\"w\",\"center\":[0,4,0],\"radius\":0.7}]}";
+
+static scene *load(void)
+{
+    scene *s = NULL;
+    rr_error err;
+    if (scene_load_string(k_scene, "patches", "", NULL, &s, &err) != RR_OK)
+        fail_msg("%s", err.msg);
+    return s;
+}
+
+static void limits_and_areas(void **state)
+{
+    (void)state;
+    scene *s = load();
+    rad_patch_opts o = {0.05, 0.4};
+    rad_patches *P = NULL;
+    rr_error err;
+    assert_int_equal(rad_patches_build(s, &o, &P, &err), RR_OK);
+    double tri_area = 0, patch_area = 0;
+    for (size_t t = 0; t < s->ntris; t++)
+        tri_area += scene_tri_area(s, t);
+    for (size_t k = 0; k < P->n; k++) {
+        const rad_patch *p = &P->p[k];
+        assert_true(p->area <= o.max_area * (1 + 1e-12));
+        for (int e = 0; e < 3; e++)
+            assert_true(rr_v3_len(rr_v3_sub(P->verts[p->v[e]], P->verts[p->v[(e + 1) % 3]])) <= o.max_edge + 1e-12);
+        assert_true(p->area > 0);
+        if (p->tri >= 0) {
+            patch_area += p->area;
+            /* Same orientation as the source triangle. */
+            assert_near(rr_v3_dot(p->normal, scene_tri_normal(s, (size_t)p->tri)), 1.0, 1e-9);
+        }
+    }
+    assert_near(patch_area, tri_area, 1e-9 * tri_area);
+    /* Units: E = pi * Le; rho from the material. */
+    uint32_t lamp = P->tri_first[s->objects[1].tri_first];
+    assert_near(P->p[lamp].emission.g, 2.0 * RR_PI, 1e-12);
+    assert_near(P->p[lamp].rho.r, 0.2, 0);
+    /* Sphere patches: flat triangles inscribed in the sphere, outward. */
+    double sph = 0;
+    for (size_t k = 0; k < P->n; k++)
+        if (P->p[k].tri < 0) {
+            sph += P->p[k].area;
+            rr_vec3 out = rr_v3_norm(rr_v3_sub(P->p[k].centroid, s->objects[3].center));
+            assert_true(rr_v3_dot(out, P->p[k].normal) > 0.9);
+        }
+    double full = 4 * RR_PI * 0.49;
+    if (!(sph < full && sph > 0.95 * full)) /* inscribed: 1 - O(1/S^2) */
+        fail_msg("sphere patch area %g of %g (S = %u)", sph, full, P->sphere_stacks);
+    rad_patches_destroy(P);
+    rad_patches_destroy(NULL);
+    scene_destroy(s);
+}
+
+/* No T-vertices: in the closed box every patch edge is shared by exactly two
+ * patches (a T-vertex would leave an edge used once on each side). */
+static int cmp_u64(const void *a, const void *b)
+{
+    uint64_t x = *(const uint64_t *)a, y = *(const uint64_t *)b;
+    return x < y ? -1 : x > y;
+}
+
+static void conforming_box(void **state)
+{
+    (void)state;
+    scene *s = load();
+    rad_patch_opts o = {0.03, 0.3};
+    rad_patches *P = NULL;
+    assert_int_equal(rad_patches_build(s, &o, &P, NULL), RR_OK);
+    size_t n = 0, cap = 3 * P->n;
+    uint64_t *edges = malloc(cap * sizeof *edges);
+    for (size_t k = 0; k < P->n; k++)
+        if (P->p[k].object == 0)
+            for (int e = 0; e < 3; e++) {
+                uint64_t a = P->p[k].v[e], b = P->p[k].v[(e + 1) % 3];
+                edges[n++] = a < b ? (a << 32 | b) : (b << 32 | a);
+            }
+    qsort(edges, n, sizeof *edges, cmp_u64);
+    assert_true(n > 300);
+    for (size_t i = 0; i < n;) {
+        size_t j = i;
+        while (j < n && edges[j] == edges[i])
+            j++;
+        if (j - i != 2)
+            fail_msg("edge %zu used %zu times", i, j - i);
+        i = j;
+    }
+    free(edges);
+    rad_patches_destroy(P);
+    scene_destroy(s);
+}
+
+/* A hit anywhere on a triangle or sphere finds the patch that contains it. */
+static void locate_hits(void **state)
+{
+    (void)state;
+    scene *s = load();
+    rad_patch_opts o = {0.02, 0.25};
+    rad_patches *P = NULL;
+    assert_int_equal(rad_patches_build(s, &o, &P, NULL), RR_OK);
+    rr_rng rng = rr_rng_make(3, 3);
+    for (size_t t = 0; t < s->ntris; t++)
+        for (int k = 0; k < 200; k++) {
+            double u = rr_rng_uniform(&rng), v = rr_rng_uniform(&rng);
+            if (u + v > 1) {
+                u = 1 - u;
+                v = 1 - v;
+            }
+            const scene_tri *tr = &s->tris[t];
+            rr_vec3 A = s->verts[tr->v[0]], B = s->verts[tr->v[1]], C = s->verts[tr->v[2]];
+            rr_vec3 p = rr_v3_add(A, rr_v3_add(rr_v3_scale(rr_v3_sub(B, A), u), rr_v3_scale(rr_v3_sub(C, A), v)));
+            uint32_t q = rad_patch_locate(P, s, (int64_t)t, tr->object, p);
+            assert_true(q < P->n);
+            assert_int_equal(P->p[q].tri, (int64_t)t);
+            double b[3];
+            rad_patch_barycentric(P, q, p, b);
+            for (int e = 0; e < 3; e++)
+                assert_true(b[e] > -1e-9);
+        }
+    const scene_object *ball = &s->objects[3];
+    for (int k = 0; k < 2000; k++) {
+        double z = 2 * rr_rng_uniform(&rng) - 1, ph = 2 * RR_PI * rr_rng_uniform(&rng), r = sqrt(1 - z * z);
+        rr_vec3 p = rr_v3_add(ball->center, rr_v3_scale(rr_v3(r * cos(ph), r * sin(ph), z), ball->radius));
+        uint32_t q = rad_patch_locate(P, s, -1, 3, p);
+        assert_true(q < P->n);
+        assert_int_equal(P->p[q].object, 3);
+        /* The point projects into its (flat) patch along the radius, up to the
+         * difference between the patch's straight edges and the (theta, phi)
+         * rings of the lookup (chords bulge from the latitude lines): a few percent of a patch at S = 8. */
+        rr_vec3 dir = rr_v3_sub(p, ball->center);
+        double t = rr_v3_dot(P->p[q].normal, rr_v3_sub(P->p[q].centroid, ball->center)) / rr_v3_dot(P->p[q].normal, dir);
+        double b[3];
+        rad_patch_barycentric(P, q, rr_v3_add(ball->center, rr_v3_scale(dir, t)), b);
+        for (int e = 0; e < 3; e++)
+            if (!(b[e] > -0.05))
+                fail_msg("sphere point %d: patch %u, b = %g %g %g", k, q, b[0], b[1], b[2]);
+    }
+    rad_patches_destroy(P);
+    scene_destroy(s);
+}
+
+static void bad_limits(void **state)
+{
+    (void)state;
+    scene *s = load();
+    rad_patches *P = NULL;
+    rr_error err;
+    rad_patch_opts o = {0, 1};
+    assert_int_equal(rad_patches_build(s, &o, &P, &err), RR_ERR_INVALID);
+    assert_null(P);
+    rad_patch_opts tiny = {1e-12, 1e-6};
+    assert_int_equal(rad_patches_build(s, &tiny, &P, &err), RR_ERR_LIMIT);
+    assert_non_null(strstr(err.msg, "patches"));
+    assert_null(P);
+    scene_destroy(s);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(limits_and_areas),
+        cmocka_unit_test(conforming_box),
+        cmocka_unit_test(locate_hits),
+        cmocka_unit_test(bad_limits),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
