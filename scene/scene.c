@@ -5,8 +5,8 @@
 
 #include "scene_internal.h"
 
-static const char *const k_top[] = {"format",    "name",   "description", "camera", "materials",
-                                    "lights",    "objects", "render",      NULL};
+static const char *const k_top[] = {"format",  "name",    "description", "camera",    "materials",
+                                    "lights",  "objects", "render",      "radiosity", NULL};
 
 /* The first check: a file that is not a radray scene at all (another JSON
  * file, a future version) should say so, not complain about its keys. */
@@ -93,7 +93,8 @@ static rr_status build_scene(const sp_ctx *c, cJSON *root, scene *s)
     }
     if ((st = sp_string(c, root, "", "name", SP_OPTIONAL, 1, s->name, sizeof s->name)) != RR_OK ||
         (st = sp_parse_materials(c, root, s)) != RR_OK || (st = sp_parse_camera(c, root, s)) != RR_OK ||
-        (st = sp_parse_render(c, root, s)) != RR_OK || (st = sp_parse_lights(c, root, s)) != RR_OK ||
+        (st = sp_parse_render(c, root, s)) != RR_OK ||
+        (st = sp_parse_radiosity(c, root, s)) != RR_OK || (st = sp_parse_lights(c, root, s)) != RR_OK ||
         (st = sp_parse_objects(c, root, s)) != RR_OK || (st = collect_emissive(c, s)) != RR_OK)
         return st;
     compute_bbox(s);

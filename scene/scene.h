@@ -83,11 +83,25 @@ typedef struct scene_settings {
     int half_float;         /* EXR pixel type: 0 float (default), 1 half */
 } scene_settings;
 
+/* The radiosity pass ("radiosity" block; notes/scene-format.md). */
+typedef enum scene_rad_solver { SCENE_RAD_AUTO = 0, SCENE_RAD_DIRECT = 1, SCENE_RAD_ITERATIVE = 2 } scene_rad_solver;
+typedef enum scene_rad_ff { SCENE_FF_MONTE_CARLO = 0, SCENE_FF_QUADRATURE = 1 } scene_rad_ff;
+
+typedef struct scene_radiosity {
+    double patch_area;      /* largest patch area; 0 = automatic (surface area / 2000) */
+    double patch_edge;      /* longest patch edge; 0 = automatic (2 sqrt(patch_area)) */
+    scene_rad_solver solver; /* default auto */
+    scene_rad_ff form_factors; /* default Monte Carlo */
+    int ff_samples;         /* rays (Monte Carlo) or points (quadrature) per patch, default 512 */
+    double tolerance;       /* iterative solver: relative residual, default 1e-9 */
+} scene_radiosity;
+
 typedef struct scene {
     char path[4096];        /* the file it was loaded from ("<string>" names for in-memory) */
     char name[SCENE_NAME_MAX];
     rr_view view;
     scene_settings settings;
+    scene_radiosity radiosity;
     scene_material *materials;
     size_t nmaterials;
     scene_light *lights;

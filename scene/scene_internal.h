@@ -102,6 +102,7 @@ rr_status sp_array(const sp_ctx *c, const cJSON *v, const char *path, int n, con
 
 rr_status sp_parse_camera(const sp_ctx *c, const cJSON *root, scene *s);
 rr_status sp_parse_render(const sp_ctx *c, const cJSON *root, scene *s);
+rr_status sp_parse_radiosity(const sp_ctx *c, const cJSON *root, scene *s);
 rr_status sp_parse_materials(const sp_ctx *c, const cJSON *root, scene *s);
 rr_status sp_parse_lights(const sp_ctx *c, const cJSON *root, scene *s);
 

@@ -195,6 +195,65 @@ rr_status sp_parse_render(const sp_ctx *c, const cJSON *root, scene *s)
     return RR_OK;
 }
 
+/* ---- radiosity settings ---- */
+
+static const char *const k_radiosity[] = {"patch_area", "patch_edge", "solver", "form_factors",
+                                          "ff_samples", "tolerance",  NULL};
+
+/* Looks a string value up in names (NULL-terminated); missing keeps *out. */
+static rr_status parse_choice(const sp_ctx *c, const cJSON *obj, const char *path, const char *key,
+                              const char *const *names, int *out)
+{
+    char val[32], where[SP_PATH_MAX];
+    if (!sp_get(obj, key))
+        return RR_OK;
+    rr_status st = sp_string(c, obj, path, key, SP_REQUIRED, 1, val, sizeof val);
+    if (st != RR_OK)
+        return st;
+    for (int i = 0; names[i]; i++)
+        if (!strcmp(val, names[i])) {
+            *out = i;
+            return RR_OK;
+        }
+    sp_key(where, path, key);
+    char list[128] = "";
+    for (int i = 0; names[i]; i++) {
+        strncat(list, i ? ", " : "", sizeof list - strlen(list) - 1);
+        strncat(list, names[i], sizeof list - strlen(list) - 1);
+    }
+    return sp_fail(c, RR_ERR_INVALID, where, "expected one of %s (got \"%s\")", list, val);
+}
+
+rr_status sp_parse_radiosity(const sp_ctx *c, const cJSON *root, scene *s)
+{
+    scene_radiosity *r = &s->radiosity;
+    memset(r, 0, sizeof *r);
+    r->ff_samples = 512;
+    r->tolerance = 1e-9;
+    const cJSON *v = sp_get(root, "radiosity");
+    if (!v)
+        return RR_OK;
+    static const char *const solvers[] = {"auto", "direct", "iterative", NULL};
+    static const char *const ffs[] = {"montecarlo", "quadrature", NULL};
+    int solver = 0, ff = 0;
+    double samples = r->ff_samples;
+    rr_status st;
+    if ((st = sp_check_object(c, v, "radiosity", k_radiosity)) != RR_OK ||
+        (st = sp_number_range(c, v, "radiosity", "patch_area", SP_OPTIONAL, 1e-300, INFINITY, &r->patch_area)) !=
+            RR_OK ||
+        (st = sp_number_range(c, v, "radiosity", "patch_edge", SP_OPTIONAL, 1e-300, INFINITY, &r->patch_edge)) !=
+            RR_OK ||
+        (st = parse_choice(c, v, "radiosity", "solver", solvers, &solver)) != RR_OK ||
+        (st = parse_choice(c, v, "radiosity", "form_factors", ffs, &ff)) != RR_OK ||
+        (st = sp_int(c, v, "radiosity", "ff_samples", SP_OPTIONAL, 1, 1 << 20, &samples)) != RR_OK ||
+        (st = sp_number_range(c, v, "radiosity", "tolerance", SP_OPTIONAL, 1e-15, 0.1, &r->tolerance)) != RR_OK)
+        return st;
+    r->solver = (scene_rad_solver)solver;
+    r->form_factors = (scene_rad_ff)ff;
+    r->ff_samples = (int)samples;
+    return RR_OK;
+}
+
 /* ---- materials ---- */
 
 static const char *const k_material[] = {"diffuse", "ambient", "specular", "k", "mirror", "emission", NULL};

@@ -537,7 +537,7 @@ static void bad_inputs(void **state)
         {0, 0, 0, 0, 0, "{\"format\": \"radray-scene/2\"}", RR_ERR_INVALID, "bad.json: format: expected \"radray-scene/1\" (got the string \"radray-scene/2\")"},
         {0, 0, 0, 0, 0, "{\"format\": 1}", RR_ERR_INVALID, "bad.json: format: expected \"radray-scene/1\" (got the number 1)"},
         {0, 0, 0, 0, 0, "{\"format\": \"radray-scene/1\", \"lihgts\": []}", RR_ERR_INVALID,
-         "bad.json: unknown key 'lihgts' (allowed: format, name, description, camera, materials, lights, objects, render)"},
+         "bad.json: unknown key 'lihgts' (allowed: format, name, description, camera, materials, lights, objects, render, radiosity)"},
         {0, 0, 0, 0, 0, "{\"format\": \"radray-scene/1\", \"format\": \"radray-scene/1\"}", RR_ERR_INVALID, "bad.json: key 'format' appears twice"},
         {0, 0, 0, 0, 0, "{\"format\": \"radray-scene/1\", \"name\": 3}", RR_ERR_INVALID, "bad.json: name: expected a string (got the number 3)"},
         {0, 0, 0, 0, 0, "{\"format\": \"radray-scene/1\", \"description\": []}", RR_ERR_INVALID, "bad.json: description: expected a string"},
@@ -915,9 +915,55 @@ static void documented_example(void **state)
     free(doc);
 }
 
+/* The "radiosity" block: defaults, every key, and its bad values. */
+static void radiosity_block(void **state)
+{
+    (void)state;
+    const char *head = "{\"format\":\"radray-scene/1\",\"camera\":{\"type\":\"lecture\",\"E\":[0,0,5],\"O\":[0,0,4],"
+                       "\"U\":[0,1,0],\"s\":0.1,\"w\":2,\"h\":2},\"materials\":{\"m\":{}},\"objects\":[{\"type\":"
+                       "\"quad\",\"material\":\"m\",\"vertices\":[[0,0,0],[1,0,0],[1,1,0],[0,1,0]]}]";
+    char text[1024];
+    scene *s = NULL;
+    rr_error err;
+    snprintf(text, sizeof text, "%s}", head);
+    assert_int_equal(scene_load_string(text, "r.json", "", NULL, &s, &err), RR_OK);
+    assert_true(s->radiosity.patch_area == 0 && s->radiosity.ff_samples == 512);
+    assert_int_equal(s->radiosity.solver, SCENE_RAD_AUTO);
+    scene_destroy(s);
+    snprintf(text, sizeof text,
+             "%s,\"radiosity\":{\"patch_area\":0.01,\"patch_edge\":0.2,\"solver\":\"direct\","
+             "\"form_factors\":\"quadrature\",\"ff_samples\":64,\"tolerance\":1e-7}}",
+             head);
+    assert_int_equal(scene_load_string(text, "r.json", "", NULL, &s, &err), RR_OK);
+    assert_true(s->radiosity.patch_area == 0.01 && s->radiosity.patch_edge == 0.2);
+    assert_int_equal(s->radiosity.solver, SCENE_RAD_DIRECT);
+    assert_int_equal(s->radiosity.form_factors, SCENE_FF_QUADRATURE);
+    assert_int_equal(s->radiosity.ff_samples, 64);
+    scene_destroy(s);
+    static const struct {
+        const char *block, *want;
+    } bad[] = {
+        {"{\"solver\":\"cg\"}", "r.json: radiosity.solver: expected one of auto, direct, iterative (got \"cg\")"},
+        {"{\"patch_area\":-1}", "r.json: radiosity.patch_area"},
+        {"{\"ff_samples\":0}", "r.json: radiosity.ff_samples"},
+        {"{\"form_factors\":3}", "r.json: radiosity.form_factors: expected a string"},
+        {"{\"patches\":3}", "r.json: radiosity: unknown key 'patches'"},
+        {"[]", "r.json: radiosity: expected an object"},
+    };
+    for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+        snprintf(text, sizeof text, "%s,\"radiosity\":%s}", head, bad[i].block);
+        s = NULL;
+        assert_int_not_equal(scene_load_string(text, "r.json", "", NULL, &s, &err), RR_OK);
+        assert_null(s);
+        if (!strstr(err.msg, bad[i].want))
+            fail_msg("case %zu: '%s' does not contain '%s'", i, err.msg, bad[i].want);
+    }
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
+        cmocka_unit_test(radiosity_block),
         cmocka_unit_test(complete_scene),
         cmocka_unit_test(lookat_camera),
         cmocka_unit_test(defaults),
