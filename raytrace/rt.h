@@ -105,6 +105,11 @@ typedef struct rt_render_opts {
     int light_samples; /* shadow rays per hit for the area lights */
     rt_indirect indirect;
     rt_filter filter;
+    /* Radiosity display: when set, every camera-ray hit shows this radiance
+     * (the radiosity pass's B/pi, interpolated) and nothing else is shaded.
+     * A hook, so that raytrace does not depend on radiosity. */
+    rr_rgb (*radiosity)(void *user, const rt_hit *hit);
+    void *radiosity_user;
     /* Progress, called from one thread at a time with the work units (tiles)
      * finished so far. */
     void (*progress)(void *user, int done, int total);
@@ -119,6 +124,7 @@ enum {
     RT_LAYER_SPECULAR,     /* Phong: s E (R.V)^k, shadowed */
     RT_LAYER_MIRROR,       /* mirror reflectance times what the mirror ray sees */
     RT_LAYER_INDIRECT,     /* diffuse interreflection from secondary rays */
+    RT_LAYER_RADIOSITY,    /* radiosity display: B/pi interpolated across patches */
     RT_LAYER_COUNT
 };
 const char *rt_layer_name(int layer);

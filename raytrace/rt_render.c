@@ -31,8 +31,8 @@
 #define RT_TILE 16
 #define RT_MAX_BOUNCES 256 /* safety cap; Russian roulette ends paths long before */
 
-static const char *const k_layer_names[RT_LAYER_COUNT] = {"emission", "ambient", "diffuse",
-                                                          "specular", "mirror",  "indirect"};
+static const char *const k_layer_names[RT_LAYER_COUNT] = {"emission", "ambient",  "diffuse",  "specular",
+                                                          "mirror",   "indirect", "radiosity"};
 
 const char *rt_layer_name(int layer) { return layer >= 0 && layer < RT_LAYER_COUNT ? k_layer_names[layer] : "?"; }
 
@@ -247,6 +247,13 @@ static rr_rgb radiance(const render_ctx *c, rr_ray ray, int depth, int bounce, i
     rr_vec3 V = rr_v3_norm(rr_v3_neg(ray.d));
     shade_out local;
     memset(&local, 0, sizeof local);
+    if (c->o->radiosity) {
+        /* Radiosity display: the view-independent solution, emitters included. */
+        local.c[RT_LAYER_RADIOSITY] = c->o->radiosity(c->o->radiosity_user, &h);
+        if (out)
+            *out = local;
+        return local.c[RT_LAYER_RADIOSITY];
+    }
     if (h.front && (h.tri < 0 || count_tri_emission))
         local.c[RT_LAYER_EMISSION] = m->emission;
     int diffuse = rr_rgb_max(m->diffuse) > 0.0;
