@@ -511,7 +511,7 @@ rr_status sp_color(const sp_ctx *c, const cJSON *obj, const char *path, const ch
                                    : RR_OK;
     char p[SP_PATH_MAX], got[96], rt[64];
     sp_key(p, path, key);
-    double ch[3];
+    double ch[3] = {0, 0, 0};
     if (cJSON_IsNumber(v)) {
         rr_status st = sp_number_item(c, v, p, &ch[0]);
         if (st != RR_OK)
