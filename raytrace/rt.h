@@ -49,6 +49,14 @@ void rt_phong(rr_vec3 N, rr_vec3 L, rr_vec3 V, const scene_material *m, rr_rgb E
 rr_rgb rt_reflected_intensity(rr_vec3 E, rr_vec3 H, rr_vec3 N, rr_vec3 L, const scene_material *m, rr_rgb A,
                               rr_rgb light);
 
+/* The one rule for starting a new ray on a surface (shadow, mirror, bounce,
+ * form-factor rays alike): p pushed along the unit normal n, towards the side
+ * that dir leaves to, by 1e-9 * (max |coordinate of p| + scale). scale is the
+ * scene's extent (rt_scene_scale), so the offset scales with the scene and with
+ * the rounding of p; see notes/raytracer.md. */
+double rt_scene_scale(const scene *s);
+rr_vec3 rt_offset_origin(double scale, rr_vec3 p, rr_vec3 n, rr_vec3 dir);
+
 /* A ray's front-most hit. */
 typedef struct rt_hit {
     double t;          /* along the ray's (unnormalised) direction */

@@ -121,14 +121,23 @@ static size_t light_pick(const light_table *lt, double u, double *pdf)
     return lo;
 }
 
-/* Origin nudged off the surface along n by an amount that scales with the
- * scene and with the magnitude of the coordinates (so a 1 mm scene and a 10 km
- * scene behave alike), on the side the new ray leaves towards. */
-static rr_vec3 offset_origin(const render_ctx *c, rr_vec3 p, rr_vec3 n, rr_vec3 dir)
+double rt_scene_scale(const scene *s)
+{
+    rr_vec3 ext = rr_v3_sub(s->bbox_max, s->bbox_min);
+    double m = fmax(ext.x, fmax(ext.y, ext.z));
+    return isfinite(m) && m > 0 ? m : 1.0;
+}
+
+rr_vec3 rt_offset_origin(double scale, rr_vec3 p, rr_vec3 n, rr_vec3 dir)
 {
     double m = fmax(fabs(p.x), fmax(fabs(p.y), fabs(p.z)));
-    double eps = 1e-9 * (m + c->eps_scale);
+    double eps = 1e-9 * (m + scale);
     return rr_v3_madd(p, n, rr_v3_dot(n, dir) >= 0.0 ? eps : -eps);
+}
+
+static rr_vec3 offset_origin(const render_ctx *c, rr_vec3 p, rr_vec3 n, rr_vec3 dir)
+{
+    return rt_offset_origin(c->eps_scale, p, n, dir);
 }
 
 /* Lit(H, L): nothing between the offset origin and the light. */
@@ -335,8 +344,7 @@ rr_status rt_render(const scene *s, const rt_accel *a, const rt_render_opts *o, 
     c.s = s;
     c.a = a;
     c.o = o;
-    rr_vec3 ext = rr_v3_sub(s->bbox_max, s->bbox_min);
-    c.eps_scale = rr_v3_isfinite(ext) ? fmax(ext.x, fmax(ext.y, ext.z)) : 1.0;
+    c.eps_scale = rt_scene_scale(s);
     rr_status st = light_table_build(s, &c.lights, err);
     if (st != RR_OK)
         return st;
@@ -387,12 +395,11 @@ rr_status rt_render(const scene *s, const rt_accel *a, const rt_render_opts *o, 
 int rt_follow_mirrors(const rt_accel *a, rr_ray ray, int max_bounces, rr_ray *last, int *escaped)
 {
     const scene *s = a->scene;
-    rr_vec3 ext = rr_v3_sub(s->bbox_max, s->bbox_min);
     render_ctx c;
     memset(&c, 0, sizeof c);
     c.s = s;
     c.a = a;
-    c.eps_scale = fmax(ext.x, fmax(ext.y, ext.z));
+    c.eps_scale = rt_scene_scale(s);
     int n = 0;
     *escaped = 0;
     for (;;) {
