@@ -1,0 +1,100 @@
+/* rad_ff_internal.h - the sampling patterns of the form-factor estimators
+ * (rad_ff.c), here so that the tests can check them directly. Not part of the
+ * public API (rad.h). */
+#ifndef RAD_FF_INTERNAL_H
+#define RAD_FF_INTERNAL_H
+
+#include <math.h>
+#include <stdint.h>
+
+#include "rr_core.h"
+
+/* Largest m with m * m <= n. */
+static inline uint32_t rad_ff_isqrt(uint32_t n)
+{
+    uint32_t m = (uint32_t)sqrt((double)n);
+    while ((uint64_t)(m + 1) * (m + 1) <= n)
+        m++;
+    while ((uint64_t)m * m > n)
+        m--;
+    return m;
+}
+
+/* Jittered stratum k of n on the unit square (for directions): an nx x ny
+ * grid (nx = floor(sqrt n)), the n - nx*ny left over samples uniform. */
+static inline void rad_ff_square_stratum(uint32_t k, uint32_t n, rr_rng *rng, double *u1, double *u2)
+{
+    uint32_t nx = rad_ff_isqrt(n), ny = n / nx;
+    if (nx > 0 && k < nx * ny) {
+        *u1 = ((double)(k % nx) + rr_rng_uniform(rng)) / nx;
+        *u2 = ((double)(k / nx) + rr_rng_uniform(rng)) / ny;
+    } else {
+        *u1 = rr_rng_uniform(rng);
+        *u2 = rr_rng_uniform(rng);
+    }
+}
+
+static inline void rad_ff_shuffle(uint32_t *perm, uint32_t n, rr_rng *rng)
+{
+    for (uint32_t k = 0; k < n; k++)
+        perm[k] = k;
+    for (uint32_t k = n; k > 1; k--) {
+        uint32_t r = rr_rng_below(rng, k);
+        uint32_t t = perm[k - 1];
+        perm[k - 1] = perm[r];
+        perm[r] = t;
+    }
+}
+
+/* Stratum k of n on a triangle: the triangle is cut into m^2 similar
+ * sub-triangles (m = floor(sqrt n), the grid rad_patch uses), and the sample
+ * is uniform in sub-triangle k; the n - m^2 left over samples are uniform on
+ * the whole triangle. Similar sub-triangles keep every stratum compact, unlike
+ * a jittered square pushed through the square-root warp, whose strata turn
+ * into slivers at one corner. Returns (u, v): P = A + u (B - A) + v (C - A). */
+static inline void rad_ff_tri_stratum(uint32_t k, uint32_t n, rr_rng *rng, double *u, double *v)
+{
+    uint32_t m = rad_ff_isqrt(n);
+    double a = rr_rng_uniform(rng), b = rr_rng_uniform(rng);
+    if (a + b > 1.0) { /* fold the square onto the unit right triangle */
+        a = 1.0 - a;
+        b = 1.0 - b;
+    }
+    if (k >= m * m) {
+        *u = a;
+        *v = b;
+        return;
+    }
+    /* Row j holds 2 (m - j) - 1 sub-triangles, j (2m - j) before it: the row
+     * of k is the largest j with j (2m - j) <= k, j = m - sqrt(m^2 - k) up to
+     * rounding (fixed by the loops). */
+    double jr = floor((double)m - sqrt((double)m * m - (double)k));
+    uint32_t j = jr < 0 ? 0u : (jr > m - 1 ? m - 1 : (uint32_t)jr);
+    while (j > 0 && (uint64_t)j * (2 * m - j) > k)
+        j--;
+    while (j + 1 < m && (uint64_t)(j + 1) * (2 * m - j - 1) <= k)
+        j++;
+    uint32_t t = k - j * (2 * m - j), i = t / 2;
+    if (t % 2 == 0) { /* upright: (i, j), (i+1, j), (i, j+1) */
+        *u = (i + a) / m;
+        *v = (j + b) / m;
+    } else { /* inverted: (i+1, j+1), (i, j+1), (i+1, j) */
+        *u = (i + 1 - a) / m;
+        *v = (j + 1 - b) / m;
+    }
+}
+
+/* Cosine-weighted direction about unit N from (u1, u2) (Malley's method,
+ * Duff et al.'s branchless basis). */
+static inline rr_vec3 rad_ff_cosine_dir(rr_vec3 N, double u1, double u2)
+{
+    double r = sqrt(u1), phi = 2.0 * RR_PI * u2;
+    double x = r * cos(phi), y = r * sin(phi), z = sqrt(fmax(0.0, 1.0 - u1));
+    double sign = copysign(1.0, N.z);
+    double a = -1.0 / (sign + N.z), b = N.x * N.y * a;
+    rr_vec3 T = rr_v3(1.0 + sign * N.x * N.x * a, sign * b, -sign * N.x);
+    rr_vec3 B = rr_v3(b, sign + N.y * N.y * a, -N.y);
+    return rr_v3_add(rr_v3_add(rr_v3_scale(T, x), rr_v3_scale(B, y)), rr_v3_scale(N, z));
+}
+
+#endif
