@@ -11,7 +11,7 @@ set -euo pipefail
 cd "$(dirname "$0")"
 
 PACKAGES=(cmake make gcc g++ pkg-config libopenmesh-dev libsuitesparse-dev libopenexr-dev
-          libcmocka-dev libcjson-dev libpng-dev)
+          libcmocka-dev libcjson-dev libpng-dev libcairo2-dev)
 JOBS=$(nproc 2>/dev/null || echo 2)
 
 install_packages() {

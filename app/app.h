@@ -15,6 +15,7 @@ enum { APP_EXIT_OK = 0, APP_EXIT_RUNTIME = 1, APP_EXIT_USAGE = 2 };
 
 int app_cmd_render(int argc, char **argv);
 int app_cmd_info(int argc, char **argv);
+int app_cmd_energy(int argc, char **argv);
 
 /* Prints "radray: <msg>" on stderr. */
 void app_error(const char *fmt, ...)
@@ -25,6 +26,10 @@ void app_error(const char *fmt, ...)
 
 /* Warning sink printing "radray: warning: <msg>" on stderr. */
 rr_warn_sink app_warn_sink(void);
+
+/* Writes a log-scale plot of res[0..n) (residual per iteration) to path, PNG
+ * or SVG by extension, atomically. 0 on success. */
+int app_plot_residuals(const char *path, const double *res, int n, const char *title, rr_error *err);
 
 /* Parses a whole decimal integer in [lo, hi]; 0 on success. */
 int app_parse_int(const char *s, long lo, long hi, long *out);

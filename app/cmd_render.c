@@ -9,6 +9,7 @@
 
 #include "app.h"
 #include "img.h"
+#include "rad.h"
 #include "rt.h"
 #include "scene.h"
 
@@ -28,11 +29,22 @@ static const char render_usage[] =
     "      --threads N        worker threads, 0 = all cores (render.threads)\n"
     "      --exposure EV      PNG preview exposure in stops (render.exposure)\n"
     "      --half             write half-float EXR instead of float (render.half_float)\n"
-    "      --mode MODE        whitted (default): direct light, shadows, mirrors, ambient term\n"
-    "                         secondary: diffuse interreflection by Monte Carlo secondary rays\n"
-    "      --indirect KIND    what supplies diffuse interreflection: ambient|secondary|none\n"
+    "      --mode MODE        hybrid (default): ray-traced direct light, shadows, highlights and\n"
+    "                           mirrors, plus diffuse interreflection from the radiosity pass\n"
+    "                         whitted: the same with the lecture's ambient term instead\n"
+    "                         secondary: interreflection by Monte Carlo secondary rays instead\n"
+    "                         radiosity: the radiosity solution alone, Gouraud-shaded\n"
+    "      --indirect KIND    what supplies diffuse interreflection, everything else equal:\n"
+    "                         radiosity|secondary|ambient|none\n"
     "                         (overrides the mode's choice)\n"
     "      --filter F         pixel filter for supersampling: box (default) or tent\n"
+    "radiosity options (override the scene's \"radiosity\" block):\n"
+    "      --patch-area A     largest patch area (scene units squared)\n"
+    "      --patch-edge L     longest patch edge\n"
+    "      --solver S         auto, direct (CHOLMOD) or iterative (Gauss-Seidel)\n"
+    "      --ff METHOD        form factors: montecarlo or quadrature\n"
+    "      --ff-samples N     rays or sample points per patch\n"
+    "      --plot FILE        write the solver's convergence (residual per iteration) as PNG or SVG\n"
     "      --set KEY=VALUE    override any scene value by its JSON path, e.g.\n"
     "                         --set render.spp=16 --set materials.white.diffuse=[0.7,0.7,0.7]\n"
     "                         (repeatable; VALUE is JSON, or a string)\n"
@@ -107,8 +119,32 @@ enum {
     OPT_SET,
     OPT_MODE,
     OPT_INDIRECT,
-    OPT_FILTER
+    OPT_FILTER,
+    OPT_PATCH_AREA,
+    OPT_PATCH_EDGE,
+    OPT_SOLVER,
+    OPT_FF,
+    OPT_FF_SAMPLES,
+    OPT_PLOT
 };
+
+/* The radiosity pass behind --mode radiosity: the display hook. */
+typedef struct rad_display {
+    const rad_solution *sol;
+    const scene *s;
+} rad_display;
+
+static rr_rgb radiosity_hook(void *user, const rt_hit *hit)
+{
+    const rad_display *d = user;
+    return rad_radiance_at(d->sol, d->s, hit);
+}
+
+static rr_rgb indirect_hook(void *user, const rt_hit *hit, rr_rgb rho)
+{
+    const rad_display *d = user;
+    return rad_indirect_at(d->sol, d->s, hit, rho);
+}
 
 /* Looks name up in a NULL-terminated list; returns its index or -1. */
 static int pick(const char *name, const char *const *names)
@@ -130,14 +166,19 @@ int app_cmd_render(int argc, char **argv)
         {"quiet", no_argument, NULL, 'q'},            {"help", no_argument, NULL, 'h'},
         {"mode", required_argument, NULL, OPT_MODE},  {"indirect", required_argument, NULL, OPT_INDIRECT},
         {"filter", required_argument, NULL, OPT_FILTER},
+        {"patch-area", required_argument, NULL, OPT_PATCH_AREA}, {"patch-edge", required_argument, NULL, OPT_PATCH_EDGE},
+        {"solver", required_argument, NULL, OPT_SOLVER},  {"ff", required_argument, NULL, OPT_FF},
+        {"ff-samples", required_argument, NULL, OPT_FF_SAMPLES}, {"plot", required_argument, NULL, OPT_PLOT},
         {NULL, 0, NULL, 0}};
-    const char *out_exr = NULL, *out_png = NULL;
+    const char *out_exr = NULL, *out_png = NULL, *plot = NULL;
     int no_png = 0, quiet = 0;
     long width = 0;
-    static const char *const modes[] = {"whitted", "secondary", NULL};
-    static const char *const indirects[] = {"none", "ambient", "secondary", NULL};
+    /* Modes are presets of the indirect term (whitted = ambient, ...). */
+    enum { MODE_WHITTED, MODE_SECONDARY, MODE_RADIOSITY, MODE_HYBRID };
+    static const char *const modes[] = {"whitted", "secondary", "radiosity", "hybrid", NULL};
+    static const char *const indirects[] = {"none", "ambient", "secondary", "radiosity", NULL};
     static const char *const filters[] = {"box", "tent", NULL};
-    int mode = 0, indirect = -1, filter = RT_FILTER_BOX;
+    int mode = MODE_HYBRID, indirect = -1, filter = RT_FILTER_BOX;
     /* Overrides: one per --set, plus those the shorthand options expand to. */
     char **sets = calloc((size_t)argc + 1, sizeof *sets);
     size_t nsets = 0;
@@ -145,6 +186,7 @@ int app_cmd_render(int argc, char **argv)
     scene *sc = NULL;
     rt_film film;
     rt_accel *accel = NULL;
+    rad_solution *sol = NULL;
     memset(&film, 0, sizeof film);
     char exr_default[4200], png_default[4200];
     if (!sets) {
@@ -161,6 +203,7 @@ int app_cmd_render(int argc, char **argv)
         case 'o': out_exr = optarg; break;
         case OPT_PNG: out_png = optarg; break;
         case OPT_NO_PNG: no_png = 1; break;
+        case OPT_PLOT: plot = optarg; break;
         case 'q': quiet = 1; break;
         case 'h':
             fputs(render_usage, stdout);
@@ -174,13 +217,13 @@ int app_cmd_render(int argc, char **argv)
             break;
         case OPT_MODE:
             if ((mode = pick(optarg, modes)) < 0) {
-                app_error("--mode: expected whitted or secondary, got '%s'", optarg);
+                app_error("--mode: expected hybrid, whitted, secondary or radiosity, got '%s'", optarg);
                 goto done;
             }
             break;
         case OPT_INDIRECT:
             if ((indirect = pick(optarg, indirects)) < 0) {
-                app_error("--indirect: expected ambient, secondary or none, got '%s'", optarg);
+                app_error("--indirect: expected radiosity, secondary, ambient or none, got '%s'", optarg);
                 goto done;
             }
             break;
@@ -190,6 +233,11 @@ int app_cmd_render(int argc, char **argv)
                 goto done;
             }
             break;
+        case OPT_PATCH_AREA: key = "radiosity.patch_area"; break;
+        case OPT_PATCH_EDGE: key = "radiosity.patch_edge"; break;
+        case OPT_SOLVER: key = "radiosity.solver"; break;
+        case OPT_FF: key = "radiosity.form_factors"; break;
+        case OPT_FF_SAMPLES: key = "radiosity.ff_samples"; break;
         case OPT_SPP: key = "render.spp"; break;
         case OPT_SEED: key = "render.seed"; break;
         case OPT_THREADS: key = "render.threads"; break;
@@ -261,8 +309,12 @@ int app_cmd_render(int argc, char **argv)
         snprintf(png_default, sizeof png_default, "%.*s.png", (int)(strlen(out_exr) - 4), out_exr);
         out_png = png_default;
     }
-    if (check_writable(out_exr) || (!no_png && check_writable(out_png)))
+    if (check_writable(out_exr) || (!no_png && check_writable(out_png)) || (plot && check_writable(plot)))
         goto done;
+    if (plot && mode != MODE_RADIOSITY && mode != MODE_HYBRID) {
+        app_error("--plot: the convergence plot belongs to the radiosity pass: use it with --mode radiosity");
+        goto done;
+    }
     if (rt_film_init(&film, sc->view.width, sc->view.height, &err) != RR_OK ||
         rt_accel_build(sc, &accel, &err) != RR_OK) {
         app_error("%s", err.msg);
@@ -280,11 +332,63 @@ int app_cmd_render(int argc, char **argv)
     ro.threads = sc->settings.threads;
     ro.max_depth = sc->settings.max_depth;
     ro.light_samples = sc->settings.light_samples;
-    ro.indirect = indirect >= 0 ? (rt_indirect)indirect : (mode == 1 ? RT_INDIRECT_SECONDARY : RT_INDIRECT_AMBIENT);
+    static const rt_indirect preset[] = {RT_INDIRECT_AMBIENT, RT_INDIRECT_SECONDARY, RT_INDIRECT_NONE,
+                                         RT_INDIRECT_RADIOSITY};
+    ro.indirect = indirect >= 0 ? (rt_indirect)indirect : preset[mode];
     ro.filter = (rt_filter)filter;
     ro.progress = draw_progress;
     ro.progress_user = &prog;
     rc = APP_EXIT_RUNTIME;
+    rad_display disp = {NULL, sc};
+    int need_radiosity = mode == MODE_RADIOSITY || ro.indirect == RT_INDIRECT_RADIOSITY;
+    int emits = sc->nlights > 0 || sc->nemissive > 0;
+    for (size_t i = 0; i < sc->nobjects && !emits; i++)
+        emits = rr_rgb_max(sc->materials[sc->objects[i].material].emission) > 0;
+    if (need_radiosity && !emits && mode != MODE_RADIOSITY) {
+        /* Nothing emits: there is no interreflection to compute. */
+        need_radiosity = 0;
+        ro.indirect = RT_INDIRECT_NONE;
+    }
+    if (need_radiosity) {
+        rad_pass_opts po;
+        memset(&po, 0, sizeof po);
+        po.use_scene_choices = 1;
+        po.ff.seed = sc->settings.seed;
+        po.ff.threads = sc->settings.threads;
+        rr_status rst = rad_pass_run(sc, accel, &po, &sol, &err);
+        if (rst != RR_OK) {
+            app_error("%s", err.msg);
+            /* A scene the radiosity pass cannot take (reflectance >= 1, no
+             * emitter) is bad input; running out of memory is not. */
+            rc = rst == RR_ERR_INVALID ? APP_EXIT_USAGE : APP_EXIT_RUNTIME;
+            goto done;
+        }
+        if (!quiet)
+            fprintf(stderr,
+                    "radiosity: %zu patches, %zu form factors (%.2f s), %s solver %d iteration(s), residual %.2g "
+                    "(%.2f s)\n",
+                    sol->P->n, sol->nnz, sol->seconds_ff,
+                    sol->stats.used == RAD_SOLVER_DIRECT ? "direct" : "iterative", sol->stats.iterations,
+                    sol->stats.residual, sol->seconds_solve);
+        if (plot && sol->stats.nhistory > 0) {
+            char title[128];
+            snprintf(title, sizeof title, "Gauss-Seidel residual, %zu patches", sol->P->n);
+            if (app_plot_residuals(plot, sol->stats.history, sol->stats.nhistory, title, &err) != 0) {
+                app_error("%s", err.msg);
+                goto done;
+            }
+            if (!quiet)
+                printf("wrote %s (convergence plot)\n", plot);
+        } else if (plot) {
+            fprintf(stderr, "radray: warning: --plot: the direct solver has no iterations to plot "
+                            "(use --solver iterative)\n");
+        }
+        disp.sol = sol;
+        if (mode == MODE_RADIOSITY)
+            ro.radiosity = radiosity_hook;
+        ro.radiosity_indirect = indirect_hook;
+        ro.radiosity_user = &disp;
+    }
     if (rt_render(sc, accel, &ro, &film, &err) != RR_OK) {
         app_error("%s", err.msg);
         goto done;
@@ -306,7 +410,7 @@ int app_cmd_render(int argc, char **argv)
     }
     if (!quiet) {
         printf("rendered %s: %d x %d, %d spp, indirect %s, %.2f s\n", scene_path, film.beauty.width,
-               film.beauty.height, sc->settings.spp, indirects[ro.indirect], secs);
+               film.beauty.height, sc->settings.spp, mode == MODE_RADIOSITY ? "radiosity display" : indirects[ro.indirect], secs);
         printf("wrote %s (linear %s RGB; layers", out_exr, sc->settings.half_float ? "half" : "float");
         for (int i = 0; i < RT_LAYER_COUNT; i++)
             printf(" %s", rt_layer_name(i));
@@ -317,6 +421,7 @@ int app_cmd_render(int argc, char **argv)
     rc = APP_EXIT_OK;
 done:
     rt_film_free(&film);
+    rad_solution_destroy(sol);
     rt_accel_destroy(accel);
     scene_destroy(sc);
     for (size_t i = 0; i < nsets; i++)

@@ -15,6 +15,7 @@ static const char usage[] =
     "commands:\n"
     "  render SCENE   render a scene file to OpenEXR (linear) and PNG (preview)\n"
     "  info SCENE     print what a scene holds: triangles, lights, bounds, watertightness\n"
+    "  energy SCENE   run the radiosity pass and print the energy ledger (--json)\n"
     "  help [CMD]     show this help, or the help of CMD\n"
     "  version        print the version\n"
     "\n"
@@ -65,6 +66,8 @@ int main(int argc, char **argv)
         return app_cmd_render(argc - 1, argv + 1);
     if (!strcmp(cmd, "info"))
         return app_cmd_info(argc - 1, argv + 1);
+    if (!strcmp(cmd, "energy"))
+        return app_cmd_energy(argc - 1, argv + 1);
     if (!strcmp(cmd, "version") || !strcmp(cmd, "--version")) {
         printf("radray 0.1.0\n");
         return APP_EXIT_OK;
@@ -76,6 +79,8 @@ int main(int argc, char **argv)
                 return app_cmd_render(2, sub);
             if (!strcmp(argv[2], "info"))
                 return app_cmd_info(2, sub);
+            if (!strcmp(argv[2], "energy"))
+                return app_cmd_energy(2, sub);
             app_error("unknown command '%s'", argv[2]);
             return APP_EXIT_USAGE;
         }

@@ -157,4 +157,49 @@ typedef struct rad_energy_row {
 rr_status rad_energy(const scene *s, const rad_patches *P, const rad_ff *F, const rr_rgb *B, rad_energy_row **rows,
                      size_t *nrows, rr_error *err);
 
+/* ---- the whole pass ---- */
+
+typedef struct rad_pass_opts {
+    rad_patch_opts patch;   /* <= 0 fields: from the scene's "radiosity" block / automatic */
+    rad_ff_opts ff;         /* samples <= 0: from the scene */
+    rad_solve_opts solve;   /* tolerance <= 0: from the scene */
+    int use_scene_choices;  /* 1: ff.method and solve.solver come from the scene */
+} rad_pass_opts;
+
+typedef struct rad_solution {
+    rad_patches *P;
+    rad_ff *F;
+    rr_rgb *B;           /* per patch radiosity */
+    rr_rgb *vertex_B;    /* per patch vertex: area-weighted mean of the patches around it */
+    rr_rgb *emitted;     /* per patch: pi Le of its material (the patches' emission minus the first shot below) */
+    rr_rgb *first_shot;  /* per patch: irradiance from point and directional lights (shadowed) */
+    rr_rgb *vertex_Hind; /* per vertex: indirect irradiance, sum_j F_ij (B_j - emitted_j), area-weighted */
+    rad_solve_stats stats;
+    double seconds_patches, seconds_ff, seconds_solve;
+    size_t nnz;          /* stored form factors */
+} rad_solution;
+
+/* Patches, form factors, solve, vertex radiosity: everything the display and
+ * the hybrid need. a must be built over s.
+ *
+ * Point and directional lights enter as a first shot: each patch's direct
+ * irradiance H0 from them (shadow rays from 4 points of the patch) is reflected
+ * once, rho * H0, and that is added to the patch's emission before solving
+ * (so the ledger counts it as emitted by the patch). */
+rr_status rad_pass_run(const scene *s, const rt_accel *a, const rad_pass_opts *o, rad_solution **out, rr_error *err);
+void rad_solution_destroy(rad_solution *sol);
+
+/* The patch limits the pass uses for s given o (resolving the automatic ones). */
+rad_patch_opts rad_pass_patch_limits(const scene *s, const rad_pass_opts *o);
+
+/* Radiance B/pi at a ray-tracer hit, interpolated from the vertex radiosity
+ * across the patch (Gouraud). */
+rr_rgb rad_radiance_at(const rad_solution *sol, const scene *s, const rt_hit *h);
+
+/* The hybrid's indirect diffuse radiance at a hit on a surface of reflectance
+ * rho: (rho / pi) times the indirect irradiance interpolated across the patch.
+ * Indirect = everything that arrives after at least one diffuse reflection, so
+ * the ray tracer's direct light (all lights, shadow rays) is not counted twice. */
+rr_rgb rad_indirect_at(const rad_solution *sol, const scene *s, const rt_hit *h, rr_rgb rho);
+
 #endif

@@ -94,7 +94,8 @@ int rt_accel_occluded(const rt_accel *a, rr_ray ray, double tmin, double tmax);
 typedef enum rt_indirect {
     RT_INDIRECT_NONE = 0,      /* direct light only */
     RT_INDIRECT_AMBIENT = 1,   /* the lecture's a * A * rho (Whitted) */
-    RT_INDIRECT_SECONDARY = 2  /* Monte Carlo secondary rays (unbiased reference) */
+    RT_INDIRECT_SECONDARY = 2, /* Monte Carlo secondary rays (unbiased reference) */
+    RT_INDIRECT_RADIOSITY = 3  /* the radiosity pass, through radiosity_indirect (the hybrid) */
 } rt_indirect;
 
 typedef enum rt_filter { RT_FILTER_BOX = 0, RT_FILTER_TENT = 1 } rt_filter;
@@ -117,6 +118,9 @@ typedef struct rt_render_opts {
      * (the radiosity pass's B/pi, interpolated) and nothing else is shaded.
      * A hook, so that raytrace does not depend on radiosity. */
     rr_rgb (*radiosity)(void *user, const rt_hit *hit);
+    /* The hybrid: indirect diffuse radiance at a hit on a surface of
+     * reflectance rho, used when indirect is RT_INDIRECT_RADIOSITY. */
+    rr_rgb (*radiosity_indirect)(void *user, const rt_hit *hit, rr_rgb rho);
     void *radiosity_user;
     /* Progress, called from one thread at a time with the work units (tiles)
      * finished so far. */
@@ -131,7 +135,7 @@ enum {
     RT_LAYER_DIFFUSE,      /* direct diffuse: (rho/pi) E (N.L), shadowed */
     RT_LAYER_SPECULAR,     /* Phong: s E (R.V)^k, shadowed */
     RT_LAYER_MIRROR,       /* mirror reflectance times what the mirror ray sees */
-    RT_LAYER_INDIRECT,     /* diffuse interreflection from secondary rays */
+    RT_LAYER_INDIRECT,     /* diffuse interreflection (secondary rays or the radiosity pass) */
     RT_LAYER_RADIOSITY,    /* radiosity display: B/pi interpolated across patches */
     RT_LAYER_COUNT
 };

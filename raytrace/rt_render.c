@@ -281,6 +281,8 @@ static rr_rgb radiance(const render_ctx *c, rr_ray ray, int depth, int bounce, i
         rr_rgb Lm = radiance(c, mr, depth + 1, bounce, 1, rng, NULL);
         local.c[RT_LAYER_MIRROR] = rr_rgb_mul(m->mirror, Lm);
     }
+    if (diffuse && c->o->indirect == RT_INDIRECT_RADIOSITY && c->o->radiosity_indirect)
+        local.c[RT_LAYER_INDIRECT] = c->o->radiosity_indirect(c->o->radiosity_user, &h, m->diffuse);
     if (diffuse && c->o->indirect == RT_INDIRECT_SECONDARY && bounce < RT_MAX_BOUNCES) {
         /* rho/pi * L * cos / (cos/pi) = rho * L; Russian roulette past 3 bounces. */
         rr_rgb weight = m->diffuse;

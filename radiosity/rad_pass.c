@@ -1,0 +1,234 @@
+/* rad_pass.c - the radiosity pass end to end, and its display: radiosity at
+ * vertices (area-weighted), Gouraud-interpolated across each patch. */
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include "rad.h"
+
+static double now_seconds(void)
+{
+    struct timespec t;
+    clock_gettime(CLOCK_MONOTONIC, &t);
+    return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
+}
+
+rad_patch_opts rad_pass_patch_limits(const scene *s, const rad_pass_opts *o)
+{
+    rad_patch_opts p;
+    p.max_area = o && o->patch.max_area > 0 ? o->patch.max_area : s->radiosity.patch_area;
+    p.max_edge = o && o->patch.max_edge > 0 ? o->patch.max_edge : s->radiosity.patch_edge;
+    if (!(p.max_area > 0)) {
+        /* Automatic: about 2000 patches' worth of the scene's surface. */
+        double total = 0;
+        for (size_t t = 0; t < s->ntris; t++)
+            total += scene_tri_area(s, t);
+        for (size_t i = 0; i < s->nobjects; i++)
+            if (s->objects[i].kind == SCENE_OBJ_SPHERE)
+                total += 4.0 * RR_PI * s->objects[i].radius * s->objects[i].radius;
+        p.max_area = total > 0 ? total / 2000.0 : 1.0;
+    }
+    if (!(p.max_edge > 0))
+        p.max_edge = 2.0 * sqrt(p.max_area);
+    return p;
+}
+
+void rad_solution_destroy(rad_solution *sol)
+{
+    if (!sol)
+        return;
+    rad_patches_destroy(sol->P);
+    rad_ff_destroy(sol->F);
+    free(sol->B);
+    free(sol->vertex_B);
+    free(sol->emitted);
+    free(sol->first_shot);
+    free(sol->vertex_Hind);
+    free(sol->stats.history);
+    free(sol);
+}
+
+/* H0: irradiance at patch k from every point and directional light, averaged
+ * over 4 points of the patch (centroid and the three points halfway to the
+ * corners), each with a shadow ray. */
+static rr_rgb first_shot(const scene *s, const rt_accel *a, const rad_patches *P, size_t k, double scale)
+{
+    static const double w[4][3] = {{1. / 3, 1. / 3, 1. / 3}, {2. / 3, 1. / 6, 1. / 6}, {1. / 6, 2. / 3, 1. / 6},
+                                   {1. / 6, 1. / 6, 2. / 3}};
+    const rad_patch *p = &P->p[k];
+    rr_rgb H = rr_rgb_make(0, 0, 0);
+    for (int q = 0; q < 4; q++) {
+        rr_vec3 x = rr_v3_add(rr_v3_add(rr_v3_scale(P->verts[p->v[0]], w[q][0]), rr_v3_scale(P->verts[p->v[1]], w[q][1])),
+                              rr_v3_scale(P->verts[p->v[2]], w[q][2]));
+        for (size_t i = 0; i < s->nlights; i++) {
+            const scene_light *l = &s->lights[i];
+            rr_vec3 L;
+            double tmax, fall = 1.0;
+            if (l->type == SCENE_LIGHT_DIRECTIONAL) {
+                L = l->direction;
+                tmax = INFINITY;
+            } else {
+                rr_vec3 d = rr_v3_sub(l->position, x);
+                double r2 = rr_v3_len2(d);
+                if (!(r2 > 0))
+                    continue;
+                tmax = sqrt(r2);
+                L = rr_v3_scale(d, 1.0 / tmax);
+                fall = 1.0 / r2;
+                tmax *= 1.0 - 1e-9;
+            }
+            double c = rr_v3_dot(p->normal, L);
+            if (c <= 0)
+                continue;
+            rr_ray r = {rt_offset_origin(scale, x, p->normal, L), L};
+            if (rt_accel_occluded(a, r, 0.0, tmax))
+                continue;
+            H = rr_rgb_add(H, rr_rgb_scale(l->intensity, 0.25 * c * fall));
+        }
+    }
+    return H;
+}
+
+/* Area-weighted mean of per-patch values at the shared vertices. */
+static rr_status to_vertices(const rad_patches *P, const rr_rgb *per_patch, rr_rgb *per_vertex)
+{
+    double *wsum = calloc(P->nverts ? P->nverts : 1, sizeof *wsum);
+    if (!wsum)
+        return RR_ERR_NOMEM;
+    for (size_t v = 0; v < P->nverts; v++)
+        per_vertex[v] = rr_rgb_make(0, 0, 0);
+    for (size_t k = 0; k < P->n; k++)
+        for (int e = 0; e < 3; e++) {
+            uint32_t v = P->p[k].v[e];
+            per_vertex[v] = rr_rgb_add(per_vertex[v], rr_rgb_scale(per_patch[k], P->p[k].area));
+            wsum[v] += P->p[k].area;
+        }
+    for (size_t v = 0; v < P->nverts; v++)
+        if (wsum[v] > 0)
+            per_vertex[v] = rr_rgb_scale(per_vertex[v], 1.0 / wsum[v]);
+    free(wsum);
+    return RR_OK;
+}
+
+rr_status rad_pass_run(const scene *s, const rt_accel *a, const rad_pass_opts *o, rad_solution **out, rr_error *err)
+{
+    rad_pass_opts def;
+    memset(&def, 0, sizeof def);
+    def.use_scene_choices = 1;
+    if (!o)
+        o = &def;
+    rad_solution *sol = calloc(1, sizeof *sol);
+    if (!sol)
+        return rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory", s->path);
+    rr_status st;
+    double t0 = now_seconds();
+    rad_patch_opts po = rad_pass_patch_limits(s, o);
+    if ((st = rad_patches_build(s, &po, &sol->P, err)) != RR_OK)
+        goto fail;
+    double t1 = now_seconds();
+    rad_ff_opts fo = o->ff;
+    if (o->use_scene_choices)
+        fo.method = s->radiosity.form_factors == SCENE_FF_QUADRATURE ? RAD_FF_QUADRATURE : RAD_FF_MONTE_CARLO;
+    if (fo.samples <= 0)
+        fo.samples = s->radiosity.ff_samples;
+    if ((st = rad_ff_compute(s, a, sol->P, &fo, &sol->F, err)) != RR_OK)
+        goto fail;
+    sol->nnz = sol->F->rowptr[sol->F->n];
+    double t2 = now_seconds();
+    rad_solve_opts so = o->solve;
+    if (o->use_scene_choices)
+        so.solver = (rad_solver)s->radiosity.solver;
+    if (!(so.tolerance > 0))
+        so.tolerance = s->radiosity.tolerance;
+    size_t n = sol->P->n, nv = sol->P->nverts ? sol->P->nverts : 1;
+    sol->B = malloc(n * sizeof *sol->B);
+    sol->emitted = malloc(n * sizeof *sol->emitted);
+    sol->first_shot = malloc(n * sizeof *sol->first_shot);
+    sol->vertex_B = malloc(nv * sizeof *sol->vertex_B);
+    sol->vertex_Hind = malloc(nv * sizeof *sol->vertex_Hind);
+    rr_rgb *Hind = malloc(n * sizeof *Hind);
+    if (!sol->B || !sol->emitted || !sol->first_shot || !sol->vertex_B || !sol->vertex_Hind || !Hind) {
+        free(Hind);
+        st = rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory for %zu patches", s->path, n);
+        goto fail;
+    }
+    double scale = rt_scene_scale(s);
+    int nthreads = o->ff.threads > 0 ? o->ff.threads : 0;
+    (void)nthreads;
+#pragma omp parallel for schedule(dynamic, 64) if (s->nlights > 0)
+    for (long k = 0; k < (long)n; k++) {
+        rad_patch *p = &sol->P->p[k];
+        sol->emitted[k] = p->emission;
+        sol->first_shot[k] = s->nlights ? first_shot(s, a, sol->P, (size_t)k, scale) : rr_rgb_make(0, 0, 0);
+        p->emission = rr_rgb_add(p->emission, rr_rgb_mul(p->rho, sol->first_shot[k]));
+    }
+    if ((st = rad_solve(sol->P, sol->F, &so, sol->B, &sol->stats, err)) != RR_OK) {
+        free(Hind);
+        rr_error_prefix(err, "%s: radiosity", s->path);
+        goto fail;
+    }
+    double t3 = now_seconds();
+    /* Indirect irradiance: what arrives from other patches, less what they
+     * emit themselves (that is direct light, which the ray tracer computes). */
+    const rad_ff *F = sol->F;
+    for (size_t i = 0; i < n; i++) {
+        rr_rgb h = rr_rgb_make(0, 0, 0);
+        for (size_t e = F->rowptr[i]; e < F->rowptr[i + 1]; e++) {
+            uint32_t j = F->col[e];
+            rr_rgb bounced = rr_rgb_add(sol->B[j], rr_rgb_scale(sol->emitted[j], -1.0));
+            h = rr_rgb_add(h, rr_rgb_scale(bounced, F->val[e]));
+        }
+        Hind[i] = h;
+    }
+    /* Vertex values: mean of the patches around a vertex, weighted by area
+     * (the classic display of Cohen & Greenberg; patches of one object share
+     * vertices, so the interpolated image is continuous across the object). */
+    if (to_vertices(sol->P, sol->B, sol->vertex_B) != RR_OK || to_vertices(sol->P, Hind, sol->vertex_Hind) != RR_OK) {
+        free(Hind);
+        st = rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory", s->path);
+        goto fail;
+    }
+    free(Hind);
+    sol->seconds_patches = t1 - t0;
+    sol->seconds_ff = t2 - t1;
+    sol->seconds_solve = t3 - t2;
+    *out = sol;
+    return RR_OK;
+fail:
+    rad_solution_destroy(sol);
+    return st;
+}
+
+/* Gouraud: the vertex values of the patch under the hit, by barycentrics. */
+static rr_rgb interpolate(const rad_solution *sol, const scene *s, const rt_hit *h, const rr_rgb *vertex_values)
+{
+    uint32_t k = rad_patch_locate(sol->P, s, h->tri, h->object, h->point);
+    const rad_patch *p = &sol->P->p[k];
+    double b[3];
+    rad_patch_barycentric(sol->P, k, h->point, b);
+    double sum = 0;
+    for (int e = 0; e < 3; e++) {
+        b[e] = b[e] < 0 ? 0 : b[e];
+        sum += b[e];
+    }
+    rr_rgb B = rr_rgb_make(0, 0, 0);
+    for (int e = 0; e < 3; e++)
+        B = rr_rgb_add(B, rr_rgb_scale(vertex_values[p->v[e]], sum > 0 ? b[e] / sum : 1.0 / 3.0));
+    return B;
+}
+
+rr_rgb rad_radiance_at(const rad_solution *sol, const scene *s, const rt_hit *h)
+{
+    /* Patches radiate from their front only; the back of an open surface
+     * shows nothing. */
+    if (!h->front)
+        return rr_rgb_make(0, 0, 0);
+    return rr_rgb_scale(interpolate(sol, s, h, sol->vertex_B), 1.0 / RR_PI);
+}
+
+rr_rgb rad_indirect_at(const rad_solution *sol, const scene *s, const rt_hit *h, rr_rgb rho)
+{
+    if (!h->front)
+        return rr_rgb_make(0, 0, 0);
+    return rr_rgb_scale(rr_rgb_mul(rho, interpolate(sol, s, h, sol->vertex_Hind)), 1.0 / RR_PI);
+}
