@@ -275,6 +275,51 @@ static void render_reads_back_and_is_thread_independent(void **state)
     assert_non_null(strstr(g_out, "sphere"));
 }
 
+/* radray energy: the ledger balances on the Cornell box, in text and JSON;
+ * scenes the radiosity pass cannot take are bad input (exit 2). */
+static void energy_ledger(void **state)
+{
+    (void)state;
+    char cornell[512];
+    snprintf(cornell, sizeof cornell, "%s/scenes/cornell.json", RR_SOURCE_DIR);
+    const char *a[] = {"energy", cornell, "--patch-area", "2000", NULL};
+    assert_int_equal(run(a), 0);
+    assert_non_null(strstr(g_out, "holds"));
+    assert_non_null(strstr(g_out, "left_wall"));
+    const char *b[] = {"energy", cornell, "--json", "--solver", "direct", "--patch-area", "4000", NULL};
+    assert_int_equal(run(b), 0);
+    assert_non_null(strstr(g_out, "\"balanced\": true"));
+    assert_non_null(strstr(g_out, "\"solver\": \"direct\""));
+    /* Reflectance 1: no physical solution. */
+    char objs[512];
+    snprintf(objs, sizeof objs,
+             "{\"type\":\"quad\",\"material\":\"glow\",\"vertices\":[[-3,-3,-1],[3,-3,-1],[3,3,-1],[-3,3,-1]]},"
+             "{\"type\":\"box\",\"material\":\"a\",\"min\":[-1,-1,-0.5],\"max\":[1,1,0]}");
+    const char *sc = scene_file("rho1.json", "4", objs);
+    const char *c[] = {"energy", sc, "--set", "materials.a.diffuse=1", NULL};
+    assert_int_equal(run(c), 2);
+    assert_non_null(strstr(g_out, "reflectance >= 1"));
+    /* Nothing emits. */
+    const char *d[] = {"energy", scene_file("dark.json", "4", k_quad), NULL};
+    assert_int_equal(run(d), 2);
+    assert_non_null(strstr(g_out, "emits"));
+    const char *e[] = {"render", sc, "--mode", "radiosty", NULL};
+    assert_int_equal(run(e), 2);
+    assert_non_null(strstr(g_out, "--mode"));
+    /* Radiosity display with a convergence plot. */
+    char out[256], plot[256];
+    snprintf(out, sizeof out, "%s/rad.exr", g_dir);
+    snprintf(plot, sizeof plot, "%s/conv.svg", g_dir);
+    const char *f[] = {"render", cornell, "--mode", "radiosity", "--width", "21", "--patch-area", "4000",
+                       "--solver", "iterative", "--plot", plot, "-o", out, NULL};
+    assert_int_equal(run(f), 0);
+    assert_true(exists("rad.exr") && exists("conv.svg"));
+    rr_image im = {0};
+    assert_int_equal(img_read_exr(out, "radiosity", &im, NULL), RR_OK);
+    assert_true(rr_image_get(&im, 10, 10).r > 0.0);
+    rr_image_free(&im);
+}
+
 static int setup(void **state)
 {
     (void)state;
@@ -294,6 +339,7 @@ int main(void)
         cmocka_unit_test(unwritable_output),
         cmocka_unit_test(zero_area_warning),
         cmocka_unit_test(render_reads_back_and_is_thread_independent),
+        cmocka_unit_test(energy_ledger),
     };
     return cmocka_run_group_tests(tests, setup, NULL);
 }
