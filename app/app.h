@@ -9,13 +9,42 @@
 #ifndef APP_H
 #define APP_H
 
+#include "rad.h"
 #include "rr_core.h"
+#include "rt.h"
+#include "scene.h"
 
 enum { APP_EXIT_OK = 0, APP_EXIT_RUNTIME = 1, APP_EXIT_USAGE = 2 };
 
 int app_cmd_render(int argc, char **argv);
 int app_cmd_info(int argc, char **argv);
 int app_cmd_energy(int argc, char **argv);
+int app_cmd_compare(int argc, char **argv);
+
+/* ---- pipeline.c: shared by render and compare ---- */
+
+/* Modes are presets of what supplies the diffuse interreflection. */
+enum { APP_MODE_WHITTED, APP_MODE_SECONDARY, APP_MODE_RADIOSITY, APP_MODE_HYBRID, APP_MODE_COUNT };
+extern const char *const app_mode_names[];     /* NULL-terminated, indexed by mode */
+extern const char *const app_indirect_names[]; /* NULL-terminated, indexed by rt_indirect */
+/* Index of name in a NULL-terminated list, or -1. */
+int app_pick(const char *name, const char *const *names);
+/* The indirect term of a mode, unless indirect_override >= 0. */
+rt_indirect app_mode_indirect(int mode, int indirect_override);
+
+typedef struct app_pipeline {
+    scene *sc;
+    rt_accel *accel;
+    rad_solution *sol; /* made on first need, shared by every mode */
+    int quiet;
+} app_pipeline;
+
+/* Runs the radiosity pass once (no-op when done). */
+rr_status app_pipeline_radiosity(app_pipeline *p, rr_error *err);
+/* Renders mode into film (sized to the view); *seconds = wall time including
+ * the radiosity pass when this call ran it. */
+rr_status app_render_mode(app_pipeline *p, int mode, int indirect_override, int filter, rt_film *film,
+                          double *seconds, void (*progress)(void *, int, int), void *progress_user, rr_error *err);
 
 /* Prints "radray: <msg>" on stderr. */
 void app_error(const char *fmt, ...)

@@ -128,33 +128,6 @@ enum {
     OPT_PLOT
 };
 
-/* The radiosity pass behind --mode radiosity: the display hook. */
-typedef struct rad_display {
-    const rad_solution *sol;
-    const scene *s;
-} rad_display;
-
-static rr_rgb radiosity_hook(void *user, const rt_hit *hit)
-{
-    const rad_display *d = user;
-    return rad_radiance_at(d->sol, d->s, hit);
-}
-
-static rr_rgb indirect_hook(void *user, const rt_hit *hit, rr_rgb rho)
-{
-    const rad_display *d = user;
-    return rad_indirect_at(d->sol, d->s, hit, rho);
-}
-
-/* Looks name up in a NULL-terminated list; returns its index or -1. */
-static int pick(const char *name, const char *const *names)
-{
-    for (int i = 0; names[i]; i++)
-        if (!strcmp(name, names[i]))
-            return i;
-    return -1;
-}
-
 int app_cmd_render(int argc, char **argv)
 {
     static const struct option longopts[] = {
@@ -173,12 +146,8 @@ int app_cmd_render(int argc, char **argv)
     const char *out_exr = NULL, *out_png = NULL, *plot = NULL;
     int no_png = 0, quiet = 0;
     long width = 0;
-    /* Modes are presets of the indirect term (whitted = ambient, ...). */
-    enum { MODE_WHITTED, MODE_SECONDARY, MODE_RADIOSITY, MODE_HYBRID };
-    static const char *const modes[] = {"whitted", "secondary", "radiosity", "hybrid", NULL};
-    static const char *const indirects[] = {"none", "ambient", "secondary", "radiosity", NULL};
     static const char *const filters[] = {"box", "tent", NULL};
-    int mode = MODE_HYBRID, indirect = -1, filter = RT_FILTER_BOX;
+    int mode = APP_MODE_HYBRID, indirect = -1, filter = RT_FILTER_BOX;
     /* Overrides: one per --set, plus those the shorthand options expand to. */
     char **sets = calloc((size_t)argc + 1, sizeof *sets);
     size_t nsets = 0;
@@ -186,7 +155,8 @@ int app_cmd_render(int argc, char **argv)
     scene *sc = NULL;
     rt_film film;
     rt_accel *accel = NULL;
-    rad_solution *sol = NULL;
+    app_pipeline pl;
+    memset(&pl, 0, sizeof pl);
     memset(&film, 0, sizeof film);
     char exr_default[4200], png_default[4200];
     if (!sets) {
@@ -216,19 +186,19 @@ int app_cmd_render(int argc, char **argv)
             }
             break;
         case OPT_MODE:
-            if ((mode = pick(optarg, modes)) < 0) {
+            if ((mode = app_pick(optarg, app_mode_names)) < 0) {
                 app_error("--mode: expected hybrid, whitted, secondary or radiosity, got '%s'", optarg);
                 goto done;
             }
             break;
         case OPT_INDIRECT:
-            if ((indirect = pick(optarg, indirects)) < 0) {
+            if ((indirect = app_pick(optarg, app_indirect_names)) < 0) {
                 app_error("--indirect: expected radiosity, secondary, ambient or none, got '%s'", optarg);
                 goto done;
             }
             break;
         case OPT_FILTER:
-            if ((filter = pick(optarg, filters)) < 0) {
+            if ((filter = app_pick(optarg, filters)) < 0) {
                 app_error("--filter: expected box or tent, got '%s'", optarg);
                 goto done;
             }
@@ -311,7 +281,7 @@ int app_cmd_render(int argc, char **argv)
     }
     if (check_writable(out_exr) || (!no_png && check_writable(out_png)) || (plot && check_writable(plot)))
         goto done;
-    if (plot && mode != MODE_RADIOSITY && mode != MODE_HYBRID) {
+    if (plot && mode != APP_MODE_RADIOSITY && app_mode_indirect(mode, indirect) != RT_INDIRECT_RADIOSITY) {
         app_error("--plot: the convergence plot belongs to the radiosity pass: use it with --mode radiosity");
         goto done;
     }
@@ -326,72 +296,30 @@ int app_cmd_render(int argc, char **argv)
     prog.enabled = !quiet && isatty(STDERR_FILENO);
     prog.last_pct = -1;
     clock_gettime(CLOCK_MONOTONIC, &prog.start);
-    rt_render_opts ro = {0};
-    ro.spp = sc->settings.spp;
-    ro.seed = sc->settings.seed;
-    ro.threads = sc->settings.threads;
-    ro.max_depth = sc->settings.max_depth;
-    ro.light_samples = sc->settings.light_samples;
-    static const rt_indirect preset[] = {RT_INDIRECT_AMBIENT, RT_INDIRECT_SECONDARY, RT_INDIRECT_NONE,
-                                         RT_INDIRECT_RADIOSITY};
-    ro.indirect = indirect >= 0 ? (rt_indirect)indirect : preset[mode];
-    ro.filter = (rt_filter)filter;
-    ro.progress = draw_progress;
-    ro.progress_user = &prog;
     rc = APP_EXIT_RUNTIME;
-    rad_display disp = {NULL, sc};
-    int need_radiosity = mode == MODE_RADIOSITY || ro.indirect == RT_INDIRECT_RADIOSITY;
-    int emits = sc->nlights > 0 || sc->nemissive > 0;
-    for (size_t i = 0; i < sc->nobjects && !emits; i++)
-        emits = rr_rgb_max(sc->materials[sc->objects[i].material].emission) > 0;
-    if (need_radiosity && !emits && mode != MODE_RADIOSITY) {
-        /* Nothing emits: there is no interreflection to compute. */
-        need_radiosity = 0;
-        ro.indirect = RT_INDIRECT_NONE;
+    pl.sc = sc;
+    pl.accel = accel;
+    pl.quiet = quiet;
+    rr_status rst = app_render_mode(&pl, mode, indirect, filter, &film, NULL, draw_progress, &prog, &err);
+    if (rst != RR_OK) {
+        app_error("%s", err.msg);
+        /* A scene the radiosity pass cannot take (reflectance >= 1, no
+         * emitter) is bad input; running out of memory is not. */
+        rc = rst == RR_ERR_INVALID ? APP_EXIT_USAGE : APP_EXIT_RUNTIME;
+        goto done;
     }
-    if (need_radiosity) {
-        rad_pass_opts po;
-        memset(&po, 0, sizeof po);
-        po.use_scene_choices = 1;
-        po.ff.seed = sc->settings.seed;
-        po.ff.threads = sc->settings.threads;
-        rr_status rst = rad_pass_run(sc, accel, &po, &sol, &err);
-        if (rst != RR_OK) {
+    if (plot && pl.sol && pl.sol->stats.nhistory > 0) {
+        char title[128];
+        snprintf(title, sizeof title, "Gauss-Seidel residual, %zu patches", pl.sol->P->n);
+        if (app_plot_residuals(plot, pl.sol->stats.history, pl.sol->stats.nhistory, title, &err) != 0) {
             app_error("%s", err.msg);
-            /* A scene the radiosity pass cannot take (reflectance >= 1, no
-             * emitter) is bad input; running out of memory is not. */
-            rc = rst == RR_ERR_INVALID ? APP_EXIT_USAGE : APP_EXIT_RUNTIME;
             goto done;
         }
         if (!quiet)
-            fprintf(stderr,
-                    "radiosity: %zu patches, %zu form factors (%.2f s), %s solver %d iteration(s), residual %.2g "
-                    "(%.2f s)\n",
-                    sol->P->n, sol->nnz, sol->seconds_ff,
-                    sol->stats.used == RAD_SOLVER_DIRECT ? "direct" : "iterative", sol->stats.iterations,
-                    sol->stats.residual, sol->seconds_solve);
-        if (plot && sol->stats.nhistory > 0) {
-            char title[128];
-            snprintf(title, sizeof title, "Gauss-Seidel residual, %zu patches", sol->P->n);
-            if (app_plot_residuals(plot, sol->stats.history, sol->stats.nhistory, title, &err) != 0) {
-                app_error("%s", err.msg);
-                goto done;
-            }
-            if (!quiet)
-                printf("wrote %s (convergence plot)\n", plot);
-        } else if (plot) {
-            fprintf(stderr, "radray: warning: --plot: the direct solver has no iterations to plot "
-                            "(use --solver iterative)\n");
-        }
-        disp.sol = sol;
-        if (mode == MODE_RADIOSITY)
-            ro.radiosity = radiosity_hook;
-        ro.radiosity_indirect = indirect_hook;
-        ro.radiosity_user = &disp;
-    }
-    if (rt_render(sc, accel, &ro, &film, &err) != RR_OK) {
-        app_error("%s", err.msg);
-        goto done;
+            printf("wrote %s (convergence plot)\n", plot);
+    } else if (plot) {
+        fprintf(stderr, "radray: warning: --plot: the direct solver has no iterations to plot "
+                        "(use --solver iterative)\n");
     }
     double secs = seconds_since(&prog.start);
     img_layer layers[RT_LAYER_COUNT];
@@ -410,7 +338,7 @@ int app_cmd_render(int argc, char **argv)
     }
     if (!quiet) {
         printf("rendered %s: %d x %d, %d spp, indirect %s, %.2f s\n", scene_path, film.beauty.width,
-               film.beauty.height, sc->settings.spp, mode == MODE_RADIOSITY ? "radiosity display" : indirects[ro.indirect], secs);
+               film.beauty.height, sc->settings.spp, mode == APP_MODE_RADIOSITY ? "radiosity display" : app_indirect_names[app_mode_indirect(mode, indirect)], secs);
         printf("wrote %s (linear %s RGB; layers", out_exr, sc->settings.half_float ? "half" : "float");
         for (int i = 0; i < RT_LAYER_COUNT; i++)
             printf(" %s", rt_layer_name(i));
@@ -421,7 +349,7 @@ int app_cmd_render(int argc, char **argv)
     rc = APP_EXIT_OK;
 done:
     rt_film_free(&film);
-    rad_solution_destroy(sol);
+    rad_solution_destroy(pl.sol);
     rt_accel_destroy(accel);
     scene_destroy(sc);
     for (size_t i = 0; i < nsets; i++)
