@@ -36,6 +36,7 @@ typedef struct app_pipeline {
     scene *sc;
     rt_accel *accel;
     rad_solution *sol; /* made on first need, shared by every mode */
+    const char *cache_path; /* --radiosity-cache, or NULL */
     int quiet;
 } app_pipeline;
 

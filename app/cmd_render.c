@@ -45,6 +45,8 @@ static const char render_usage[] =
     "      --ff METHOD        form factors: montecarlo or quadrature\n"
     "      --ff-samples N     rays or sample points per patch\n"
     "      --plot FILE        write the solver's convergence (residual per iteration) as PNG or SVG\n"
+    "      --radiosity-cache FILE  reuse the radiosity solution saved in FILE (made there when\n"
+    "                         missing); one made for another scene or other settings is refused\n"
     "      --set KEY=VALUE    override any scene value by its JSON path, e.g.\n"
     "                         --set render.spp=16 --set materials.white.diffuse=[0.7,0.7,0.7]\n"
     "                         (repeatable; VALUE is JSON, or a string)\n"
@@ -125,7 +127,8 @@ enum {
     OPT_SOLVER,
     OPT_FF,
     OPT_FF_SAMPLES,
-    OPT_PLOT
+    OPT_PLOT,
+    OPT_CACHE
 };
 
 int app_cmd_render(int argc, char **argv)
@@ -142,6 +145,7 @@ int app_cmd_render(int argc, char **argv)
         {"patch-area", required_argument, NULL, OPT_PATCH_AREA}, {"patch-edge", required_argument, NULL, OPT_PATCH_EDGE},
         {"solver", required_argument, NULL, OPT_SOLVER},  {"ff", required_argument, NULL, OPT_FF},
         {"ff-samples", required_argument, NULL, OPT_FF_SAMPLES}, {"plot", required_argument, NULL, OPT_PLOT},
+        {"radiosity-cache", required_argument, NULL, OPT_CACHE},
         {NULL, 0, NULL, 0}};
     const char *out_exr = NULL, *out_png = NULL, *plot = NULL;
     int no_png = 0, quiet = 0;
@@ -174,6 +178,7 @@ int app_cmd_render(int argc, char **argv)
         case OPT_PNG: out_png = optarg; break;
         case OPT_NO_PNG: no_png = 1; break;
         case OPT_PLOT: plot = optarg; break;
+        case OPT_CACHE: pl.cache_path = optarg; break;
         case 'q': quiet = 1; break;
         case 'h':
             fputs(render_usage, stdout);

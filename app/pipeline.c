@@ -63,10 +63,13 @@ rr_status app_pipeline_radiosity(app_pipeline *p, rr_error *err)
     po.use_scene_choices = 1;
     po.ff.seed = p->sc->settings.seed;
     po.ff.threads = p->sc->settings.threads;
-    rr_status st = rad_pass_run(p->sc, p->accel, &po, &p->sol, err);
+    int cached = 0;
+    rr_status st = rad_pass_run_cached(p->sc, p->accel, &po, p->cache_path, &cached, &p->sol, err);
     if (st != RR_OK)
         return st;
-    if (!p->quiet)
+    if (cached && !p->quiet)
+        fprintf(stderr, "radiosity: %zu patches, solution read from %s\n", p->sol->P->n, p->cache_path);
+    else if (!p->quiet)
         fprintf(stderr,
                 "radiosity: %zu patches, %zu form factors (%.2f s), %s solver %d iteration(s), residual %.2g (%.2f s)\n",
                 p->sol->P->n, p->sol->nnz, p->sol->seconds_ff,

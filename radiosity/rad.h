@@ -189,6 +189,13 @@ typedef struct rad_solution {
 rr_status rad_pass_run(const scene *s, const rt_accel *a, const rad_pass_opts *o, rad_solution **out, rr_error *err);
 void rad_solution_destroy(rad_solution *sol);
 
+/* rad_pass_run through a cache file (cache_path NULL: no cache). A missing
+ * file is made after the pass; an existing one is used when it was made for
+ * the same scene and settings (*from_cache = 1; F is then NULL), and refused
+ * with RR_ERR_INVALID when not. */
+rr_status rad_pass_run_cached(const scene *s, const rt_accel *a, const rad_pass_opts *o, const char *cache_path,
+                              int *from_cache, rad_solution **out, rr_error *err);
+
 /* The patch limits the pass uses for s given o (resolving the automatic ones). */
 rad_patch_opts rad_pass_patch_limits(const scene *s, const rad_pass_opts *o);
 

@@ -320,6 +320,44 @@ static void energy_ledger(void **state)
     rr_image_free(&im);
 }
 
+/* --radiosity-cache: made on the first render, reused by another view (same
+ * image for the same view), refused for other settings or another scene. */
+static void radiosity_cache(void **state)
+{
+    (void)state;
+    char cornell[512], cache[256], o1[256], o2[256], o3[256];
+    snprintf(cornell, sizeof cornell, "%s/scenes/cornell.json", RR_SOURCE_DIR);
+    snprintf(cache, sizeof cache, "%s/cornell.rcache", g_dir);
+    snprintf(o1, sizeof o1, "%s/k1.exr", g_dir);
+    snprintf(o2, sizeof o2, "%s/k2.exr", g_dir);
+    snprintf(o3, sizeof o3, "%s/k3.exr", g_dir);
+    const char *a[] = {"render", cornell, "--width", "21", "--patch-area", "4000", "--radiosity-cache", cache,
+                       "-o", o1, "--no-png", NULL};
+    assert_int_equal(run(a), 0);
+    assert_true(exists("cornell.rcache"));
+    const char *b[] = {"render", cornell, "--width", "21", "--patch-area", "4000", "--radiosity-cache", cache,
+                       "-o", o2, "--no-png", NULL};
+    assert_int_equal(run(b), 0);
+    assert_non_null(strstr(g_out, "read from"));
+    rr_image i1 = {0}, i2 = {0};
+    assert_int_equal(img_read_exr(o1, NULL, &i1, NULL), RR_OK);
+    assert_int_equal(img_read_exr(o2, NULL, &i2, NULL), RR_OK);
+    assert_memory_equal(i1.px, i2.px, sizeof(float) * 3 * (size_t)i1.width * (size_t)i1.height);
+    rr_image_free(&i1);
+    rr_image_free(&i2);
+    /* Another view of the same room may use it. */
+    const char *c[] = {"render", cornell, "--width", "15", "--patch-area", "4000", "--radiosity-cache", cache,
+                       "-o", o3, "--no-png", "--set", "camera.E=[278,273,-700]", NULL};
+    assert_int_equal(run(c), 0);
+    /* Other settings, or another scene: refused, exit 2, no output. */
+    const char *d[] = {"render", cornell, "--width", "21", "--patch-area", "3000", "--radiosity-cache", cache,
+                       "-o", g_bad_out, NULL};
+    expect_bad(d, "cornell.rcache", "different");
+    const char *e[] = {"render", cornell, "--width", "21", "--patch-area", "4000", "--radiosity-cache", cache,
+                       "--set", "materials.white.diffuse=0.5", "-o", g_bad_out, NULL};
+    expect_bad(e, "cornell.rcache", "different");
+}
+
 static int setup(void **state)
 {
     (void)state;
@@ -340,6 +378,7 @@ int main(void)
         cmocka_unit_test(zero_area_warning),
         cmocka_unit_test(render_reads_back_and_is_thread_independent),
         cmocka_unit_test(energy_ledger),
+        cmocka_unit_test(radiosity_cache),
     };
     return cmocka_run_group_tests(tests, setup, NULL);
 }
