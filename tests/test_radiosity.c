@@ -289,6 +289,75 @@ static void cornell_radiosity_vs_secondary(void **state)
     scene_destroy(s);
 }
 
+/* White furnace through the whole pipeline: a closed box whose inner faces all
+ * have reflectance rho and emit E. Every Monte Carlo form-factor ray from an
+ * inner face lands on an inner face, so each raw row sums to exactly 1, and
+ * then B = E / (1 - rho) exactly: the solve must give it to 1e-6. (The
+ * reciprocity step averages A_i F_ij with A_j F_ji and moves row sums by the
+ * sampling noise, so this test takes the raw estimates; solver-level furnaces
+ * with exact F, both solvers, are in test_solver.c.) */
+static void furnace_pipeline(void **state)
+{
+    (void)state;
+    const double rho = 0.7, Le = 0.5;
+    char json[4096];
+    size_t len = (size_t)snprintf(json, sizeof json,
+                                  "{\"format\":\"radray-scene/1\",\"camera\":{\"type\":\"lecture\",\"E\":[0,0,0],"
+                                  "\"O\":[0,0,-1],\"U\":[0,1,0],\"s\":0.1,\"w\":2,\"h\":2},"
+                                  "\"materials\":{\"f\":{\"diffuse\":%g,\"emission\":%g}},\"objects\":[",
+                                  rho, Le);
+    for (int axis = 0; axis < 3; axis++)
+        for (int sgn = -1; sgn <= 1; sgn += 2) {
+            int u = (axis + 1) % 3, v = (axis + 2) % 3;
+            double q[4][3], cu[4] = {-1, 1, 1, -1}, cv[4] = {-1, -1, 1, 1};
+            for (int k = 0; k < 4; k++) {
+                q[k][axis] = sgn;
+                q[k][u] = cu[k];
+                q[k][v] = cv[k];
+            }
+            int order[4] = {0, sgn > 0 ? 3 : 1, 2, sgn > 0 ? 1 : 3}; /* normals inward */
+            len += (size_t)snprintf(json + len, sizeof json - len, "%s{\"type\":\"quad\",\"material\":\"f\",\"vertices\":[",
+                                    axis || sgn > 0 ? "," : "");
+            for (int k = 0; k < 4; k++)
+                len += (size_t)snprintf(json + len, sizeof json - len, "%s[%g,%g,%g]", k ? "," : "", q[order[k]][0],
+                                        q[order[k]][1], q[order[k]][2]);
+            len += (size_t)snprintf(json + len, sizeof json - len, "]}");
+        }
+    snprintf(json + len, sizeof json - len, "]}");
+    scene *s = NULL;
+    rr_error err;
+    if (scene_load_string(json, "furnace", "", NULL, &s, &err) != RR_OK)
+        fail_msg("%s", err.msg);
+    rt_accel *a = NULL;
+    assert_int_equal(rt_accel_build(s, &a, NULL), RR_OK);
+    rad_pass_opts po;
+    memset(&po, 0, sizeof po);
+    po.patch.max_area = 0.05;
+    po.patch.max_edge = 0.5;
+    po.ff.method = RAD_FF_MONTE_CARLO;
+    po.ff.samples = 64;
+    po.ff.raw = 1;
+    po.solve.solver = RAD_SOLVER_ITERATIVE;
+    po.solve.tolerance = 1e-12;
+    rad_solution *sol = NULL;
+    if (rad_pass_run(s, a, &po, &sol, &err) != RR_OK)
+        fail_msg("%s", err.msg);
+    assert_true(sol->P->n >= 6 * 64);
+    double want = RR_PI * Le / (1 - rho);
+    for (size_t k = 0; k < sol->P->n; k++)
+        assert_near(sol->B[k].g, want, 1e-6 * want);
+    rad_energy_row *rows = NULL;
+    size_t nrows = 0;
+    assert_int_equal(rad_energy(s, sol->P, sol->F, sol->B, &rows, &nrows, &err), RR_OK);
+    const rad_energy_row *t = &rows[nrows - 1];
+    assert_near(t->emitted.r, t->absorbed.r + t->escaped.r, 1e-6 * t->emitted.r);
+    assert_near(t->escaped.r, 0.0, 1e-9 * t->emitted.r);
+    free(rows);
+    rad_solution_destroy(sol);
+    rt_accel_destroy(a);
+    scene_destroy(s);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -296,6 +365,7 @@ int main(void)
         cmocka_unit_test(conforming_box),
         cmocka_unit_test(locate_hits),
         cmocka_unit_test(bad_limits),
+        cmocka_unit_test(furnace_pipeline),
         cmocka_unit_test(cornell_radiosity_vs_secondary),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
