@@ -16,6 +16,7 @@ static const char usage[] =
     "  render SCENE   render a scene file to OpenEXR (linear) and PNG (preview)\n"
     "  info SCENE     print what a scene holds: triangles, lights, bounds, watertightness\n"
     "  energy SCENE   run the radiosity pass and print the energy ledger (--json)\n"
+    "  compare SCENE  render several modes (or layers) into one labelled figure (PNG, PDF, SVG)\n"
     "  help [CMD]     show this help, or the help of CMD\n"
     "  version        print the version\n"
     "\n"
@@ -68,6 +69,8 @@ int main(int argc, char **argv)
         return app_cmd_info(argc - 1, argv + 1);
     if (!strcmp(cmd, "energy"))
         return app_cmd_energy(argc - 1, argv + 1);
+    if (!strcmp(cmd, "compare"))
+        return app_cmd_compare(argc - 1, argv + 1);
     if (!strcmp(cmd, "version") || !strcmp(cmd, "--version")) {
         printf("radray 0.1.0\n");
         return APP_EXIT_OK;
@@ -81,6 +84,8 @@ int main(int argc, char **argv)
                 return app_cmd_info(2, sub);
             if (!strcmp(argv[2], "energy"))
                 return app_cmd_energy(2, sub);
+            if (!strcmp(argv[2], "compare"))
+                return app_cmd_compare(2, sub);
             app_error("unknown command '%s'", argv[2]);
             return APP_EXIT_USAGE;
         }

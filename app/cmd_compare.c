@@ -1,0 +1,571 @@
+/* cmd_compare.c - `radray compare SCENE`: renders a scene in several modes (or
+ * one render split into its layers) and composes one labelled figure: the
+ * panels side by side, difference images against a reference mode, and a
+ * table of mean radiance per scene object. The radiosity pass runs once and
+ * is shared by every mode that needs it. */
+#include <getopt.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <strings.h>
+#include <time.h>
+
+#include "app.h"
+#include "figure.h"
+#include "rad.h"
+#include "rt.h"
+#include "scene.h"
+
+static const char compare_usage[] =
+    "usage: radray compare SCENE [options]\n"
+    "\n"
+    "Renders SCENE in several modes and writes one labelled figure: the renders side\n"
+    "by side (tone-mapped like the PNG preview) with their render times, a row of\n"
+    "difference images |mode - reference| (mean over RGB, on a colour scale), and a\n"
+    "table of the mean radiance of every scene object (over the pixels that the\n"
+    "object fills whole) with the difference relative to the reference.\n"
+    "The table and the output path are also printed on stdout. The radiosity pass\n"
+    "runs once, shared by the radiosity and hybrid modes, and its time is reported\n"
+    "apart from the render times.\n"
+    "\n"
+    "options:\n"
+    "  -o, --output FILE      the figure: .png, .pdf or .svg (default out/<scene>-compare.png)\n"
+    "      --modes LIST       comma-separated modes from whitted, secondary, radiosity,\n"
+    "                         hybrid (default: all four, in that order)\n"
+    "      --reference MODE   the mode the others are compared to (default: secondary\n"
+    "                         when compared, else the last mode)\n"
+    "      --layers LIST      instead of modes: panels for the layers of one render,\n"
+    "                         from ambient, diffuse, specular, mirror, indirect, emission,\n"
+    "                         radiosity, beauty (e.g. ambient,diffuse,specular,radiosity for\n"
+    "                         the lecture's shading panels). The layers come from the hybrid\n"
+    "                         render, except ambient (from the whitted render: only Whitted\n"
+    "                         has the lecture's ambient term) and radiosity (the radiosity\n"
+    "                         display). No difference row: layers are parts, not estimates.\n"
+    "      --width N          image width in pixels; the height keeps the aspect ratio\n"
+    "      --spp N            samples per pixel of every mode but secondary (render.spp)\n"
+    "      --secondary-spp N  samples per pixel of the secondary mode (default 16 x spp):\n"
+    "                         secondary rays are Monte Carlo, and at the spp that suffices\n"
+    "                         for anti-aliasing their noise would fill the difference images\n"
+    "      --exposure EV      display exposure in stops (render.exposure)\n"
+    "      --set KEY=VALUE    override any scene value by its JSON path (repeatable),\n"
+    "                         e.g. --set render.threads=2\n"
+    "  -q, --quiet            print nothing but errors\n"
+    "  -h, --help             show this help\n"
+    "\n"
+    "Exit codes: 0 ok, 1 runtime error, 2 usage error or bad input.\n";
+
+enum { MAX_PANELS = 8 };
+
+/* The layers --layers offers, their film index (-1: the beauty image) and the
+ * mode whose render holds them. */
+static const char *const layer_names[] = {"ambient",  "diffuse",   "specular", "mirror", "indirect",
+                                          "emission", "radiosity", "beauty",   NULL};
+static const int layer_index[] = {RT_LAYER_AMBIENT,  RT_LAYER_DIFFUSE,   RT_LAYER_SPECULAR, RT_LAYER_MIRROR,
+                                  RT_LAYER_INDIRECT, RT_LAYER_EMISSION, RT_LAYER_RADIOSITY, -1};
+static const int layer_mode[] = {APP_MODE_WHITTED, APP_MODE_HYBRID, APP_MODE_HYBRID,    APP_MODE_HYBRID,
+                                 APP_MODE_HYBRID,  APP_MODE_HYBRID, APP_MODE_RADIOSITY, APP_MODE_HYBRID};
+
+/* Parses a comma-separated list of names into out[] (indices into names).
+ * Returns the count, or -1 after a one-line error naming the bad item. */
+static int parse_list(const char *arg, const char *opt, const char *what, const char *const *names, int *out)
+{
+    char allowed[256] = "";
+    for (int i = 0; names[i]; i++)
+        snprintf(allowed + strlen(allowed), sizeof allowed - strlen(allowed), "%s%s", i ? ", " : "", names[i]);
+    int n = 0;
+    const char *p = arg;
+    for (;;) {
+        size_t len = strcspn(p, ",");
+        char item[64];
+        snprintf(item, sizeof item, "%.*s", (int)(len < 63 ? len : 63), p);
+        int k = app_pick(item, names);
+        if (k < 0) {
+            app_error("%s: unknown %s '%s' (expected %s)", opt, what, item, allowed);
+            return -1;
+        }
+        for (int j = 0; j < n; j++)
+            if (out[j] == k) {
+                app_error("%s: %s '%s' is listed twice", opt, what, item);
+                return -1;
+            }
+        if (n >= MAX_PANELS) {
+            app_error("%s: at most %d items", opt, MAX_PANELS);
+            return -1;
+        }
+        out[n++] = k;
+        if (!p[len])
+            return n;
+        p += len + 1;
+    }
+}
+
+/* Refuses an output path before any work is done (as render does): creates
+ * missing folders and checks that a file can be created there. */
+static int check_writable(const char *path)
+{
+    rr_error err;
+    char tmp[4200];
+    if (rr_file_make_parent_dirs(path, &err) != RR_OK || rr_file_tmpname(path, tmp, sizeof tmp, &err) != RR_OK) {
+        app_error("%s", err.msg);
+        return -1;
+    }
+    remove(tmp);
+    return 0;
+}
+
+static double now_seconds(void)
+{
+    struct timespec t;
+    clock_gettime(CLOCK_MONOTONIC, &t);
+    return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
+}
+
+static int ends_with(const char *s, const char *suffix)
+{
+    size_t n = strlen(s), m = strlen(suffix);
+    return n >= m && strcasecmp(s + n - m, suffix) == 0;
+}
+
+/* Whether mode will run the radiosity pass: the same rule as app_render_mode
+ * (the hybrid skips it when nothing emits), so that the pass can be run and
+ * timed on its own before the first mode that needs it. */
+static int needs_pass(const scene *sc, int mode)
+{
+    if (mode == APP_MODE_RADIOSITY)
+        return 1;
+    if (mode != APP_MODE_HYBRID)
+        return 0;
+    if (sc->nlights > 0 || sc->nemissive > 0)
+        return 1;
+    for (size_t i = 0; i < sc->nobjects; i++)
+        if (rr_rgb_max(sc->materials[sc->objects[i].material].emission) > 0)
+            return 1;
+    return 0;
+}
+
+static int object_hit(const scene *sc, const rt_accel *a, int col, int row, double dx, double dy)
+{
+    rt_hit hit;
+    return rt_accel_closest(a, rr_view_ray(&sc->view, col, row, dx, dy), 0.0, INFINITY, &hit) ? (int)hit.object : -1;
+}
+
+/* The regions of the per-object table: for each pixel, the object hit by the
+ * ray through its centre, or -1 when nothing is hit or when a ray through one
+ * of its corners hits something else. Pixels on an edge mix two surfaces in
+ * proportions that depend on the sample count, which differs between modes;
+ * leaving them out makes the table compare shading, not anti-aliasing. */
+static int *classify_pixels(const scene *sc, const rt_accel *a)
+{
+    int w = sc->view.width, h = sc->view.height;
+    int *region = malloc(sizeof *region * (size_t)w * (size_t)h);
+    int *corner = malloc(sizeof *corner * (size_t)(w + 1) * (size_t)(h + 1));
+    if (!region || !corner) {
+        free(region);
+        free(corner);
+        return NULL;
+    }
+    /* Corner (i, j) is the top-left corner of pixel (i, j); the last row and
+     * column are the far corners of the last pixels. */
+    for (int j = 0; j <= h; j++)
+        for (int i = 0; i <= w; i++)
+            corner[(size_t)j * (size_t)(w + 1) + (size_t)i] =
+                object_hit(sc, a, i < w ? i : w - 1, j < h ? j : h - 1, i < w ? -0.5 : 0.5, j < h ? 0.5 : -0.5);
+    for (int y = 0; y < h; y++)
+        for (int x = 0; x < w; x++) {
+            int o = object_hit(sc, a, x, y, 0, 0);
+            const int *c0 = corner + (size_t)y * (size_t)(w + 1) + (size_t)x, *c1 = c0 + w + 1;
+            region[(size_t)y * (size_t)w + (size_t)x] = c0[0] == o && c0[1] == o && c1[0] == o && c1[1] == o ? o : -1;
+        }
+    free(corner);
+    return region;
+}
+
+/* One run of compare: the options, then what the renders leave for the figure. */
+typedef struct job {
+    const char *out, *ref_name, *scene_path;
+    int quiet, nmodes, nlayers, modes[MAX_PANELS], layers[MAX_PANELS];
+    long width, secondary_spp;
+    char **sets;
+    size_t nsets;
+    char out_default[4200];
+    int npanels, ref; /* ref: panel index of the reference, -1 for layers */
+    scene *sc;
+    rt_accel *accel;
+    app_pipeline pl;
+    rt_film film;
+    rr_image img[MAX_PANELS]; /* what each panel shows, linear */
+    double secs[APP_MODE_COUNT], pass_secs;
+    int spp_of[APP_MODE_COUNT];
+    char pass_users[64];      /* the modes that use the radiosity pass */
+} job;
+
+enum { OPT_MODES = 256, OPT_REFERENCE, OPT_LAYERS, OPT_WIDTH, OPT_SPP, OPT_SECONDARY_SPP, OPT_EXPOSURE, OPT_SET };
+
+/* Reads the command line into j; returns -1 to go on, or the exit code. */
+static int parse_options(job *j, int argc, char **argv)
+{
+    static const struct option longopts[] = {
+        {"output", required_argument, NULL, 'o'},           {"modes", required_argument, NULL, OPT_MODES},
+        {"reference", required_argument, NULL, OPT_REFERENCE}, {"layers", required_argument, NULL, OPT_LAYERS},
+        {"width", required_argument, NULL, OPT_WIDTH},      {"spp", required_argument, NULL, OPT_SPP},
+        {"secondary-spp", required_argument, NULL, OPT_SECONDARY_SPP},
+        {"exposure", required_argument, NULL, OPT_EXPOSURE}, {"set", required_argument, NULL, OPT_SET},
+        {"quiet", no_argument, NULL, 'q'},                  {"help", no_argument, NULL, 'h'},
+        {NULL, 0, NULL, 0}};
+    optind = 1;
+    opterr = 0;
+    int c;
+    while ((c = getopt_long(argc, argv, ":o:qh", longopts, NULL)) != -1) {
+        const char *key = NULL;
+        switch (c) {
+        case 'o': j->out = optarg; break;
+        case 'q': j->quiet = 1; break;
+        case 'h': fputs(compare_usage, stdout); return APP_EXIT_OK;
+        case OPT_MODES:
+            if ((j->nmodes = parse_list(optarg, "--modes", "mode", app_mode_names, j->modes)) < 0)
+                return APP_EXIT_USAGE;
+            break;
+        case OPT_LAYERS:
+            if ((j->nlayers = parse_list(optarg, "--layers", "layer", layer_names, j->layers)) < 0)
+                return APP_EXIT_USAGE;
+            break;
+        case OPT_REFERENCE:
+            if (app_pick(optarg, app_mode_names) < 0) {
+                app_error("--reference: unknown mode '%s' (expected whitted, secondary, radiosity, hybrid)", optarg);
+                return APP_EXIT_USAGE;
+            }
+            j->ref_name = optarg;
+            break;
+        case OPT_WIDTH:
+            /* The figure puts several panels side by side on one cairo
+             * surface, which is limited to 32767 pixels a side. */
+            if (app_parse_int(optarg, 1, 4096, &j->width)) {
+                app_error("--width: expected an integer in [1, 4096], got '%s'", optarg);
+                return APP_EXIT_USAGE;
+            }
+            break;
+        case OPT_SECONDARY_SPP:
+            if (app_parse_int(optarg, 1, 1 << 20, &j->secondary_spp)) {
+                app_error("--secondary-spp: expected an integer in [1, %d], got '%s'", 1 << 20, optarg);
+                return APP_EXIT_USAGE;
+            }
+            break;
+        case OPT_SPP: key = "render.spp"; break;
+        case OPT_EXPOSURE: key = "render.exposure"; break;
+        case OPT_SET: j->sets[j->nsets++] = strdup(optarg); break;
+        case ':':
+            app_error("option '%s' needs a value (try 'radray compare --help')", argv[optind - 1]);
+            return APP_EXIT_USAGE;
+        default:
+            app_error("unknown option '%s' (try 'radray compare --help')", argv[optind - 1]);
+            return APP_EXIT_USAGE;
+        }
+        if (key) {
+            size_t n = strlen(key) + strlen(optarg) + 2;
+            if ((j->sets[j->nsets] = malloc(n)))
+                snprintf(j->sets[j->nsets], n, "%s=%s", key, optarg);
+            j->nsets++;
+        }
+    }
+    for (size_t i = 0; i < j->nsets; i++)
+        if (!j->sets[i]) {
+            app_error("out of memory");
+            return APP_EXIT_RUNTIME;
+        }
+    if (optind != argc - 1) {
+        app_error(optind >= argc ? "compare: missing SCENE (try 'radray compare --help')"
+                                 : "compare: expected one SCENE, got extra arguments (try 'radray compare --help')");
+        return APP_EXIT_USAGE;
+    }
+    j->scene_path = argv[optind];
+    if (j->nlayers && (j->nmodes || j->ref_name)) {
+        app_error("--layers: compares the layers of one render; it does not go with --modes or --reference");
+        return APP_EXIT_USAGE;
+    }
+    if (!j->nlayers && !j->nmodes)
+        for (j->nmodes = 0; j->nmodes < APP_MODE_COUNT; j->nmodes++)
+            j->modes[j->nmodes] = j->nmodes;
+    j->npanels = j->nlayers ? j->nlayers : j->nmodes;
+    j->ref = -1;
+    if (!j->nlayers) {
+        /* Secondary rays are the unbiased estimate: the natural reference. */
+        int want = j->ref_name ? app_pick(j->ref_name, app_mode_names) : APP_MODE_SECONDARY;
+        for (int i = 0; i < j->nmodes; i++)
+            if (j->modes[i] == want)
+                j->ref = i;
+        if (j->ref < 0 && j->ref_name) {
+            app_error("--reference: mode '%s' is not among the compared modes (add it to --modes)", j->ref_name);
+            return APP_EXIT_USAGE;
+        }
+        if (j->ref < 0)
+            j->ref = j->nmodes - 1;
+    }
+    return -1;
+}
+
+/* Loads the scene and settles the output path; returns -1 to go on, or the
+ * exit code. */
+static int prepare(job *j)
+{
+    rr_error err;
+    scene_load_opts lo = {0};
+    lo.overrides = (const char *const *)j->sets;
+    lo.noverrides = j->nsets;
+    lo.warn = app_warn_sink();
+    if (scene_load(j->scene_path, &lo, &j->sc, &err) != RR_OK) {
+        app_error("%s", err.msg);
+        return APP_EXIT_USAGE;
+    }
+    if (j->width > 0) {
+        rr_view v;
+        if (rr_view_resize(&j->sc->view, (int)j->width, &v, &err) != RR_OK) {
+            app_error("--width: %s", err.msg);
+            return APP_EXIT_USAGE;
+        }
+        j->sc->view = v;
+    }
+    if (!j->out) {
+        const char *base = strrchr(j->scene_path, '/');
+        base = base ? base + 1 : j->scene_path;
+        snprintf(j->out_default, sizeof j->out_default, "out/%.*s-compare.png", (int)strcspn(base, "."), base);
+        j->out = j->out_default;
+    }
+    if (!ends_with(j->out, ".png") && !ends_with(j->out, ".pdf") && !ends_with(j->out, ".svg")) {
+        app_error("-o %s: the figure must end in .png, .pdf or .svg", j->out);
+        return APP_EXIT_USAGE;
+    }
+    if (check_writable(j->out))
+        return APP_EXIT_USAGE;
+    if (rt_film_init(&j->film, j->sc->view.width, j->sc->view.height, &err) != RR_OK ||
+        rt_accel_build(j->sc, &j->accel, &err) != RR_OK) {
+        app_error("%s", err.msg);
+        return APP_EXIT_RUNTIME;
+    }
+    j->pl.sc = j->sc;
+    j->pl.accel = j->accel;
+    j->pl.quiet = j->quiet;
+    return -1;
+}
+
+/* Renders every mode the panels need (the radiosity pass first, once, timed
+ * on its own) and keeps what each panel shows. Returns -1 or the exit code. */
+static int render_panels(job *j)
+{
+    scene *sc = j->sc;
+    int W = sc->view.width, H = sc->view.height, base_spp = sc->settings.spp;
+    int order[APP_MODE_COUNT], nrender = 0;
+    if (j->nlayers) {
+        static const int by_mode[] = {APP_MODE_HYBRID, APP_MODE_WHITTED, APP_MODE_RADIOSITY};
+        for (int m = 0; m < 3; m++)
+            for (int i = 0; i < j->nlayers; i++)
+                if (layer_mode[j->layers[i]] == by_mode[m]) {
+                    order[nrender++] = by_mode[m];
+                    break;
+                }
+    } else {
+        memcpy(order, j->modes, sizeof(int) * (size_t)j->nmodes);
+        nrender = j->nmodes;
+    }
+    rr_error err;
+    for (int r = 0; r < nrender; r++) {
+        int m = order[r];
+        if (needs_pass(sc, m)) {
+            snprintf(j->pass_users + strlen(j->pass_users), sizeof j->pass_users - strlen(j->pass_users), "%s%s",
+                     j->pass_users[0] ? " and " : "", app_mode_names[m]);
+            if (!j->pl.sol) {
+                double t0 = now_seconds();
+                rr_status st = app_pipeline_radiosity(&j->pl, &err);
+                if (st != RR_OK) {
+                    app_error("%s", err.msg);
+                    /* A scene the pass cannot take is bad input, as in render. */
+                    return st == RR_ERR_INVALID ? APP_EXIT_USAGE : APP_EXIT_RUNTIME;
+                }
+                j->pass_secs = now_seconds() - t0;
+            }
+        }
+        if (m == APP_MODE_SECONDARY)
+            sc->settings.spp = (int)(j->secondary_spp ? j->secondary_spp : fmin(16.0 * base_spp, 1 << 20));
+        j->spp_of[m] = sc->settings.spp;
+        rr_status st = app_render_mode(&j->pl, m, -1, RT_FILTER_BOX, &j->film, &j->secs[m], NULL, NULL, &err);
+        sc->settings.spp = base_spp;
+        if (st != RR_OK) {
+            app_error("%s", err.msg);
+            return st == RR_ERR_INVALID ? APP_EXIT_USAGE : APP_EXIT_RUNTIME;
+        }
+        if (!j->quiet)
+            fprintf(stderr, "compare: %s, %d spp, %.2f s\n", app_mode_names[m], j->spp_of[m], j->secs[m]);
+        for (int i = 0; i < j->npanels; i++) {
+            const rr_image *src = NULL;
+            if (!j->nlayers && j->modes[i] == m)
+                src = &j->film.beauty;
+            else if (j->nlayers && layer_mode[j->layers[i]] == m)
+                src = layer_index[j->layers[i]] < 0 ? &j->film.beauty : &j->film.layer[layer_index[j->layers[i]]];
+            if (!src)
+                continue;
+            if (rr_image_init(&j->img[i], W, H, &err) != RR_OK) {
+                app_error("%s", err.msg);
+                return APP_EXIT_RUNTIME;
+            }
+            memcpy(j->img[i].px, src->px, sizeof(float) * 3 * (size_t)W * (size_t)H);
+        }
+    }
+    return -1;
+}
+
+/* The per-object table's storage. */
+typedef struct table_store {
+    const char **rows;
+    long *pixels;
+    double *mean;
+} table_store;
+
+/* Fills t (rows: objects that fill enough whole pixels for a mean worth
+ * reading, 0.1% of the image and at least 4 pixels, then every pixel; columns:
+ * the panels). Returns -1 when out of memory. */
+static int region_table(const job *j, table_store *ts, fig_table *t)
+{
+    const scene *sc = j->sc;
+    size_t npx = (size_t)sc->view.width * (size_t)sc->view.height;
+    int *region = classify_pixels(sc, j->accel);
+    long *counts = calloc(sc->nobjects + 1, sizeof *counts);
+    ts->rows = calloc(sc->nobjects + 1, sizeof *ts->rows);
+    ts->pixels = calloc(sc->nobjects + 1, sizeof *ts->pixels);
+    ts->mean = calloc((sc->nobjects + 1) * (size_t)j->npanels, sizeof *ts->mean);
+    if (!region || !counts || !ts->rows || !ts->pixels || !ts->mean) {
+        free(region);
+        free(counts);
+        return -1;
+    }
+    for (size_t p = 0; p < npx; p++)
+        if (region[p] >= 0)
+            counts[region[p]]++;
+    long threshold = (long)fmax(4.0, 0.001 * (double)npx);
+    int n = 0;
+    for (size_t o = 0; o <= sc->nobjects; o++) {
+        int whole = o == sc->nobjects;
+        if (!whole && counts[o] < threshold)
+            continue;
+        ts->rows[n] = whole ? "(all pixels)" : sc->objects[o].name;
+        ts->pixels[n] = whole ? (long)npx : counts[o];
+        for (int i = 0; i < j->npanels; i++) {
+            const float *px = j->img[i].px;
+            double sum = 0;
+            for (size_t p = 0; p < npx; p++)
+                if (whole || region[p] == (int)o)
+                    sum += (px[3 * p] + px[3 * p + 1] + px[3 * p + 2]) / 3.0;
+            ts->mean[(size_t)n * (size_t)j->npanels + (size_t)i] = sum / (double)ts->pixels[n];
+        }
+        n++;
+    }
+    free(region);
+    free(counts);
+    memset(t, 0, sizeof *t);
+    t->nrows = n;
+    t->ncols = j->npanels;
+    t->rows = ts->rows;
+    t->pixels = ts->pixels;
+    t->mean = ts->mean;
+    t->ref = j->nlayers || j->nmodes < 2 ? -1 : j->ref;
+    return 0;
+}
+
+static void free_job(job *j)
+{
+    for (int i = 0; i < MAX_PANELS; i++)
+        rr_image_free(&j->img[i]);
+    rt_film_free(&j->film);
+    rad_solution_destroy(j->pl.sol);
+    rt_accel_destroy(j->accel);
+    scene_destroy(j->sc);
+    for (size_t i = 0; i < j->nsets; i++)
+        free(j->sets[i]);
+    free(j->sets);
+}
+
+int app_cmd_compare(int argc, char **argv)
+{
+    static job zero;
+    job j = zero;
+    float *diff[MAX_PANELS] = {0};
+    table_store ts = {0};
+    fig_panel panels[MAX_PANELS];
+    const char *cols[MAX_PANELS];
+    fig_desc d;
+    memset(&d, 0, sizeof d);
+    int rc = APP_EXIT_RUNTIME;
+    if (!(j.sets = calloc((size_t)argc + 1, sizeof *j.sets))) {
+        app_error("out of memory");
+        goto done;
+    }
+    if ((rc = parse_options(&j, argc, argv)) >= 0 || (rc = prepare(&j)) >= 0 || (rc = render_panels(&j)) >= 0)
+        goto done;
+    rc = APP_EXIT_RUNTIME;
+
+    for (int i = 0; i < j.npanels; i++) {
+        int m = j.nlayers ? layer_mode[j.layers[i]] : j.modes[i];
+        snprintf(panels[i].title, sizeof panels[i].title, "%s",
+                 j.nlayers ? layer_names[j.layers[i]] : app_mode_names[m]);
+        if (j.nlayers)
+            snprintf(panels[i].caption, sizeof panels[i].caption, "%s %s, %d spp, %.2f s", app_mode_names[m],
+                     m == APP_MODE_RADIOSITY ? "display" : "render", j.spp_of[m], j.secs[m]);
+        else
+            snprintf(panels[i].caption, sizeof panels[i].caption, "%d spp, %.2f s", j.spp_of[m], j.secs[m]);
+        panels[i].img = &j.img[i];
+        cols[i] = panels[i].title;
+    }
+    if (region_table(&j, &ts, &d.table) != 0) {
+        app_error("out of memory");
+        goto done;
+    }
+    d.table.cols = cols;
+    if (d.table.ref >= 0)
+        snprintf(d.table.title, sizeof d.table.title,
+                 "Mean radiance per object (mean of RGB over the pixels it fills); in brackets: relative to %s",
+                 panels[j.ref].title);
+    else
+        snprintf(d.table.title, sizeof d.table.title, "Mean radiance per object (mean of RGB over the pixels it fills)");
+
+    const scene *sc = j.sc;
+    const char *base = strrchr(j.scene_path, '/');
+    base = base ? base + 1 : j.scene_path;
+    snprintf(d.title, sizeof d.title, "%s: %s", sc->name[0] ? sc->name : base,
+             j.nlayers ? "the layers of one render" : "modes compared");
+    char pass[160] = "no radiosity pass";
+    if (j.pl.sol)
+        snprintf(pass, sizeof pass, "radiosity pass %zu patches, %.2f s, shared by %s", j.pl.sol->P->n, j.pass_secs,
+                 j.pass_users);
+    snprintf(d.subtitle, sizeof d.subtitle, "%s, %d x %d px, exposure %+g EV; %s", base, sc->view.width,
+             sc->view.height, sc->settings.exposure, pass);
+    d.width = sc->view.width;
+    d.height = sc->view.height;
+    d.exposure = sc->settings.exposure;
+    d.npanels = j.npanels;
+    d.panels = panels;
+    d.ref = j.ref;
+    if (d.table.ref >= 0) {
+        if (fig_make_diffs(j.img, j.npanels, j.ref, diff, &d.diff_top, &d.diff_clipped) != 0) {
+            app_error("out of memory");
+            goto done;
+        }
+        d.diff = (const float *const *)diff;
+    }
+    rr_error err;
+    if (fig_write(j.out, &d, &err) != RR_OK) {
+        app_error("%s", err.msg);
+        goto done;
+    }
+    if (!j.quiet) {
+        fig_print_table(stdout, &d.table);
+        printf("wrote %s (%s)\n", j.out, pass);
+    }
+    rc = APP_EXIT_OK;
+done:
+    for (int i = 0; i < MAX_PANELS; i++)
+        free(diff[i]);
+    free(ts.rows);
+    free(ts.pixels);
+    free(ts.mean);
+    free_job(&j);
+    return rc;
+}
