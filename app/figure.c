@@ -22,8 +22,10 @@ enum {
     HEADER = 50,      /* title and subtitle */
     LABEL = 38,       /* panel name and caption above each image */
     ROW_GAP = 14,     /* between the panel row and the difference row */
-    MIN_PANEL = 180,  /* small renders are enlarged (whole pixels) to at least this width */
-    TABLE_ROW = 18
+    MIN_COLUMN = 180, /* panel columns are at least this wide, so that their labels fit */
+    SMALL = 120,      /* renders narrower than this are enlarged (whole pixels) to MIN_COLUMN */
+    TABLE_ROW = 18,
+    SCALE_H = 68      /* the colour scale: bar, tick labels, two lines of note */
 };
 
 void fig_cell(const fig_table *t, int row, int col, char *buf, size_t n)
@@ -207,7 +209,11 @@ typedef struct diff_src {
 static void diff_px(const void *user, int x, int y, unsigned char rgb[3])
 {
     const diff_src *d = user;
-    inferno(d->v[(size_t)y * (size_t)d->width + (size_t)x] / d->top, rgb);
+    double t = d->v[(size_t)y * (size_t)d->width + (size_t)x] / d->top;
+    /* Square-root scale: a mode that is off by a tenth of the worst one still
+     * shows, instead of vanishing next to it (e.g. next to the radiosity
+     * display, which has no highlights or mirrors at all). */
+    inferno(t > 0 ? sqrt(t) : 0, rgb);
 }
 
 static void bar_px(const void *user, int x, int y, unsigned char rgb[3])
@@ -242,6 +248,7 @@ static void label(cairo_t *cr, double x, double y, const char *title, const char
 
 typedef struct layout {
     int k, dw, dh;          /* enlargement and displayed panel size */
+    int col_w;              /* panel column width */
     double W, H;
     double y_panels, y_diff, y_table;
     double col_x[FIG_MAX_PANELS + 2]; /* table columns: left edge of names, then right edges */
@@ -271,14 +278,15 @@ static void measure(const fig_desc *d, layout *L)
 {
     cairo_surface_t *s = cairo_image_surface_create(CAIRO_FORMAT_RGB24, 1, 1);
     cairo_t *cr = cairo_create(s);
-    L->k = d->width < MIN_PANEL ? (MIN_PANEL + d->width - 1) / d->width : 1;
+    L->k = d->width < SMALL ? (MIN_COLUMN + d->width - 1) / d->width : 1;
     L->dw = d->width * L->k;
+    L->col_w = L->dw > MIN_COLUMN ? L->dw : MIN_COLUMN;
     L->dh = d->height * L->k;
     L->y_panels = MARGIN + HEADER;
     double bottom = L->y_panels + LABEL + L->dh;
     L->y_diff = bottom + ROW_GAP;
     if (d->diff)
-        bottom = L->y_diff + LABEL + L->dh;
+        bottom = L->y_diff + LABEL + (L->dh > SCALE_H ? L->dh : SCALE_H);
     L->y_table = bottom + 24;
     const fig_table *t = &d->table;
     double x = MARGIN;
@@ -297,7 +305,7 @@ static void measure(const fig_desc *d, layout *L)
     tw = fmax(tw, text_width(cr, d->title));
     font(cr, 12, 0);
     tw = fmax(tw, text_width(cr, d->subtitle));
-    double panels_w = d->npanels * L->dw + (d->npanels - 1) * GAP;
+    double panels_w = d->npanels * L->col_w + (d->npanels - 1) * GAP;
     L->W = ceil(2 * MARGIN + fmax(panels_w, fmax(L->table_w, tw)));
     L->H = ceil(L->y_table + 30 + TABLE_ROW * (t->nrows + 1) + MARGIN);
     cairo_destroy(cr);
@@ -348,8 +356,8 @@ static void draw_scale(cairo_t *cr, const fig_desc *d, const layout *L, double x
     char buf[96];
     snprintf(buf, sizeof buf, "reference: %s", d->panels[d->ref].title);
     label(cr, x, y, buf, "|difference|, mean of RGB");
-    int bw = L->dw - 20 > 40 ? L->dw - 20 : L->dw;
-    double bx = x + (L->dw - bw) / 2.0, by = y + LABEL + L->dh / 2.0 - 20;
+    int bw = L->col_w - 20;
+    double bx = x + (L->col_w - bw) / 2.0, by = y + LABEL + fmax(0, (L->dh - SCALE_H) / 2.0);
     /* The bar is an image filled through the same map as the panels. */
     cairo_surface_t *bar = make_surface(bw, 16, 1, bar_px, &bw);
     draw_image(cr, bar, bx, by);
@@ -365,14 +373,13 @@ static void draw_scale(cairo_t *cr, const fig_desc *d, const layout *L, double x
         if (i == 2 && d->diff_clipped)
             snprintf(buf, sizeof buf, "\xe2\x89\xa5%.3g", d->diff_top); /* >= */
         else
-            snprintf(buf, sizeof buf, "%.3g", d->diff_top * i / 2.0);
+            snprintf(buf, sizeof buf, "%.3g", d->diff_top * (i / 2.0) * (i / 2.0));
         text(cr, tx, by + 33, i == 0 ? 0 : i == 1 ? 2 : 1, buf);
     }
-    if (d->diff_clipped) {
-        cairo_set_source_rgb(cr, 0.3, 0.3, 0.3);
-        text(cr, bx, by + 50, 0, "top: 99th percentile,");
-        text(cr, bx, by + 64, 0, "larger values saturate");
-    }
+    cairo_set_source_rgb(cr, 0.3, 0.3, 0.3);
+    text(cr, bx, by + 50, 0, "square-root scale");
+    if (d->diff_clipped)
+        text(cr, bx, by + 64, 0, "top = 99th percentile");
 }
 
 static void draw(cairo_t *cr, const fig_desc *d, const layout *L, cairo_surface_t **panel, cairo_surface_t **diff)
@@ -386,10 +393,10 @@ static void draw(cairo_t *cr, const fig_desc *d, const layout *L, cairo_surface_
     font(cr, 12, 0);
     text(cr, MARGIN, MARGIN + 37, 0, d->subtitle);
     for (int i = 0; i < d->npanels; i++) {
-        double x = MARGIN + i * (L->dw + GAP);
+        double x = MARGIN + i * (L->col_w + GAP);
         /* Each column's text stays in its column, however long a name is. */
         cairo_save(cr);
-        cairo_rectangle(cr, x - 1, 0, L->dw + GAP - 2, L->y_table);
+        cairo_rectangle(cr, x - 1, 0, L->col_w + GAP - 2, L->y_table);
         cairo_clip(cr);
         label(cr, x, L->y_panels, d->panels[i].title, d->panels[i].caption);
         draw_image(cr, panel[i], x, L->y_panels + LABEL);
@@ -408,7 +415,7 @@ static void draw(cairo_t *cr, const fig_desc *d, const layout *L, cairo_surface_
         }
         snprintf(c, sizeof c, "mean %.3g, max %.3g", sum / (double)n, mx);
         cairo_save(cr);
-        cairo_rectangle(cr, x - 1, 0, L->dw + GAP - 2, L->y_table);
+        cairo_rectangle(cr, x - 1, 0, L->col_w + GAP - 2, L->y_table);
         cairo_clip(cr);
         label(cr, x, L->y_diff, t, c);
         draw_image(cr, diff[i], x, L->y_diff + LABEL);

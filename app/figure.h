@@ -46,7 +46,7 @@ typedef struct fig_desc {
      * (mean over RGB), NULL for the reference itself. diff NULL: no row. */
     const float *const *diff;
     int ref;                  /* panel index of the reference (diff row only) */
-    double diff_top;          /* radiance difference shown at the top of the colour map */
+    double diff_top;          /* radiance difference at the top of the colour map (square-root scale) */
     int diff_clipped;         /* some differences exceed diff_top (the scale label says so) */
     fig_table table;
 } fig_desc;
