@@ -11,6 +11,7 @@
 #include <string.h>
 
 #include "rad.h"
+#include "test_scenes.h"
 
 #define assert_near(a, b, tol) assert_true(fabs((double)(a) - (double)(b)) <= (tol))
 
@@ -306,23 +307,7 @@ static void furnace_pipeline(void **state)
                                   "\"O\":[0,0,-1],\"U\":[0,1,0],\"s\":0.1,\"w\":2,\"h\":2},"
                                   "\"materials\":{\"f\":{\"diffuse\":%g,\"emission\":%g}},\"objects\":[",
                                   rho, Le);
-    for (int axis = 0; axis < 3; axis++)
-        for (int sgn = -1; sgn <= 1; sgn += 2) {
-            int u = (axis + 1) % 3, v = (axis + 2) % 3;
-            double q[4][3], cu[4] = {-1, 1, 1, -1}, cv[4] = {-1, -1, 1, 1};
-            for (int k = 0; k < 4; k++) {
-                q[k][axis] = sgn;
-                q[k][u] = cu[k];
-                q[k][v] = cv[k];
-            }
-            int order[4] = {0, sgn > 0 ? 3 : 1, 2, sgn > 0 ? 1 : 3}; /* normals inward */
-            len += (size_t)snprintf(json + len, sizeof json - len, "%s{\"type\":\"quad\",\"material\":\"f\",\"vertices\":[",
-                                    axis || sgn > 0 ? "," : "");
-            for (int k = 0; k < 4; k++)
-                len += (size_t)snprintf(json + len, sizeof json - len, "%s[%g,%g,%g]", k ? "," : "", q[order[k]][0],
-                                        q[order[k]][1], q[order[k]][2]);
-            len += (size_t)snprintf(json + len, sizeof json - len, "]}");
-        }
+    len = test_inward_cube(json, sizeof json, len, "f");
     snprintf(json + len, sizeof json - len, "]}");
     scene *s = NULL;
     rr_error err;

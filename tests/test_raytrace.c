@@ -10,6 +10,7 @@
 #include <string.h>
 
 #include "rt.h"
+#include "test_scenes.h"
 
 #define assert_near(a, b, tol) assert_true(fabs((double)(a) - (double)(b)) <= (tol))
 
@@ -255,30 +256,7 @@ static void white_furnace(void **state)
                             "\"materials\":{\"f\":{\"diffuse\":[%g,%g,%g],\"emission\":[%g,%g,%g]}},"
                             "\"objects\":[",
                             rho, rho, rho, E, E, E);
-    /* Six faces of [-1,1]^3, wound so that their normals point inwards. */
-    for (int axis = 0; axis < 3; axis++)
-        for (int sgn = -1; sgn <= 1; sgn += 2) {
-            int u = (axis + 1) % 3, v = (axis + 2) % 3;
-            double q[4][3], cu[4] = {-1, 1, 1, -1}, cv[4] = {-1, -1, 1, 1};
-            for (int k = 0; k < 4; k++) {
-                q[k][axis] = sgn;
-                q[k][u] = cu[k];
-                q[k][v] = cv[k];
-            }
-            /* (u, v) counter-clockwise has normal +axis; inward is -sgn. */
-            int order[4] = {0, 1, 2, 3};
-            if (sgn > 0) {
-                order[1] = 3;
-                order[3] = 1;
-            }
-            len += (size_t)snprintf(json + len, sizeof json - len,
-                                    "%s{\"type\":\"quad\",\"material\":\"f\",\"vertices\":[", axis || sgn > 0 ? "," : "");
-            for (int k = 0; k < 4; k++) {
-                const double *p = q[order[k]];
-                len += (size_t)snprintf(json + len, sizeof json - len, "%s[%g,%g,%g]", k ? "," : "", p[0], p[1], p[2]);
-            }
-            len += (size_t)snprintf(json + len, sizeof json - len, "]}");
-        }
+    len = test_inward_cube(json, sizeof json, len, "f");
     snprintf(json + len, sizeof json - len, "]}");
     scene *s = NULL;
     rr_error err;
