@@ -23,8 +23,8 @@ static const char compare_usage[] =
     "Renders SCENE in several modes and writes one labelled figure: the renders side\n"
     "by side (tone-mapped like the PNG preview) with their render times, a row of\n"
     "difference images |mode - reference| (mean over RGB, on a colour scale), and a\n"
-    "table of the mean radiance of every scene object (over the pixels that the\n"
-    "object fills whole) with the difference relative to the reference.\n"
+    "table of the mean radiance of the scene objects (over the pixels that each\n"
+    "fills whole; the 16 largest) with the difference relative to the reference.\n"
     "The table and the output path are also printed on stdout. The radiosity pass\n"
     "runs once, shared by the radiosity and hybrid modes, and its time is reported\n"
     "apart from the render times.\n"
@@ -55,7 +55,7 @@ static const char compare_usage[] =
     "\n"
     "Exit codes: 0 ok, 1 runtime error, 2 usage error or bad input.\n";
 
-enum { MAX_PANELS = 8 };
+enum { MAX_PANELS = 8, MAX_ROWS = 16 };
 
 /* The layers --layers offers, their film index (-1: the beauty image) and the
  * mode whose render holds them. */
@@ -420,9 +420,17 @@ typedef struct table_store {
     double *mean;
 } table_store;
 
-/* Fills t (rows: objects that fill enough whole pixels for a mean worth
- * reading, 0.1% of the image and at least 4 pixels, then every pixel; columns:
- * the panels). Returns -1 when out of memory. */
+static int cmp_long_desc(const void *a, const void *b)
+{
+    long x = *(const long *)a, y = *(const long *)b;
+    return (x < y) - (x > y);
+}
+
+/* Fills t. Rows: the objects that fill enough whole pixels for a mean worth
+ * reading (0.1% of the image and at least 4 pixels), at most MAX_ROWS of them
+ * (those filling the most pixels, so that a furnished room still gives a
+ * table one can read), in scene order; then every pixel. Columns: the panels.
+ * Returns -1 when out of memory. */
 static int region_table(const job *j, table_store *ts, fig_table *t)
 {
     const scene *sc = j->sc;
@@ -441,10 +449,24 @@ static int region_table(const job *j, table_store *ts, fig_table *t)
         if (region[p] >= 0)
             counts[region[p]]++;
     long threshold = (long)fmax(4.0, 0.001 * (double)npx);
+    if (sc->nobjects > MAX_ROWS) {
+        /* Raise the threshold to the MAX_ROWS-th largest count; ties at it
+         * are cut in scene order below. */
+        long *sorted = malloc(sizeof *sorted * sc->nobjects);
+        if (!sorted) {
+            free(region);
+            free(counts);
+            return -1;
+        }
+        memcpy(sorted, counts, sizeof *sorted * sc->nobjects);
+        qsort(sorted, sc->nobjects, sizeof *sorted, cmp_long_desc);
+        threshold = sorted[MAX_ROWS - 1] > threshold ? sorted[MAX_ROWS - 1] : threshold;
+        free(sorted);
+    }
     int n = 0;
     for (size_t o = 0; o <= sc->nobjects; o++) {
         int whole = o == sc->nobjects;
-        if (!whole && counts[o] < threshold)
+        if (!whole && (counts[o] < threshold || n >= MAX_ROWS))
             continue;
         ts->rows[n] = whole ? "(all pixels)" : sc->objects[o].name;
         ts->pixels[n] = whole ? (long)npx : counts[o];
