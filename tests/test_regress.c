@@ -1,0 +1,92 @@
+/* test_regress.c - regression tests from fuzzing (tests/fuzz, notes/robustness.md).
+ *
+ * fuzz_corpus_seeds: every seed of the fuzz corpus goes through exactly what
+ * the fuzz harnesses do with an input (scene_load_string with a 64 MiB image
+ * budget and tests/data/scenes as base folder; mesh_load + mesh_analyze) and
+ * must load: a seed that stops loading would leave the fuzzers starting from
+ * error paths only. Inputs that once crashed or hung a loader are added here,
+ * each with its own test, once the loader is fixed (open findings are listed
+ * in notes/robustness.md).
+ */
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <cmocka.h>
+
+#include <dirent.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "mesh.h"
+#include "scene.h"
+
+#define CORPUS RR_SOURCE_DIR "/tests/fuzz/corpus"
+
+/* Calls fn on every regular entry of dir (sorted order does not matter);
+ * returns how many there were. */
+static size_t for_each_file(const char *dir, void (*fn)(const char *path))
+{
+    DIR *d = opendir(dir);
+    if (!d)
+        fail_msg("cannot open %s", dir);
+    size_t n = 0;
+    struct dirent *e;
+    char path[4096];
+    while ((e = readdir(d)) != NULL) {
+        if (e->d_name[0] == '.')
+            continue;
+        snprintf(path, sizeof path, "%s/%s", dir, e->d_name);
+        fn(path);
+        n++;
+    }
+    closedir(d);
+    return n;
+}
+
+static void load_scene_seed(const char *path)
+{
+    char *text = NULL;
+    size_t n = 0;
+    rr_error err = {0};
+    if (rr_file_read_all(path, &text, &n, &err) != RR_OK)
+        fail_msg("%s", err.msg);
+    char *z = text; /* NUL-terminated by rr_file_read_all, as the harness does */
+    scene_load_opts opts;
+    memset(&opts, 0, sizeof opts);
+    opts.max_image_bytes = (size_t)64 << 20;
+    scene *s = NULL;
+    if (scene_load_string(z, "fuzz.json", RR_TEST_DATA "/scenes", &opts, &s, &err) != RR_OK)
+        fail_msg("seed %s no longer loads: %s", path, err.msg);
+    assert_non_null(s);
+    scene_destroy(s);
+    free(z);
+}
+
+static void load_mesh_seed(const char *path)
+{
+    mesh_tri *m = NULL;
+    rr_error err = {0};
+    if (mesh_load(path, &m, &err) != RR_OK)
+        fail_msg("seed %s no longer loads: %s", path, err.msg);
+    mesh_report rep;
+    assert_int_equal(mesh_analyze(m, &rep, &err), RR_OK);
+    assert_true(m->ntris > 0);
+    mesh_destroy(m);
+}
+
+static void fuzz_corpus_seeds(void **state)
+{
+    (void)state;
+    assert_true(for_each_file(CORPUS "/scene", load_scene_seed) >= 5);
+    assert_true(for_each_file(CORPUS "/mesh", load_mesh_seed) >= 5);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(fuzz_corpus_seeds),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
