@@ -9,12 +9,18 @@
 #ifndef APP_H
 #define APP_H
 
+#include <signal.h>
+#include <stddef.h>
+
 #include "rad.h"
 #include "rr_core.h"
 #include "rt.h"
 #include "scene.h"
 
 enum { APP_EXIT_OK = 0, APP_EXIT_RUNTIME = 1, APP_EXIT_USAGE = 2 };
+/* `render` only: interrupted by SIGINT (128 + 2, the shells' convention); the
+ * finished tiles were written to OUT.partial.exr. */
+enum { APP_EXIT_INTERRUPTED = 130 };
 
 int app_cmd_render(int argc, char **argv);
 int app_cmd_info(int argc, char **argv);
@@ -38,6 +44,7 @@ typedef struct app_pipeline {
     rad_solution *sol; /* made on first need, shared by every mode */
     const char *cache_path; /* --radiosity-cache, or NULL */
     int quiet;
+    const volatile sig_atomic_t *interrupt; /* passed to rt_render (NULL: none) */
 } app_pipeline;
 
 /* Runs the radiosity pass once (no-op when done). */
@@ -46,6 +53,27 @@ rr_status app_pipeline_radiosity(app_pipeline *p, rr_error *err);
  * the radiosity pass when this call ran it. */
 rr_status app_render_mode(app_pipeline *p, int mode, int indirect_override, int filter, rt_film *film,
                           double *seconds, void (*progress)(void *, int, int), void *progress_user, rr_error *err);
+
+/* ---- pipeline.c: resource limits and output checks (notes/hardening.md) ---- */
+
+/* The default --max-memory: half the physical memory (SIZE_MAX when unknown). */
+size_t app_default_max_memory(void);
+/* Parses a size: a positive number with an optional binary suffix K, M, G or T
+ * (optionally followed by "B" or "iB"), e.g. 512M, 4G, 1.5GiB, 1000000; 0 on
+ * success. */
+int app_parse_size(const char *s, size_t *out);
+/* "6.1 GiB", "512.0 MiB", "12.0 KiB", "100 bytes". */
+const char *app_size_text(double bytes, char *buf, size_t n);
+/* The radiosity pass runs for this mode (and the scene emits). */
+int app_needs_radiosity(const scene *sc, int mode, int indirect_override);
+/* Estimates what a render of mode needs (film, BVH, and for modes that run the
+ * radiosity pass, patches and form factors) and fails with RR_ERR_LIMIT and a
+ * message giving the estimate, the limit and what to change when it exceeds
+ * limit. Counts only: nothing is built. */
+rr_status app_check_memory(const app_pipeline *p, int mode, int indirect_override, size_t limit, rr_error *err);
+/* Sets every non-finite pixel of the film to 0 (rt_film_scrub_nonfinite) and
+ * warns on stderr with the count and the first coordinates. Returns the count. */
+size_t app_scrub_film(rt_film *film);
 
 /* Prints "radray: <msg>" on stderr. */
 void app_error(const char *fmt, ...)

@@ -24,6 +24,8 @@ static const char energy_usage[] =
     "      --ff METHOD        montecarlo or quadrature\n"
     "      --ff-samples N     rays or points per patch\n"
     "      --set KEY=VALUE    override a scene value by its JSON path (repeatable)\n"
+    "      --max-memory SIZE  refuse, before any work, a pass estimated to need more memory than\n"
+    "                         SIZE, e.g. 512M, 4G (default: half the physical memory)\n"
     "  -h, --help             show this help\n"
     "\n"
     "Exit codes: 0 ok (balance holds), 1 runtime error or balance broken, 2 usage error or bad input.\n";
@@ -49,12 +51,13 @@ static void json_string(const char *s)
 
 int app_cmd_energy(int argc, char **argv)
 {
-    enum { O_JSON = 256, O_AREA, O_EDGE, O_SOLVER, O_FF, O_SAMPLES, O_SET };
+    enum { O_JSON = 256, O_AREA, O_EDGE, O_SOLVER, O_FF, O_SAMPLES, O_SET, O_MAXMEM };
     static const struct option longopts[] = {
         {"json", no_argument, NULL, O_JSON},         {"patch-area", required_argument, NULL, O_AREA},
         {"patch-edge", required_argument, NULL, O_EDGE}, {"solver", required_argument, NULL, O_SOLVER},
         {"ff", required_argument, NULL, O_FF},       {"ff-samples", required_argument, NULL, O_SAMPLES},
         {"set", required_argument, NULL, O_SET},     {"help", no_argument, NULL, 'h'},
+        {"max-memory", required_argument, NULL, O_MAXMEM},
         {NULL, 0, NULL, 0}};
     static const char *const keys[] = {"radiosity.patch_area", "radiosity.patch_edge", "radiosity.solver",
                                        "radiosity.form_factors", "radiosity.ff_samples"};
@@ -66,6 +69,7 @@ int app_cmd_energy(int argc, char **argv)
     rad_solution *sol = NULL;
     rad_energy_row *rows = NULL;
     size_t nrows = 0;
+    size_t max_memory = app_default_max_memory();
     if (!sets) {
         app_error("out of memory");
         return APP_EXIT_RUNTIME;
@@ -85,6 +89,11 @@ int app_cmd_energy(int argc, char **argv)
             if ((sets[nsets] = malloc(n)) != NULL)
                 snprintf(sets[nsets], n, "%s=%s", keys[c - O_AREA], optarg);
             nsets++;
+        } else if (c == O_MAXMEM) {
+            if (app_parse_size(optarg, &max_memory)) {
+                app_error("--max-memory: expected a size such as 512M or 4G, got '%s'", optarg);
+                goto done;
+            }
         } else if (c == O_SET) {
             sets[nsets++] = strdup(optarg);
         } else if (c == ':') {
@@ -110,7 +119,15 @@ int app_cmd_energy(int argc, char **argv)
     lo.overrides = (const char *const *)sets;
     lo.noverrides = nsets;
     lo.warn = app_warn_sink();
+    lo.max_image_bytes = max_memory;
     if (scene_load(argv[optind], &lo, &s, &err) != RR_OK) {
+        app_error("%s", err.msg);
+        goto done;
+    }
+    app_pipeline mem;
+    memset(&mem, 0, sizeof mem);
+    mem.sc = s;
+    if (app_check_memory(&mem, APP_MODE_RADIOSITY, -1, max_memory, &err) != RR_OK) {
         app_error("%s", err.msg);
         goto done;
     }

@@ -1,5 +1,6 @@
 /* cmd_render.c - `radray render SCENE`: load, render, write EXR + PNG. */
 #include <getopt.h>
+#include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -50,11 +51,28 @@ static const char render_usage[] =
     "      --set KEY=VALUE    override any scene value by its JSON path, e.g.\n"
     "                         --set render.spp=16 --set materials.white.diffuse=[0.7,0.7,0.7]\n"
     "                         (repeatable; VALUE is JSON, or a string)\n"
+    "      --max-memory SIZE  refuse, before any work, a render estimated to need more memory\n"
+    "                         (film, BVH, radiosity patches and form factors) than SIZE,\n"
+    "                         e.g. 512M, 4G (default: half the physical memory)\n"
     "  -q, --quiet            print nothing but errors (no progress bar, no summary)\n"
     "  -h, --help             show this help\n"
     "\n"
     "The progress bar is drawn on stderr only when it is a terminal.\n"
-    "Exit codes: 0 ok, 1 runtime error, 2 usage error or bad input.\n";
+    "Ctrl-C (SIGINT) stops the render: the finished tiles (the rest black) are written\n"
+    "to OUT.partial.exr, never over OUT, and radray exits with 130; a second Ctrl-C\n"
+    "ends it at once.\n"
+    "Pixels that come out NaN or infinite are written as 0 with a warning naming them.\n"
+    "Exit codes: 0 ok, 1 runtime error, 2 usage error or bad input (a render over\n"
+    "--max-memory included), 130 interrupted.\n";
+
+/* Set by the SIGINT handler, read by rt_render before every pixel. */
+static volatile sig_atomic_t g_interrupted;
+
+static void on_sigint(int sig)
+{
+    (void)sig;
+    g_interrupted = 1;
+}
 
 typedef struct progress_state {
     int enabled;
@@ -128,7 +146,8 @@ enum {
     OPT_FF,
     OPT_FF_SAMPLES,
     OPT_PLOT,
-    OPT_CACHE
+    OPT_CACHE,
+    OPT_MAX_MEMORY
 };
 
 int app_cmd_render(int argc, char **argv)
@@ -146,6 +165,7 @@ int app_cmd_render(int argc, char **argv)
         {"solver", required_argument, NULL, OPT_SOLVER},  {"ff", required_argument, NULL, OPT_FF},
         {"ff-samples", required_argument, NULL, OPT_FF_SAMPLES}, {"plot", required_argument, NULL, OPT_PLOT},
         {"radiosity-cache", required_argument, NULL, OPT_CACHE},
+        {"max-memory", required_argument, NULL, OPT_MAX_MEMORY},
         {NULL, 0, NULL, 0}};
     const char *out_exr = NULL, *out_png = NULL, *plot = NULL;
     int no_png = 0, quiet = 0;
@@ -162,7 +182,10 @@ int app_cmd_render(int argc, char **argv)
     app_pipeline pl;
     memset(&pl, 0, sizeof pl);
     memset(&film, 0, sizeof film);
-    char exr_default[4200], png_default[4200];
+    char exr_default[4200], png_default[4200], partial[4200];
+    size_t max_memory = app_default_max_memory();
+    struct sigaction old_int;
+    int handler = 0;
     if (!sets) {
         app_error("out of memory");
         return APP_EXIT_RUNTIME;
@@ -187,6 +210,12 @@ int app_cmd_render(int argc, char **argv)
         case OPT_WIDTH:
             if (app_parse_int(optarg, 1, 1 << 21, &width)) {
                 app_error("--width: expected an integer in [1, %d], got '%s'", 1 << 21, optarg);
+                goto done;
+            }
+            break;
+        case OPT_MAX_MEMORY:
+            if (app_parse_size(optarg, &max_memory)) {
+                app_error("--max-memory: expected a size such as 512M or 4G, got '%s'", optarg);
                 goto done;
             }
             break;
@@ -255,6 +284,7 @@ int app_cmd_render(int argc, char **argv)
     lo.overrides = (const char *const *)sets;
     lo.noverrides = nsets;
     lo.warn = app_warn_sink();
+    lo.max_image_bytes = max_memory;
     if (scene_load(scene_path, &lo, &sc, &err) != RR_OK) {
         app_error("%s", err.msg);
         goto done;
@@ -290,6 +320,13 @@ int app_cmd_render(int argc, char **argv)
         app_error("--plot: the convergence plot belongs to the radiosity pass: use it with --mode radiosity");
         goto done;
     }
+    pl.sc = sc;
+    pl.quiet = quiet;
+    pl.interrupt = &g_interrupted;
+    if (app_check_memory(&pl, mode, indirect, max_memory, &err) != RR_OK) {
+        app_error("%s", err.msg);
+        goto done;
+    }
     if (rt_film_init(&film, sc->view.width, sc->view.height, &err) != RR_OK ||
         rt_accel_build(sc, &accel, &err) != RR_OK) {
         app_error("%s", err.msg);
@@ -302,10 +339,38 @@ int app_cmd_render(int argc, char **argv)
     prog.last_pct = -1;
     clock_gettime(CLOCK_MONOTONIC, &prog.start);
     rc = APP_EXIT_RUNTIME;
-    pl.sc = sc;
     pl.accel = accel;
-    pl.quiet = quiet;
+    /* Ctrl-C: the handler only sets the flag; SA_RESETHAND makes a second one
+     * end the process the default way. */
+    struct sigaction sa;
+    memset(&sa, 0, sizeof sa);
+    sa.sa_handler = on_sigint;
+    sigemptyset(&sa.sa_mask);
+    sa.sa_flags = SA_RESETHAND;
+    g_interrupted = 0;
+    handler = sigaction(SIGINT, &sa, &old_int) == 0;
     rr_status rst = app_render_mode(&pl, mode, indirect, filter, &film, NULL, draw_progress, &prog, &err);
+    if (rst == RR_ERR_INTERRUPTED) {
+        if (prog.enabled)
+            fputc('\n', stderr);
+        snprintf(partial, sizeof partial, "%.*s.partial.exr", (int)(strlen(out_exr) - 4), out_exr);
+        app_scrub_film(&film);
+        img_layer pl_layers[RT_LAYER_COUNT];
+        for (int i = 0; i < RT_LAYER_COUNT; i++) {
+            pl_layers[i].name = rt_layer_name(i);
+            pl_layers[i].image = &film.layer[i];
+        }
+        rr_error werr;
+        if (img_write_exr(partial, &film.beauty, pl_layers, RT_LAYER_COUNT,
+                          sc->settings.half_float ? IMG_HALF : IMG_FLOAT, &werr) != RR_OK) {
+            app_error("%s; the partial image could not be written either: %s", err.msg, werr.msg);
+            rc = APP_EXIT_RUNTIME;
+        } else {
+            app_error("%s; wrote the partial image (unfinished tiles black) to %s", err.msg, partial);
+            rc = APP_EXIT_INTERRUPTED;
+        }
+        goto done;
+    }
     if (rst != RR_OK) {
         app_error("%s", err.msg);
         /* A scene the radiosity pass cannot take (reflectance >= 1, no
@@ -326,6 +391,7 @@ int app_cmd_render(int argc, char **argv)
         fprintf(stderr, "radray: warning: --plot: the direct solver has no iterations to plot "
                         "(use --solver iterative)\n");
     }
+    app_scrub_film(&film);
     double secs = seconds_since(&prog.start);
     img_layer layers[RT_LAYER_COUNT];
     for (int i = 0; i < RT_LAYER_COUNT; i++) {
@@ -353,6 +419,8 @@ int app_cmd_render(int argc, char **argv)
     }
     rc = APP_EXIT_OK;
 done:
+    if (handler)
+        sigaction(SIGINT, &old_int, NULL);
     rt_film_free(&film);
     rad_solution_destroy(pl.sol);
     rt_accel_destroy(accel);

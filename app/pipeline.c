@@ -1,9 +1,14 @@
 /* pipeline.c - what every rendering subcommand shares: the modes (presets of
  * the indirect term), the radiosity pass run at most once per scene, and one
  * render of one mode into a film. */
+#include <ctype.h>
+#include <math.h>
+#include <stdint.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 #include <time.h>
+#include <unistd.h>
 
 #include "app.h"
 
@@ -78,6 +83,187 @@ rr_status app_pipeline_radiosity(app_pipeline *p, rr_error *err)
     return RR_OK;
 }
 
+int app_needs_radiosity(const scene *sc, int mode, int indirect_override)
+{
+    if (mode == APP_MODE_RADIOSITY)
+        return 1;
+    return app_mode_indirect(mode, indirect_override) == RT_INDIRECT_RADIOSITY && scene_emits(sc);
+}
+
+/* ---- resource limits ---- */
+
+size_t app_default_max_memory(void)
+{
+    long pages = sysconf(_SC_PHYS_PAGES), psize = sysconf(_SC_PAGESIZE);
+    if (pages <= 0 || psize <= 0)
+        return SIZE_MAX;
+    double half = (double)pages * (double)psize / 2.0;
+    return half >= (double)SIZE_MAX ? SIZE_MAX : (size_t)half;
+}
+
+int app_parse_size(const char *s, size_t *out)
+{
+    if (!s || !isdigit((unsigned char)s[0]))
+        return -1;
+    char *end;
+    double v = strtod(s, &end);
+    double mult = 1.0;
+    switch (toupper((unsigned char)*end)) {
+    case 'K': mult = 1024.0; end++; break;
+    case 'M': mult = 1024.0 * 1024.0; end++; break;
+    case 'G': mult = 1024.0 * 1024.0 * 1024.0; end++; break;
+    case 'T': mult = 1024.0 * 1024.0 * 1024.0 * 1024.0; end++; break;
+    default: break;
+    }
+    if (mult > 1.0 && (end[0] == 'i' || end[0] == 'I') && (end[1] == 'B' || end[1] == 'b'))
+        end += 2;
+    else if (end[0] == 'B' || end[0] == 'b')
+        end++;
+    v *= mult;
+    if (*end != '\0' || !isfinite(v) || v < 1.0)
+        return -1;
+    *out = v >= (double)SIZE_MAX ? SIZE_MAX : (size_t)v;
+    return 0;
+}
+
+const char *app_size_text(double bytes, char *buf, size_t n)
+{
+    const double kib = 1024.0, mib = kib * kib, gib = mib * kib, tib = gib * kib;
+    if (bytes >= 10.0 * tib)
+        snprintf(buf, n, "%.3g TiB", bytes / tib);
+    else if (bytes >= 0.1 * gib)
+        snprintf(buf, n, "%.1f GiB", bytes / gib);
+    else if (bytes >= mib)
+        snprintf(buf, n, "%.1f MiB", bytes / mib);
+    else if (bytes >= kib)
+        snprintf(buf, n, "%.1f KiB", bytes / kib);
+    else
+        snprintf(buf, n, "%.0f bytes", bytes);
+    return buf;
+}
+
+/* 334000 -> "334,000"; counts beyond 10^15 in scientific notation. */
+static const char *count_text(double v, char *buf, size_t n)
+{
+    if (!(v < 1e15)) {
+        snprintf(buf, n, "%.3g", v);
+        return buf;
+    }
+    char digits[32];
+    snprintf(digits, sizeof digits, "%.0f", v);
+    size_t len = strlen(digits), k = 0;
+    for (size_t i = 0; i < len && k + 2 < n; i++) {
+        if (i > 0 && (len - i) % 3 == 0)
+            buf[k++] = ',';
+        buf[k++] = digits[i];
+    }
+    buf[k] = '\0';
+    return buf;
+}
+
+/* The patch count rad_patches_build would make for limits po, by the same
+ * formulas (one level per object, level^2 patches per triangle; spheres on a
+ * UV grid of S stacks), without building anything. */
+static double count_patches(const scene *s, rad_patch_opts po)
+{
+    double *olevel = calloc(s->nobjects ? s->nobjects : 1, sizeof *olevel);
+    if (!olevel)
+        return 0;
+    double rmax = 0, n = 0;
+    for (size_t t = 0; t < s->ntris; t++) {
+        const scene_tri *tr = &s->tris[t];
+        rr_vec3 A = s->verts[tr->v[0]], B = s->verts[tr->v[1]], C = s->verts[tr->v[2]];
+        double longest =
+            fmax(rr_v3_len(rr_v3_sub(B, A)), fmax(rr_v3_len(rr_v3_sub(C, B)), rr_v3_len(rr_v3_sub(A, C))));
+        double l = fmax(1.0, fmax(ceil(sqrt(scene_tri_area(s, t) / po.max_area)), ceil(longest / po.max_edge)));
+        l = fmin(l, 65535.0);
+        if (l > olevel[tr->object])
+            olevel[tr->object] = l;
+    }
+    for (size_t t = 0; t < s->ntris; t++)
+        n += olevel[s->tris[t].object] * olevel[s->tris[t].object];
+    for (size_t i = 0; i < s->nobjects; i++)
+        if (s->objects[i].kind == SCENE_OBJ_SPHERE)
+            rmax = fmax(rmax, s->objects[i].radius);
+    if (rmax > 0) {
+        double need =
+            fmax(4.0, fmax(RR_PI * rmax / sqrt(2.0 * po.max_area), sqrt(2.0) * RR_PI * rmax / po.max_edge));
+        double S = need > 4096 ? 4096 : ceil(need);
+        for (size_t i = 0; i < s->nobjects; i++)
+            if (s->objects[i].kind == SCENE_OBJ_SPHERE)
+                n += 4.0 * S * S - 4.0 * S;
+    }
+    free(olevel);
+    return n;
+}
+
+/* Rough per-item costs: a BVH node pair and an index per primitive; per patch
+ * the patch record, its radiosity, emission, first shot and shared vertices. */
+#define APP_BVH_BYTES_PER_PRIM 48.0
+#define APP_PATCH_BYTES (sizeof(rad_patch) + 8.0 * sizeof(rr_rgb) + 2.0 * sizeof(rr_vec3))
+#define APP_FF_ENTRY_BYTES 12.0 /* column (uint32) + value (double) */
+
+rr_status app_check_memory(const app_pipeline *p, int mode, int indirect_override, size_t limit, rr_error *err)
+{
+    const scene *sc = p->sc;
+    char a[32], b[32], c[32], d[32];
+    double film = 8.0 * (double)sc->view.width * (double)sc->view.height * 3.0 * sizeof(float);
+    double prims = (double)sc->ntris;
+    for (size_t i = 0; i < sc->nobjects; i++)
+        prims += sc->objects[i].kind == SCENE_OBJ_SPHERE;
+    double bvh = APP_BVH_BYTES_PER_PRIM * prims;
+    double patches = 0, rad = 0;
+    if (app_needs_radiosity(sc, mode, indirect_override)) {
+        rad_pass_opts po;
+        memset(&po, 0, sizeof po);
+        po.use_scene_choices = 1;
+        patches = count_patches(sc, rad_pass_patch_limits(sc, &po));
+        /* A cache that exists is read instead of computing form factors. */
+        int cached = p->cache_path && access(p->cache_path, F_OK) == 0;
+        double per_row = sc->radiosity.form_factors == SCENE_FF_MONTE_CARLO
+                             ? fmin(patches, (double)(sc->radiosity.ff_samples > 0 ? sc->radiosity.ff_samples : 1))
+                             : patches;
+        /* x2: the reciprocity step builds a second matrix beside the first. */
+        rad = patches * (double)APP_PATCH_BYTES + (cached ? 0.0 : 2.0 * APP_FF_ENTRY_BYTES * patches * per_row);
+    }
+    double total = film + bvh + rad;
+    if (total <= (double)limit)
+        return RR_OK;
+    app_size_text(total, c, sizeof c);
+    app_size_text((double)limit, d, sizeof d);
+    if (rad >= film && rad >= bvh)
+        return rr_error_set(err, RR_ERR_LIMIT,
+                            "%s: radiosity: %s patches need about %s of form factors (%s in all), over the limit of "
+                            "%s (--max-memory); raise --patch-area",
+                            sc->path, count_text(patches, a, sizeof a), app_size_text(rad, b, sizeof b), c, d);
+    if (film >= bvh)
+        return rr_error_set(err, RR_ERR_LIMIT,
+                            "%s: a %d x %d image needs about %s of film (%s in all), over the limit of %s "
+                            "(--max-memory); lower --width",
+                            sc->path, sc->view.width, sc->view.height, app_size_text(film, b, sizeof b), c, d);
+    return rr_error_set(err, RR_ERR_LIMIT,
+                        "%s: %s triangles and spheres need about %s for the BVH (%s in all), over the limit of %s "
+                        "(--max-memory)",
+                        sc->path, count_text(prims, a, sizeof a), app_size_text(bvh, b, sizeof b), c, d);
+}
+
+size_t app_scrub_film(rt_film *film)
+{
+    enum { SHOW = 5 };
+    int xs[SHOW], ys[SHOW];
+    size_t n = rt_film_scrub_nonfinite(film, SHOW, xs, ys);
+    if (n == 0)
+        return 0;
+    char list[256];
+    size_t k = 0;
+    list[0] = '\0';
+    for (size_t i = 0; i < n && i < SHOW; i++)
+        k += (size_t)snprintf(list + k, sizeof list - k, "%s(%d, %d)", i ? ", " : "", xs[i], ys[i]);
+    fprintf(stderr, "radray: warning: %zu pixel(s) had NaN or infinite values, written as 0: %s%s\n", n, list,
+            n > SHOW ? ", ..." : "");
+    return n;
+}
+
 rr_status app_render_mode(app_pipeline *p, int mode, int indirect_override, int filter, rt_film *film,
                           double *seconds, void (*progress)(void *, int, int), void *progress_user, rr_error *err)
 {
@@ -94,12 +280,10 @@ rr_status app_render_mode(app_pipeline *p, int mode, int indirect_override, int 
     ro.filter = (rt_filter)filter;
     ro.progress = progress;
     ro.progress_user = progress_user;
-    int need = mode == APP_MODE_RADIOSITY || ro.indirect == RT_INDIRECT_RADIOSITY;
-    if (need && mode != APP_MODE_RADIOSITY && !scene_emits(sc)) {
-        /* Nothing emits: there is no interreflection to compute. */
-        need = 0;
-        ro.indirect = RT_INDIRECT_NONE;
-    }
+    ro.interrupt = p->interrupt;
+    int need = app_needs_radiosity(sc, mode, indirect_override);
+    if (!need && ro.indirect == RT_INDIRECT_RADIOSITY)
+        ro.indirect = RT_INDIRECT_NONE; /* nothing emits: there is no interreflection to compute */
     if (need) {
         rr_status st = app_pipeline_radiosity(p, err);
         if (st != RR_OK)

@@ -22,6 +22,8 @@
 #ifndef RT_H
 #define RT_H
 
+#include <signal.h>
+
 #include "rr_core.h"
 #include "scene.h"
 
@@ -126,6 +128,11 @@ typedef struct rt_render_opts {
      * finished so far. */
     void (*progress)(void *user, int done, int total);
     void *progress_user;
+    /* Interrupt (e.g. set by a SIGINT handler): when it points to a non-zero
+     * value, checked before every pixel, rt_render stops starting work,
+     * clears the tiles it had begun (finished tiles stay, the rest is black)
+     * and returns RR_ERR_INTERRUPTED. NULL: never interrupted. */
+    const volatile sig_atomic_t *interrupt;
 } rt_render_opts;
 
 /* Per-component layers of a render; the beauty image is their sum. */
@@ -155,5 +162,12 @@ void rt_film_free(rt_film *f); /* NULL and double free are harmless */
  * term. Deterministic for a seed whatever the thread count (tiles over OpenMP,
  * one RNG stream per pixel). */
 rr_status rt_render(const scene *s, const rt_accel *a, const rt_render_opts *opts, rt_film *film, rr_error *err);
+
+/* NaN/Inf guard for the output: every pixel of the beauty image or of a layer
+ * with a non-finite channel is set to 0 (all three channels, in that image).
+ * Returns the number of pixels so cleared (counted once however many images
+ * had one there) and stores the coordinates of the first max_report of them,
+ * in row-major order, in xs/ys (either may be NULL when max_report is 0). */
+size_t rt_film_scrub_nonfinite(rt_film *film, size_t max_report, int *xs, int *ys);
 
 #endif

@@ -361,8 +361,13 @@ rr_status rt_render(const scene *s, const rt_accel *a, const rt_render_opts *o, 
 #pragma omp parallel for schedule(dynamic, 1) num_threads(nthreads)
     for (int tile = 0; tile < ntiles; tile++) {
         int x0 = (tile % tiles_x) * RT_TILE, y0 = (tile / tiles_x) * RT_TILE;
-        for (int row = y0; row < y0 + RT_TILE && row < v->height; row++)
+        int stopped = 0;
+        for (int row = y0; row < y0 + RT_TILE && row < v->height && !stopped; row++)
             for (int col = x0; col < x0 + RT_TILE && col < v->width; col++) {
+                if (o->interrupt && *o->interrupt) {
+                    stopped = 1;
+                    break;
+                }
                 rr_rng rng = rr_rng_make(o->seed, (uint64_t)row * (uint64_t)v->width + (uint64_t)col);
                 shade_out acc;
                 memset(&acc, 0, sizeof acc);
@@ -382,6 +387,16 @@ rr_status rt_render(const scene *s, const rt_accel *a, const rt_render_opts *o, 
                 }
                 rr_image_set(&film->beauty, col, row, sum);
             }
+        if (stopped) {
+            /* A tile begun but not finished: black, like the tiles never begun. */
+            for (int row = y0; row < y0 + RT_TILE && row < v->height; row++)
+                for (int col = x0; col < x0 + RT_TILE && col < v->width; col++) {
+                    rr_image_set(&film->beauty, col, row, rr_rgb_make(0, 0, 0));
+                    for (int i = 0; i < RT_LAYER_COUNT; i++)
+                        rr_image_set(&film->layer[i], col, row, rr_rgb_make(0, 0, 0));
+                }
+            continue;
+        }
         int now;
 #pragma omp atomic capture
         now = ++done;
@@ -391,7 +406,48 @@ rr_status rt_render(const scene *s, const rt_accel *a, const rt_render_opts *o, 
         }
     }
     light_table_free(&c.lights);
+    if (o->interrupt && *o->interrupt)
+        return rr_error_set(err, RR_ERR_INTERRUPTED, "interrupted: %d of %d tiles finished", done, ntiles);
     return RR_OK;
+}
+
+static int pixel_finite(const rr_image *im, size_t k)
+{
+    const float *p = im->px + 3 * k;
+    return isfinite(p[0]) && isfinite(p[1]) && isfinite(p[2]);
+}
+
+size_t rt_film_scrub_nonfinite(rt_film *film, size_t max_report, int *xs, int *ys)
+{
+    rr_image *img[RT_LAYER_COUNT + 1];
+    img[0] = &film->beauty;
+    for (int i = 0; i < RT_LAYER_COUNT; i++)
+        img[i + 1] = &film->layer[i];
+    int w = film->beauty.width, h = film->beauty.height;
+    if (!film->beauty.px || w <= 0 || h <= 0)
+        return 0;
+    size_t bad = 0, npx = (size_t)w * (size_t)h;
+    for (size_t k = 0; k < npx; k++) {
+        int hit = 0;
+        for (int i = 0; i < RT_LAYER_COUNT + 1; i++) {
+            const rr_image *im = img[i];
+            if (!im->px || im->width != w || im->height != h || pixel_finite(im, k))
+                continue;
+            float *p = im->px + 3 * k;
+            p[0] = p[1] = p[2] = 0.0f;
+            hit = 1;
+        }
+        if (!hit)
+            continue;
+        if (bad < max_report) {
+            if (xs)
+                xs[bad] = (int)(k % (size_t)w);
+            if (ys)
+                ys[bad] = (int)(k / (size_t)w);
+        }
+        bad++;
+    }
+    return bad;
 }
 
 int rt_follow_mirrors(const rt_accel *a, rr_ray ray, int max_bounces, rr_ray *last, int *escaped)

@@ -1,0 +1,405 @@
+/* test_hardening.c - the renderer under hostile conditions: interrupted
+ * renders (the rt_render flag, and Ctrl-C on the command line writing
+ * OUT.partial.exr), memory limits refused before any work, NaN/Inf kept out
+ * of the output, and images that do not depend on the scene's scale. */
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <cmocka.h>
+
+#include <fcntl.h>
+#include <math.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "rad.h"
+#include "rr_core.h"
+#include "rt.h"
+#include "scene.h"
+
+static char g_dir[64];
+static char g_out[8192]; /* captured stdout + stderr of the last run */
+
+static double now_s(void)
+{
+    struct timespec t;
+    clock_gettime(CLOCK_MONOTONIC, &t);
+    return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
+}
+
+static void path_in(char *buf, size_t n, const char *name) { snprintf(buf, n, "%s/%s", g_dir, name); }
+
+static int exists(const char *name)
+{
+    char path[256];
+    struct stat st;
+    path_in(path, sizeof path, name);
+    return stat(path, &st) == 0;
+}
+
+/* Starts radray with args (NULL-terminated), output to log.txt. */
+static pid_t start(const char *const *args)
+{
+    char log[128];
+    path_in(log, sizeof log, "log.txt");
+    pid_t pid = fork();
+    if (pid == 0) {
+        int fd = open(log, O_WRONLY | O_CREAT | O_TRUNC, 0644);
+        dup2(fd, 1);
+        dup2(fd, 2);
+        const char *argv[32];
+        int n = 0;
+        argv[n++] = RR_RADRAY_BIN;
+        for (; args[n - 1] && n < 31; n++)
+            argv[n] = args[n - 1];
+        argv[n] = NULL;
+        execv(RR_RADRAY_BIN, (char *const *)argv);
+        _exit(127);
+    }
+    return pid;
+}
+
+static int finish(pid_t pid)
+{
+    int status = 0;
+    waitpid(pid, &status, 0);
+    char log[128], *data = NULL;
+    path_in(log, sizeof log, "log.txt");
+    g_out[0] = '\0';
+    if (rr_file_read_all(log, &data, NULL, NULL) == RR_OK) {
+        snprintf(g_out, sizeof g_out, "%s", data);
+        free(data);
+    }
+    return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+}
+
+/* 1 once the process catches SIGINT (its handler is installed): the SigCgt
+ * mask of /proc/PID/status, bit SIGINT - 1. */
+static int catches_sigint(pid_t pid)
+{
+    char path[64], line[256];
+    snprintf(path, sizeof path, "/proc/%d/status", (int)pid);
+    FILE *f = fopen(path, "r");
+    if (!f)
+        return 0;
+    int yes = 0;
+    while (fgets(line, sizeof line, f))
+        if (!strncmp(line, "SigCgt:", 7)) {
+            unsigned long long mask = strtoull(line + 7, NULL, 16);
+            yes = (mask >> (SIGINT - 1)) & 1u;
+        }
+    fclose(f);
+    return yes;
+}
+
+/* ---- a small scene at any scale ---- */
+
+/* Floor, a box on it, an area light above, a point light; all lengths times
+ * k, the point light's intensity times k^2 (so irradiance is unchanged). */
+static scene *scaled_scene(double k, const char *mode_extra, const char *ff)
+{
+    char json[4096];
+    snprintf(json, sizeof json,
+             "{\"format\":\"radray-scene/1\","
+             "\"camera\":{\"type\":\"lookat\",\"eye\":[%.17g,%.17g,%.17g],\"target\":[0,%.17g,0],\"up\":[0,1,0],"
+             "\"fov\":45,\"width\":41,\"height\":31},"
+             "\"materials\":{\"white\":{\"diffuse\":[0.7,0.7,0.7],\"ambient\":1,\"specular\":[0.2,0.2,0.2],\"k\":20},"
+             "\"red\":{\"diffuse\":[0.7,0.2,0.1],\"ambient\":1},"
+             "\"glow\":{\"diffuse\":[0.5,0.5,0.5],\"emission\":[5,5,5]}},"
+             "\"lights\":[{\"type\":\"point\",\"position\":[%.17g,%.17g,%.17g],\"intensity\":[%.17g,%.17g,%.17g]}],"
+             "\"objects\":["
+             "{\"type\":\"quad\",\"material\":\"white\",\"vertices\":[[%.17g,0,%.17g],[%.17g,0,%.17g],[%.17g,0,%.17g],"
+             "[%.17g,0,%.17g]]},"
+             "{\"type\":\"box\",\"material\":\"red\",\"min\":[%.17g,0,%.17g],\"max\":[%.17g,%.17g,%.17g]},"
+             "{\"type\":\"quad\",\"material\":\"glow\",\"vertices\":[[%.17g,%.17g,%.17g],[%.17g,%.17g,%.17g],"
+             "[%.17g,%.17g,%.17g],[%.17g,%.17g,%.17g]]}],"
+             "\"render\":{\"ambient\":[0.05,0.05,0.05],\"threads\":2,\"light_samples\":4%s},"
+             "\"radiosity\":{\"ff_samples\":64,\"form_factors\":\"%s\"}}",
+             0.0, 2.0 * k, 6.0 * k, 0.5 * k,                                  /* camera */
+             -1.5 * k, 2.5 * k, 1.0 * k, 3.0 * k * k, 2.5 * k * k, 2.0 * k * k, /* point light */
+             -3 * k, -3 * k, -3 * k, 3 * k, 3 * k, 3 * k, 3 * k, -3 * k,        /* floor, facing up */
+             -0.6 * k, -0.6 * k, 0.6 * k, 1.2 * k, 0.6 * k,                     /* box */
+             -0.5 * k, 3 * k, -0.5 * k, 0.5 * k, 3 * k, -0.5 * k, 0.5 * k, 3 * k, 0.5 * k, -0.5 * k, 3 * k,
+             0.5 * k, /* light, facing down */
+             mode_extra, ff);
+    scene *s = NULL;
+    rr_error err;
+    rr_status st = scene_load_string(json, "scaled", "", NULL, &s, &err);
+    if (st != RR_OK)
+        fprintf(stderr, "%s\n", err.msg);
+    assert_int_equal(st, RR_OK);
+    return s;
+}
+
+static rr_rgb indirect_hook(void *user, const rt_hit *hit, rr_rgb rho)
+{
+    void **u = user;
+    return rad_indirect_at(u[0], u[1], hit, rho);
+}
+
+static void render_scene(scene *s, rt_indirect indirect, rt_film *film)
+{
+    rr_error err;
+    rt_accel *a = NULL;
+    assert_int_equal(rt_accel_build(s, &a, &err), RR_OK);
+    assert_int_equal(rt_film_init(film, s->view.width, s->view.height, &err), RR_OK);
+    rt_render_opts o;
+    memset(&o, 0, sizeof o);
+    o.spp = 1;
+    o.threads = 2;
+    o.max_depth = 5;
+    o.light_samples = s->settings.light_samples;
+    o.indirect = indirect;
+    rad_solution *sol = NULL;
+    void *user[2] = {NULL, s};
+    if (indirect == RT_INDIRECT_RADIOSITY) {
+        rad_pass_opts po;
+        memset(&po, 0, sizeof po);
+        po.use_scene_choices = 1;
+        assert_int_equal(rad_pass_run(s, a, &po, &sol, &err), RR_OK);
+        user[0] = sol;
+        o.radiosity_indirect = indirect_hook;
+        o.radiosity_user = user;
+    }
+    assert_int_equal(rt_render(s, a, &o, film, &err), RR_OK);
+    rad_solution_destroy(sol);
+    rt_accel_destroy(a);
+}
+
+/* ---- interrupt ---- */
+
+static void interrupt_flag_preset(void **state)
+{
+    (void)state;
+    scene *s = scaled_scene(1.0, ",\"spp\":64", "montecarlo");
+    rr_error err;
+    rt_accel *a = NULL;
+    rt_film film;
+    assert_int_equal(rt_accel_build(s, &a, &err), RR_OK);
+    assert_int_equal(rt_film_init(&film, s->view.width, s->view.height, &err), RR_OK);
+    volatile sig_atomic_t stop = 1;
+    rt_render_opts o;
+    memset(&o, 0, sizeof o);
+    o.spp = 4096;
+    o.light_samples = 16;
+    o.indirect = RT_INDIRECT_SECONDARY;
+    o.interrupt = &stop;
+    double t0 = now_s();
+    assert_int_equal(rt_render(s, a, &o, &film, &err), RR_ERR_INTERRUPTED);
+    assert_true(now_s() - t0 < 2.0);
+    assert_non_null(strstr(err.msg, "interrupted"));
+    for (int y = 0; y < film.beauty.height; y++)
+        for (int x = 0; x < film.beauty.width; x++)
+            assert_true(rr_image_at(&film.beauty, x, y)[0] == 0.0f);
+    /* Not set: renders normally. */
+    stop = 0;
+    o.spp = 1;
+    o.indirect = RT_INDIRECT_AMBIENT;
+    assert_int_equal(rt_render(s, a, &o, &film, &err), RR_OK);
+    rt_film_free(&film);
+    rt_accel_destroy(a);
+    scene_destroy(s);
+}
+
+static void cli_sigint_writes_partial(void **state)
+{
+    (void)state;
+    char out[256], scene_path[512];
+    path_in(out, sizeof out, "slow.exr");
+    snprintf(scene_path, sizeof scene_path, "%s/scenes/cornell.json", RR_SOURCE_DIR);
+    const char *args[] = {"render", scene_path, "--mode", "secondary", "--spp", "4096", "-q", "-o", out, NULL};
+    pid_t pid = start(args);
+    assert_true(pid > 0);
+    /* Wait until the handler is in place (a sanitizer build starts slowly),
+     * then let it render for a while. */
+    double t0 = now_s();
+    while (!catches_sigint(pid) && now_s() - t0 < 60.0)
+        usleep(10000);
+    usleep(500000);
+    kill(pid, SIGINT);
+    t0 = now_s();
+    int rc = finish(pid);
+    double stop_s = now_s() - t0;
+    assert_int_equal(rc, 130);
+    assert_true(stop_s < 30.0);
+    assert_true(exists("slow.partial.exr"));
+    assert_false(exists("slow.exr"));
+    assert_false(exists("slow.png"));
+    assert_non_null(strstr(g_out, "slow.partial.exr"));
+    assert_non_null(strstr(g_out, "interrupted"));
+}
+
+/* ---- memory limits ---- */
+
+static void cli_refuses_huge_resolution(void **state)
+{
+    (void)state;
+    char out[256], scene_path[512];
+    path_in(out, sizeof out, "huge.exr");
+    snprintf(scene_path, sizeof scene_path, "%s/scenes/cornell.json", RR_SOURCE_DIR);
+    const char *args[] = {"render", scene_path, "--width", "2000000", "-o", out, NULL};
+    double t0 = now_s();
+    int rc = finish(start(args));
+    assert_int_equal(rc, 2);
+    assert_true(now_s() - t0 < 10.0);
+    assert_non_null(strstr(g_out, "2000000 x 2000000"));
+    assert_non_null(strstr(g_out, "--max-memory"));
+    assert_false(exists("huge.exr"));
+    /* The same with a limit given, at load (the scene's own resolution). */
+    const char *args2[] = {"render", scene_path, "--max-memory", "1M", "-o", out, NULL};
+    assert_int_equal(finish(start(args2)), 2);
+    assert_non_null(strstr(g_out, "over the limit of 1.0 MiB"));
+    const char *args3[] = {"render", scene_path, "--max-memory", "lots", "-o", out, NULL};
+    assert_int_equal(finish(start(args3)), 2);
+    assert_non_null(strstr(g_out, "--max-memory"));
+}
+
+static void cli_refuses_tiny_patches(void **state)
+{
+    (void)state;
+    char out[256], scene_path[512];
+    path_in(out, sizeof out, "tiny.exr");
+    snprintf(scene_path, sizeof scene_path, "%s/scenes/cornell.json", RR_SOURCE_DIR);
+    const char *args[] = {"render", scene_path, "--patch-area", "0.5", "--max-memory", "4G", "-o", out, NULL};
+    double t0 = now_s();
+    int rc = finish(start(args));
+    assert_int_equal(rc, 2);
+    assert_true(now_s() - t0 < 10.0);
+    assert_non_null(strstr(g_out, "radiosity: 4,080,596 patches need about"));
+    assert_non_null(strstr(g_out, "over the limit of 4.0 GiB (--max-memory); raise --patch-area"));
+    assert_false(exists("tiny.exr"));
+    /* energy runs the same pass and checks the same way. */
+    const char *args2[] = {"energy", scene_path, "--patch-area", "0.5", "--max-memory", "4G", NULL};
+    assert_int_equal(finish(start(args2)), 2);
+    assert_non_null(strstr(g_out, "raise --patch-area"));
+    /* Whitted runs no radiosity pass: the same patch area is no obstacle. */
+    const char *args3[] = {"render",       scene_path, "--patch-area", "0.5", "--max-memory", "4G", "--mode",
+                           "whitted",      "--width",  "21",           "-q",  "-o",           out,  NULL};
+    assert_int_equal(finish(start(args3)), 0);
+    assert_true(exists("tiny.exr"));
+}
+
+/* ---- NaN / Inf ---- */
+
+static void scrub_nonfinite(void **state)
+{
+    (void)state;
+    rt_film f;
+    rr_error err;
+    assert_int_equal(rt_film_init(&f, 5, 4, &err), RR_OK);
+    for (int y = 0; y < 4; y++)
+        for (int x = 0; x < 5; x++)
+            rr_image_set(&f.beauty, x, y, rr_rgb_make(1, 2, 3));
+    rr_image_at(&f.beauty, 1, 2)[1] = NAN;
+    rr_image_at(&f.layer[RT_LAYER_DIFFUSE], 3, 0)[2] = INFINITY;
+    rr_image_at(&f.beauty, 3, 0)[2] = INFINITY;
+    rr_image_at(&f.layer[RT_LAYER_INDIRECT], 4, 3)[0] = -INFINITY;
+    int xs[2] = {-1, -1}, ys[2] = {-1, -1};
+    assert_int_equal(rt_film_scrub_nonfinite(&f, 2, xs, ys), 3);
+    assert_int_equal(xs[0], 3); /* row-major order */
+    assert_int_equal(ys[0], 0);
+    assert_int_equal(xs[1], 1);
+    assert_int_equal(ys[1], 2);
+    for (int c = 0; c < 3; c++) {
+        assert_true(rr_image_at(&f.beauty, 1, 2)[c] == 0.0f);
+        assert_true(rr_image_at(&f.beauty, 3, 0)[c] == 0.0f);
+        assert_true(rr_image_at(&f.layer[RT_LAYER_DIFFUSE], 3, 0)[c] == 0.0f);
+        assert_true(rr_image_at(&f.layer[RT_LAYER_INDIRECT], 4, 3)[c] == 0.0f);
+    }
+    assert_true(rr_image_at(&f.beauty, 0, 0)[0] == 1.0f); /* the rest untouched */
+    assert_true(rr_image_at(&f.beauty, 4, 3)[2] == 3.0f);
+    assert_int_equal(rt_film_scrub_nonfinite(&f, 0, NULL, NULL), 0); /* clean now */
+    rt_film_free(&f);
+}
+
+/* ---- scale invariance ---- */
+
+static void compare_scales(rt_indirect indirect, const char *ff, double tol)
+{
+    static const double scales[] = {1e-3, 1e4};
+    rt_film ref;
+    scene *s = scaled_scene(1.0, "", ff);
+    render_scene(s, indirect, &ref);
+    scene_destroy(s);
+    double mean = 0;
+    int w = ref.beauty.width, h = ref.beauty.height;
+    for (int y = 0; y < h; y++)
+        for (int x = 0; x < w; x++)
+            mean += rr_rgb_mean(rr_image_get(&ref.beauty, x, y));
+    mean /= (double)w * h;
+    assert_true(mean > 1e-3);
+    for (int i = 0; i < 2; i++) {
+        rt_film f;
+        s = scaled_scene(scales[i], "", ff);
+        render_scene(s, indirect, &f);
+        scene_destroy(s);
+        double worst = 0;
+        for (int y = 0; y < h; y++)
+            for (int x = 0; x < w; x++)
+                for (int c = 0; c < 3; c++)
+                    worst = fmax(worst, fabs((double)rr_image_at(&f.beauty, x, y)[c] -
+                                             (double)rr_image_at(&ref.beauty, x, y)[c]));
+        if (worst > tol * mean)
+            fprintf(stderr, "scale %g, indirect %d: max |diff| %g, mean %g\n", scales[i], (int)indirect, worst, mean);
+        assert_true(worst <= tol * mean);
+        rt_film_free(&f);
+    }
+    rt_film_free(&ref);
+}
+
+static void scale_invariance_whitted(void **state)
+{
+    (void)state;
+    compare_scales(RT_INDIRECT_AMBIENT, "quadrature", 1e-4);
+}
+
+/* Quadrature form factors are continuous in the geometry: as tight as
+ * Whitted. Monte Carlo ones count ray hits, and a ray grazing a patch edge can
+ * land on the other patch once the coordinates round differently (seen: one
+ * such flip moves a few pixels by 0.6% of the mean), hence the looser bound;
+ * scales by powers of two, which round nothing, give identical images. */
+static void scale_invariance_hybrid(void **state)
+{
+    (void)state;
+    compare_scales(RT_INDIRECT_RADIOSITY, "quadrature", 1e-4);
+    compare_scales(RT_INDIRECT_RADIOSITY, "montecarlo", 2e-2);
+}
+
+static int setup(void **state)
+{
+    (void)state;
+    snprintf(g_dir, sizeof g_dir, "/tmp/radray-hardening-XXXXXX");
+    return mkdtemp(g_dir) ? 0 : -1;
+}
+
+static int teardown(void **state)
+{
+    (void)state;
+    static const char *const names[] = {"log.txt",  "slow.partial.exr", "slow.exr", "slow.png", "huge.exr",
+                                        "huge.png", "tiny.exr",         "tiny.png", NULL};
+    char path[256];
+    for (int i = 0; names[i]; i++) {
+        path_in(path, sizeof path, names[i]);
+        remove(path);
+    }
+    rmdir(g_dir);
+    return 0;
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(interrupt_flag_preset),       cmocka_unit_test(cli_sigint_writes_partial),
+        cmocka_unit_test(cli_refuses_huge_resolution), cmocka_unit_test(cli_refuses_tiny_patches),
+        cmocka_unit_test(scrub_nonfinite),             cmocka_unit_test(scale_invariance_whitted),
+        cmocka_unit_test(scale_invariance_hybrid),
+    };
+    return cmocka_run_group_tests(tests, setup, teardown);
+}
