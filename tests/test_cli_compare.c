@@ -20,6 +20,7 @@
 #include <unistd.h>
 
 #include "img.h"
+#include "test_cli_run.h"
 #include "rr_core.h"
 
 static char g_dir[64];
@@ -31,29 +32,7 @@ static int run(const char *const *args)
 {
     char log[128];
     snprintf(log, sizeof log, "%s/log.txt", g_dir);
-    pid_t pid = fork();
-    if (pid == 0) {
-        int fd = open(log, O_WRONLY | O_CREAT | O_TRUNC, 0644);
-        dup2(fd, 1);
-        dup2(fd, 2);
-        const char *argv[40];
-        int n = 0;
-        argv[n++] = RR_RADRAY_BIN;
-        for (; args[n - 1] && n < 39; n++)
-            argv[n] = args[n - 1];
-        argv[n] = NULL;
-        execv(RR_RADRAY_BIN, (char *const *)argv);
-        _exit(127);
-    }
-    int status = 0;
-    waitpid(pid, &status, 0);
-    char *data = NULL;
-    g_out[0] = '\0';
-    if (rr_file_read_all(log, &data, NULL, NULL) == RR_OK) {
-        snprintf(g_out, sizeof g_out, "%s", data);
-        free(data);
-    }
-    return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+    return test_cli_run(log, args, g_out, sizeof g_out);
 }
 
 static const char *path_in(const char *name)

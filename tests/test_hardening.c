@@ -23,6 +23,7 @@
 #include "rr_core.h"
 #include "rt.h"
 #include "scene.h"
+#include "test_cli_run.h"
 
 static char g_dir[64];
 static char g_out[8192]; /* captured stdout + stderr of the last run */
@@ -49,35 +50,14 @@ static pid_t start(const char *const *args)
 {
     char log[128];
     path_in(log, sizeof log, "log.txt");
-    pid_t pid = fork();
-    if (pid == 0) {
-        int fd = open(log, O_WRONLY | O_CREAT | O_TRUNC, 0644);
-        dup2(fd, 1);
-        dup2(fd, 2);
-        const char *argv[32];
-        int n = 0;
-        argv[n++] = RR_RADRAY_BIN;
-        for (; args[n - 1] && n < 31; n++)
-            argv[n] = args[n - 1];
-        argv[n] = NULL;
-        execv(RR_RADRAY_BIN, (char *const *)argv);
-        _exit(127);
-    }
-    return pid;
+    return test_cli_start(log, args);
 }
 
 static int finish(pid_t pid)
 {
-    int status = 0;
-    waitpid(pid, &status, 0);
-    char log[128], *data = NULL;
+    char log[128];
     path_in(log, sizeof log, "log.txt");
-    g_out[0] = '\0';
-    if (rr_file_read_all(log, &data, NULL, NULL) == RR_OK) {
-        snprintf(g_out, sizeof g_out, "%s", data);
-        free(data);
-    }
-    return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+    return test_cli_finish(pid, log, g_out, sizeof g_out);
 }
 
 /* 1 once the process catches SIGINT (its handler is installed): the SigCgt
