@@ -778,6 +778,61 @@ static void cornell_colour_bleeding(void **state)
     scene_destroy(s);
 }
 
+/* Sliver triangles: a unit square cut into 200 needle-thin triangles (a fan
+ * from one corner, aspect ratios up to ~1e4): every ray through the square
+ * hits it, with a finite unit normal, and renders no NaN. */
+static void slivers_no_holes_no_nans(void **state)
+{
+    (void)state;
+    enum { K = 100 };
+    size_t cap = 64 * (2 * K + 2) + 32 * 2 * K + 1024, len = 0;
+    char *buf = malloc(cap);
+    len += (size_t)snprintf(buf + len, cap - len,
+                            "{\"format\":\"radray-scene/1\",\"camera\":{\"type\":\"lecture\",\"E\":[0.5,0.5,3],"
+                            "\"O\":[0.5,0.5,2],\"U\":[0,1,0],\"s\":0.05,\"w\":10,\"h\":10},"
+                            "\"materials\":{\"a\":{\"diffuse\":0.5}},\"lights\":[{\"type\":\"directional\","
+                            "\"direction\":[0.2,0.1,1],\"intensity\":1}],\"objects\":[{\"type\":\"triangles\","
+                            "\"material\":\"a\",\"vertices\":[[0,0,0]");
+    /* Points along the top and right edges: (i/K, 1) and (1, i/K). */
+    for (int i = 0; i <= K; i++)
+        len += (size_t)snprintf(buf + len, cap - len, ",[%.17g,1,0]", (double)i / K);
+    for (int i = K - 1; i >= 0; i--)
+        len += (size_t)snprintf(buf + len, cap - len, ",[1,%.17g,0]", (double)i / K);
+    len += (size_t)snprintf(buf + len, cap - len, "],\"indices\":[");
+    for (int i = 1; i < 2 * K + 1; i++)
+        len += (size_t)snprintf(buf + len, cap - len, "%s[0,%d,%d]", i > 1 ? "," : "", i + 1, i);
+    snprintf(buf + len, cap - len, "]}]}");
+    scene *s = NULL;
+    rr_error err;
+    if (scene_load_string(buf, "slivers", "", NULL, &s, &err) != RR_OK)
+        fail_msg("%s", err.msg);
+    free(buf);
+    rt_accel *a = NULL;
+    assert_int_equal(rt_accel_build(s, &a, NULL), RR_OK);
+    rr_rng rng = rr_rng_make(12, 0);
+    for (int i = 0; i < 100000; i++) {
+        rr_vec3 target = rr_v3(1e-9 + (1 - 2e-9) * rr_rng_uniform(&rng), 1e-9 + (1 - 2e-9) * rr_rng_uniform(&rng), 0);
+        rr_ray r = {rr_v3(0.5 + rr_rng_uniform(&rng) - 0.5, 0.5, 2), rr_v3(0, 0, 0)};
+        r.d = rr_v3_sub(target, r.o);
+        rt_hit h;
+        if (!rt_accel_closest(a, r, 0, INFINITY, &h))
+            fail_msg("ray %d to (%.17g, %.17g) slipped through", i, target.x, target.y);
+        assert_true(rr_v3_isfinite(h.normal));
+        assert_near(rr_v3_len(h.normal), 1.0, 1e-9);
+    }
+    rt_film f;
+    assert_int_equal(rt_film_init(&f, s->view.width, s->view.height, NULL), RR_OK);
+    rt_render_opts o = default_opts();
+    o.spp = 4;
+    o.indirect = RT_INDIRECT_SECONDARY;
+    assert_int_equal(rt_render(s, a, &o, &f, NULL), RR_OK);
+    for (int k = 0; k < 3 * f.beauty.width * f.beauty.height; k++)
+        assert_true(isfinite(f.beauty.px[k]));
+    rt_film_free(&f);
+    rt_accel_destroy(a);
+    scene_destroy(s);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -789,6 +844,7 @@ int main(void)
         cmocka_unit_test(render_direct_light_and_shadow),
         cmocka_unit_test(white_furnace),
         cmocka_unit_test(shadows_no_acne_no_leaks),
+        cmocka_unit_test(slivers_no_holes_no_nans),
         cmocka_unit_test(render_thread_independent_with_misses),
         cmocka_unit_test(lecture_reflected_intensity),
         cmocka_unit_test(mirror_corner_two),
