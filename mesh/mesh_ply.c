@@ -6,6 +6,8 @@
  * face element, where OpenMesh stops: counts, vertex coordinates and face
  * indices are all checked, so truncation and garbage are caught here.
  */
+#include <float.h>
+#include <math.h>
 #include "mesh_internal.h"
 
 #include <stdlib.h>
@@ -185,6 +187,12 @@ static rr_status mesh__ply_header_parse(const char *path, const char *buf, size_
         if (h->format < 0) {
             if (!mesh__eq(key, "format") || ntok != 2 || !mesh__number(tok[1], &version))
                 return mesh__fail(err, RR_ERR_PARSE, path, "not a valid PLY file: no 'format' line after 'ply'");
+            /* OpenMesh reads the version as a float and loops forever when
+             * that fails: nan, inf and out-of-float-range values (found by
+             * fuzzing, tests/fuzz/findings/). */
+            if (!isfinite(version) || fabs(version) > FLT_MAX)
+                return mesh__fail(err, RR_ERR_PARSE, path, "not a valid PLY file: format version '%s' is not a number",
+                                  mesh__q(tok[1], q));
             h->format = mesh__eq(tok[0], "ascii")                  ? 0
                         : mesh__eq(tok[0], "binary_little_endian") ? 1
                         : mesh__eq(tok[0], "binary_big_endian")    ? 2

@@ -18,6 +18,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "mesh.h"
 #include "scene.h"
@@ -83,10 +84,44 @@ static void fuzz_corpus_seeds(void **state)
     assert_true(for_each_file(CORPUS "/mesh", load_mesh_seed) >= 5);
 }
 
+/* Fuzzing finding: a PLY "format ascii <v>" line whose version is nan, inf or
+ * beyond float range made OpenMesh 9 loop forever. It must be refused. The
+ * test gives the loader 20 s (alarm) so a regression fails instead of hanging. */
+static void ply_version_not_a_number(void **state)
+{
+    (void)state;
+    static const char *versions[] = {"inf", "nan", "-inf", "1e999", "infinity"};
+    char dir[] = "/tmp/rr_regress_XXXXXX";
+    assert_non_null(mkdtemp(dir));
+    alarm(20);
+    mesh_tri *m = NULL;
+    rr_error err = {0};
+    assert_int_equal(mesh_load(RR_SOURCE_DIR "/tests/fuzz/findings/ply-format-version-inf-hang.ply", &m, &err),
+                     RR_ERR_PARSE);
+    assert_null(m);
+    for (size_t i = 0; i < sizeof versions / sizeof versions[0]; i++) {
+        char path[128];
+        snprintf(path, sizeof path, "%s/v%zu.ply", dir, i);
+        FILE *f = fopen(path, "w");
+        assert_non_null(f);
+        fprintf(f, "ply\nformat ascii %s\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+                   "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n",
+                versions[i]);
+        fclose(f);
+        assert_int_equal(mesh_load(path, &m, &err), RR_ERR_PARSE);
+        assert_null(m);
+        assert_non_null(strstr(err.msg, "format version"));
+        remove(path);
+    }
+    alarm(0);
+    rmdir(dir);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(fuzz_corpus_seeds),
+        cmocka_unit_test(ply_version_not_a_number),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
