@@ -138,13 +138,9 @@ static void surface_at(const ff_ctx *c, const rad_patch *q, rr_vec3 x, rr_vec3 *
     *ns = rr_v3_dot(d, q->normal) >= 0.0 ? d : rr_v3_neg(d);
 }
 
-/* Pushed off the surface towards its front, as the renderer does: the offset
- * scales with the coordinates' rounding and with the scene. */
-static rr_vec3 offset_front(const ff_ctx *c, rr_vec3 p, rr_vec3 n)
-{
-    double m = fmax(fabs(p.x), fmax(fabs(p.y), fabs(p.z)));
-    return rr_v3_madd(p, n, 1e-9 * (m + c->ext));
-}
+/* Pushed off the surface towards its front by the renderer's one rule
+ * (rt_offset_origin), so form-factor rays and shadow rays agree. */
+static rr_vec3 offset_front(const ff_ctx *c, rr_vec3 p, rr_vec3 n) { return rt_offset_origin(c->ext, p, n, n); }
 
 /* ---- quadrature ---- */
 
@@ -507,8 +503,7 @@ rr_status rad_ff_compute(const scene *s, const rt_accel *a, const rad_patches *P
     if (c.near_samples < RAD_FF_NEAR_MAX)
         c.near_samples = c.near_samples * RAD_FF_NEAR_REFINE < RAD_FF_NEAR_MAX ? c.near_samples * RAD_FF_NEAR_REFINE
                                                                                : RAD_FF_NEAR_MAX;
-    rr_vec3 ext = rr_v3_sub(s->bbox_max, s->bbox_min);
-    c.ext = rr_v3_isfinite(ext) ? fmax(ext.x, fmax(ext.y, ext.z)) : 1.0;
+    c.ext = rt_scene_scale(s);
     rr_vec3 bmax = rr_v3_max(rr_v3(fabs(s->bbox_min.x), fabs(s->bbox_min.y), fabs(s->bbox_min.z)),
                              rr_v3(fabs(s->bbox_max.x), fabs(s->bbox_max.y), fabs(s->bbox_max.z)));
     double mabs = fmax(bmax.x, fmax(bmax.y, bmax.z));
