@@ -62,6 +62,7 @@ typedef struct light_table {
     const uint32_t *tris;
     double *cdf; /* cdf[i] = sum of weights of tris[0..i] / total */
     double *area;
+    int64_t *index_of; /* scene triangle -> entry, or -1 (for MIS weights of bounce hits) */
     size_t n;
 } light_table;
 
@@ -80,11 +81,17 @@ static rr_status light_table_build(const scene *s, light_table *lt, rr_error *er
         return RR_OK;
     lt->cdf = malloc(s->nemissive * sizeof *lt->cdf);
     lt->area = malloc(s->nemissive * sizeof *lt->area);
-    if (!lt->cdf || !lt->area) {
+    lt->index_of = malloc(s->ntris * sizeof *lt->index_of);
+    if (!lt->cdf || !lt->area || !lt->index_of) {
         free(lt->cdf);
         free(lt->area);
+        free(lt->index_of);
         return rr_error_set(err, RR_ERR_NOMEM, "out of memory for the area-light table");
     }
+    for (size_t t = 0; t < s->ntris; t++)
+        lt->index_of[t] = -1;
+    for (size_t i = 0; i < s->nemissive; i++)
+        lt->index_of[s->emissive_tris[i]] = (int64_t)i;
     double total = 0;
     for (size_t i = 0; i < s->nemissive; i++) {
         uint32_t t = s->emissive_tris[i];
@@ -103,6 +110,16 @@ static void light_table_free(light_table *lt)
 {
     free(lt->cdf);
     free(lt->area);
+    free(lt->index_of);
+}
+
+/* Probability (per unit solid angle, seen from the shading point) that one
+ * light sample picks the point at distance d on entry li whose cosine towards
+ * the shading point is cos_y. */
+static double light_pdf_solid_angle(const light_table *lt, size_t li, double d2, double cos_y)
+{
+    double pick = lt->cdf[li] - (li ? lt->cdf[li - 1] : 0.0);
+    return pick / lt->area[li] * d2 / cos_y;
 }
 
 /* Index of the first cdf entry > u; *u_out re-used as a fresh uniform inside
@@ -151,7 +168,10 @@ typedef struct shade_out {
     rr_rgb c[RT_LAYER_COUNT];
 } shade_out;
 
-static rr_rgb radiance(const render_ctx *c, rr_ray ray, int depth, int bounce, int count_tri_emission, rr_rng *rng,
+/* mis_pdf < 0: the ray counts all the triangle emission it meets (camera and
+ * mirror rays); >= 0: a diffuse bounce ray, whose triangle emission is weighted
+ * against the mis_n light samples taken at its origin (see radiance). */
+static rr_rgb radiance(const render_ctx *c, rr_ray ray, int depth, int bounce, double mis_pdf, int mis_n, rr_rng *rng,
                        shade_out *out);
 
 /* Uniform point on triangle t: (u1, u2) -> barycentrics (square-root warp). */
@@ -166,7 +186,7 @@ static rr_vec3 tri_point(const scene *s, uint32_t t, double u1, double u2)
 
 /* Direct light at H: diffuse and specular, every light, shadow rays. */
 static void direct_light(const render_ctx *c, rr_vec3 H, rr_vec3 N, rr_vec3 V, const scene_material *m, int nsamples,
-                         rr_rng *rng, rr_rgb *diffuse, rr_rgb *specular)
+                         int mis, rr_rng *rng, rr_rgb *diffuse, rr_rgb *specular)
 {
     const scene *s = c->s;
     for (size_t i = 0; i < s->nlights; i++) {
@@ -222,7 +242,17 @@ static void direct_light(const render_ctx *c, rr_vec3 H, rr_vec3 N, rr_vec3 V, c
         double pdf_area = pick_pdf / c->lights.area[li];
         rr_rgb Le = s->materials[s->tris[t].material].emission;
         /* Irradiance estimate of this sample: Le cos_y / d^2 / pdf, then N.L = cos_x in rt_phong. */
-        rt_phong(N, L, V, m, rr_rgb_scale(Le, cos_y / (d2 * pdf_area * n)), diffuse, specular);
+        rr_rgb dd = rr_rgb_make(0, 0, 0);
+        rt_phong(N, L, V, m, rr_rgb_scale(Le, cos_y / (d2 * pdf_area * n)), &dd, specular);
+        if (mis) {
+            /* Balance heuristic against the cosine-weighted bounce ray that
+             * could have found the same point (it estimates the diffuse part
+             * only): near an emitter the bounce ray wins, which is what keeps
+             * the 1/d^2 of light sampling from making fireflies. */
+            double pl = n * light_pdf_solid_angle(&c->lights, li, d2, cos_y), pb = cos_x / RR_PI;
+            dd = rr_rgb_scale(dd, pl / (pl + pb));
+        }
+        *diffuse = rr_rgb_add(*diffuse, dd);
     }
 }
 
@@ -239,7 +269,7 @@ static rr_vec3 cosine_dir(rr_vec3 N, rr_rng *rng)
     return rr_v3_add(rr_v3_add(rr_v3_scale(T, x), rr_v3_scale(B, y)), rr_v3_scale(N, z));
 }
 
-static rr_rgb radiance(const render_ctx *c, rr_ray ray, int depth, int bounce, int count_tri_emission, rr_rng *rng,
+static rr_rgb radiance(const render_ctx *c, rr_ray ray, int depth, int bounce, double mis_pdf, int mis_n, rr_rng *rng,
                        shade_out *out)
 {
     const scene *s = c->s;
@@ -263,14 +293,27 @@ static rr_rgb radiance(const render_ctx *c, rr_ray ray, int depth, int bounce, i
             *out = local;
         return local.c[RT_LAYER_RADIOSITY];
     }
-    if (h.front && (h.tri < 0 || count_tri_emission))
-        local.c[RT_LAYER_EMISSION] = m->emission;
+    if (h.front && rr_rgb_max(m->emission) > 0.0) {
+        double w = 1.0;
+        if (mis_pdf >= 0.0 && h.tri >= 0 && c->lights.n > 0 && c->lights.index_of[h.tri] >= 0) {
+            /* A bounce ray met a sampled emitter: the balance-heuristic share
+             * of the bounce strategy (ray.d is unit, so h.t is the distance). */
+            double cos_y = -rr_v3_dot(scene_tri_normal(s, (size_t)h.tri), ray.d);
+            double pl = mis_n * light_pdf_solid_angle(&c->lights, (size_t)c->lights.index_of[h.tri], h.t * h.t, cos_y);
+            w = mis_pdf / (mis_pdf + pl);
+        }
+        local.c[RT_LAYER_EMISSION] = rr_rgb_scale(m->emission, w);
+    }
     int diffuse = rr_rgb_max(m->diffuse) > 0.0;
+    int bounces = diffuse && c->o->indirect == RT_INDIRECT_SECONDARY && bounce < RT_MAX_BOUNCES;
+    /* Soft shadows get light_samples at the points the eye sees (and mirrors
+     * show); deeper diffuse bounces take one sample each, as their noise
+     * averages out over the many paths through a pixel. */
+    int nlight = bounce == 0 ? c->o->light_samples : 1;
+    if (nlight < 1)
+        nlight = 1;
     if (diffuse || rr_rgb_max(m->specular) > 0.0)
-        /* Soft shadows get light_samples at the points the eye sees (and mirrors
-         * show); deeper diffuse bounces take one sample each, as their noise
-         * averages out over the many paths through a pixel. */
-        direct_light(c, h.point, N, V, m, bounce == 0 ? c->o->light_samples : 1, rng, &local.c[RT_LAYER_DIFFUSE],
+        direct_light(c, h.point, N, V, m, nlight, bounces, rng, &local.c[RT_LAYER_DIFFUSE],
                      &local.c[RT_LAYER_SPECULAR]);
     if (diffuse && c->o->indirect == RT_INDIRECT_AMBIENT)
         local.c[RT_LAYER_AMBIENT] = rr_rgb_scale(rr_rgb_mul(m->diffuse, s->settings.ambient), m->ambient);
@@ -278,12 +321,12 @@ static rr_rgb radiance(const render_ctx *c, rr_ray ray, int depth, int bounce, i
         /* R = 2(N.V)N - V */
         rr_vec3 R = rr_v3_sub(rr_v3_scale(N, 2.0 * rr_v3_dot(N, V)), V);
         rr_ray mr = {offset_origin(c, h.point, N, R), R};
-        rr_rgb Lm = radiance(c, mr, depth + 1, bounce, 1, rng, NULL);
+        rr_rgb Lm = radiance(c, mr, depth + 1, bounce, -1.0, 0, rng, NULL);
         local.c[RT_LAYER_MIRROR] = rr_rgb_mul(m->mirror, Lm);
     }
     if (diffuse && c->o->indirect == RT_INDIRECT_RADIOSITY && c->o->radiosity_indirect)
         local.c[RT_LAYER_INDIRECT] = c->o->radiosity_indirect(c->o->radiosity_user, &h, m->diffuse);
-    if (diffuse && c->o->indirect == RT_INDIRECT_SECONDARY && bounce < RT_MAX_BOUNCES) {
+    if (bounces) {
         /* rho/pi * L * cos / (cos/pi) = rho * L; Russian roulette past 3 bounces. */
         rr_rgb weight = m->diffuse;
         int go = 1;
@@ -297,7 +340,7 @@ static rr_rgb radiance(const render_ctx *c, rr_ray ray, int depth, int bounce, i
         if (go) {
             rr_vec3 dir = cosine_dir(N, rng);
             rr_ray br = {offset_origin(c, h.point, N, dir), dir};
-            rr_rgb Li = radiance(c, br, depth, bounce + 1, 0, rng, NULL);
+            rr_rgb Li = radiance(c, br, depth, bounce + 1, rr_v3_dot(N, dir) / RR_PI, nlight, rng, NULL);
             local.c[RT_LAYER_INDIRECT] = rr_rgb_mul(weight, Li);
         }
     }
@@ -375,7 +418,7 @@ rr_status rt_render(const scene *s, const rt_accel *a, const rt_render_opts *o, 
                     double dx, dy;
                     pixel_offset(k, spp, o->filter, &rng, &dx, &dy);
                     shade_out so;
-                    radiance(&c, rr_view_ray(v, col, row, dx, dy), 0, 0, 1, &rng, &so);
+                    radiance(&c, rr_view_ray(v, col, row, dx, dy), 0, 0, -1.0, 0, &rng, &so);
                     for (int i = 0; i < RT_LAYER_COUNT; i++)
                         acc.c[i] = rr_rgb_add(acc.c[i], so.c[i]);
                 }
