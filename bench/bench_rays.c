@@ -3,7 +3,7 @@
  *   radray-bench [--quick] [--threads LIST] [--scene NAME] [--seed N]
  *
  * Two procedural scenes are generated in-process from a fixed recipe and seed
- * (see make_room / make_mesh1m below and bench/README.md), written as binary
+ * (see make_room / make_mesh1m in bench_scenes.c and bench/README.md), written as binary
  * PLY into a temporary folder and loaded through the real scene path
  * (scene_load_string with a {"type":"mesh","file":...} object), so the
  * benchmark measures exactly the triangles and the BVH the renderer would see.
@@ -35,6 +35,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "bench_scenes.h"
 #include "rr_core.h"
 #include "rt.h"
 #include "scene.h"
@@ -52,277 +53,6 @@
 #define BENCH_BUILD_REPS 3
 #define BENCH_TRACE_REPS 5
 #define BENCH_MAX_THREAD_CONFIGS 8
-
-/* ---------------------------------------------------------------- helpers */
-
-static double now_s(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
-
-static int cmp_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return (x > y) - (x < y);
-}
-
-/* Median of n values (sorts them in place). */
-static double median(double *v, int n)
-{
-    qsort(v, (size_t)n, sizeof *v, cmp_double);
-    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
-
-static void *xmalloc(size_t n)
-{
-    void *p = malloc(n ? n : 1);
-    if (!p) {
-        fprintf(stderr, "radray-bench: out of memory (%zu bytes)\n", n);
-        exit(1);
-    }
-    return p;
-}
-
-/* ---------------------------------------------------------- geometry build */
-
-/* A growing triangle soup: float positions (what the PLY stores), int indices. */
-typedef struct soup {
-    float *pos;
-    size_t nverts, vcap;
-    int32_t *idx;
-    size_t ntris, tcap;
-} soup;
-
-static uint32_t soup_vert(soup *m, double x, double y, double z)
-{
-    if (m->nverts == m->vcap) {
-        m->vcap = m->vcap ? 2 * m->vcap : 4096;
-        float *p = realloc(m->pos, 3 * m->vcap * sizeof *p);
-        if (!p) {
-            fprintf(stderr, "radray-bench: out of memory\n");
-            exit(1);
-        }
-        m->pos = p;
-    }
-    m->pos[3 * m->nverts + 0] = (float)x;
-    m->pos[3 * m->nverts + 1] = (float)y;
-    m->pos[3 * m->nverts + 2] = (float)z;
-    return (uint32_t)m->nverts++;
-}
-
-/* Counter-clockwise seen from the front. */
-static void soup_tri(soup *m, uint32_t a, uint32_t b, uint32_t c)
-{
-    if (m->ntris == m->tcap) {
-        m->tcap = m->tcap ? 2 * m->tcap : 4096;
-        int32_t *p = realloc(m->idx, 3 * m->tcap * sizeof *p);
-        if (!p) {
-            fprintf(stderr, "radray-bench: out of memory\n");
-            exit(1);
-        }
-        m->idx = p;
-    }
-    m->idx[3 * m->ntris + 0] = (int32_t)a;
-    m->idx[3 * m->ntris + 1] = (int32_t)b;
-    m->idx[3 * m->ntris + 2] = (int32_t)c;
-    m->ntris++;
-}
-
-static void soup_free(soup *m)
-{
-    free(m->pos);
-    free(m->idx);
-}
-
-/* Sinusoidal displacement of a unit sphere: radius factor at polar angle th
- * (0 at +y) and azimuth ph. The polar frequencies are integers, so the factor
- * is exactly 1 at both poles and the surface closes; the azimuthal ones are
- * integers, so it is periodic in ph. */
-typedef struct displace {
-    double amp[2];
-    int kth[2], kph[2];
-    double phase[2];
-} displace;
-
-static double displace_factor(const displace *d, double th, double ph)
-{
-    double f = 1.0;
-    for (int i = 0; i < 2; i++)
-        f += d->amp[i] * sin(d->kth[i] * th) * cos(d->kph[i] * ph + d->phase[i]);
-    return f;
-}
-
-/* A displaced UV sphere: nu segments around, nv bands from pole to pole;
- * 2 + nu*(nv-1) vertices and 2*nu*(nv-1) triangles, outward-facing, closed. */
-static void add_uv_sphere(soup *m, rr_vec3 c, double radius, const displace *d, int nu, int nv)
-{
-    uint32_t north = soup_vert(m, c.x, c.y + radius, c.z);
-    uint32_t first = (uint32_t)m->nverts;
-    for (int i = 1; i < nv; i++) {
-        double th = RR_PI * i / nv;
-        for (int j = 0; j < nu; j++) {
-            double ph = 2.0 * RR_PI * j / nu;
-            double r = radius * displace_factor(d, th, ph);
-            soup_vert(m, c.x + r * sin(th) * cos(ph), c.y + r * cos(th), c.z + r * sin(th) * sin(ph));
-        }
-    }
-    uint32_t south = soup_vert(m, c.x, c.y - radius, c.z);
-#define RING(i, j) (first + (uint32_t)((i) - 1) * (uint32_t)nu + (uint32_t)((j) % nu))
-    for (int j = 0; j < nu; j++)
-        soup_tri(m, north, RING(1, j + 1), RING(1, j));
-    for (int i = 1; i < nv - 1; i++)
-        for (int j = 0; j < nu; j++) {
-            uint32_t a = RING(i, j), b = RING(i, j + 1), cc = RING(i + 1, j), dd = RING(i + 1, j + 1);
-            soup_tri(m, a, b, dd);
-            soup_tri(m, a, dd, cc);
-        }
-    for (int j = 0; j < nu; j++)
-        soup_tri(m, south, RING(nv - 1, j), RING(nv - 1, j + 1));
-#undef RING
-}
-
-/* An axis-aligned box whose 12 triangles face inwards (a room seen from inside). */
-static void add_room(soup *m, rr_vec3 lo, rr_vec3 hi)
-{
-    uint32_t v[8];
-    for (int k = 0; k < 8; k++)
-        v[k] = soup_vert(m, k & 1 ? hi.x : lo.x, k & 2 ? hi.y : lo.y, k & 4 ? hi.z : lo.z);
-    /* Each face as a quad counter-clockwise seen from inside. */
-    static const int q[6][4] = {
-        {0, 1, 3, 2}, /* z = lo: normal +z */
-        {4, 6, 7, 5}, /* z = hi: normal -z */
-        {0, 4, 5, 1}, /* y = lo (floor): normal +y */
-        {2, 3, 7, 6}, /* y = hi (ceiling): normal -y */
-        {0, 2, 6, 4}, /* x = lo: normal +x */
-        {1, 5, 7, 3}, /* x = hi: normal -x */
-    };
-    for (int f = 0; f < 6; f++) {
-        soup_tri(m, v[q[f][0]], v[q[f][1]], v[q[f][2]]);
-        soup_tri(m, v[q[f][0]], v[q[f][2]], v[q[f][3]]);
-    }
-}
-
-/* ------------------------------------------------------------- the scenes */
-
-typedef struct bench_scene {
-    const char *name;
-    const char *recipe; /* one line, printed with the results */
-    soup mesh;
-    /* Camera (a lookat camera in the scene JSON), point light. */
-    rr_vec3 eye, target;
-    double fov;
-    rr_vec3 light;
-} bench_scene;
-
-/* room-100k: a closed 20 x 8 x 20 room (12 inward-facing triangles) holding a
- * 5 x 4 grid of displaced UV spheres, 80 x 33 segments (5120 triangles) each,
- * radius 1.0-1.4 and displacement drawn from stream i of the seed: 102,412
- * triangles. Camera inside the room near one wall looking down at the grid. */
-static void make_room(bench_scene *b, uint64_t seed)
-{
-    b->name = "room-100k";
-    b->recipe = "room 20x8x20 (12 tris) + 5x4 displaced UV spheres 80x33 (5120 tris each)";
-    add_room(&b->mesh, rr_v3(-10, 0, -10), rr_v3(10, 8, 10));
-    for (int gz = 0; gz < 4; gz++)
-        for (int gx = 0; gx < 5; gx++) {
-            rr_rng rng = rr_rng_make(seed, (uint64_t)(gz * 5 + gx));
-            double radius = 1.0 + 0.4 * rr_rng_uniform(&rng);
-            displace d;
-            d.amp[0] = 0.06 + 0.04 * rr_rng_uniform(&rng);
-            d.amp[1] = 0.02 * rr_rng_uniform(&rng);
-            d.kth[0] = 2 + (int)rr_rng_below(&rng, 6);
-            d.kph[0] = 2 + (int)rr_rng_below(&rng, 8);
-            d.kth[1] = 8 + (int)rr_rng_below(&rng, 8);
-            d.kph[1] = 8 + (int)rr_rng_below(&rng, 8);
-            d.phase[0] = 2.0 * RR_PI * rr_rng_uniform(&rng);
-            d.phase[1] = 2.0 * RR_PI * rr_rng_uniform(&rng);
-            rr_vec3 c = rr_v3(-7.0 + 3.5 * gx, radius + 0.3, -6.0 + 4.0 * gz);
-            add_uv_sphere(&b->mesh, c, radius, &d, 80, 33);
-        }
-    b->eye = rr_v3(0, 5.5, 9.5);
-    b->target = rr_v3(0, 1, -1);
-    b->fov = 70.0;
-    b->light = rr_v3(0.5, 7.5, 0.25);
-}
-
-/* mesh-1m: one displaced UV sphere of radius 1, 1000 x 501 segments:
- * 1,000,000 triangles (500,002 vertices). Camera outside, the sphere covers
- * about 60 % of the image. */
-static void make_mesh1m(bench_scene *b, uint64_t seed)
-{
-    b->name = "mesh-1m";
-    b->recipe = "one displaced UV sphere 1000x501 (1,000,000 tris), seen from outside";
-    rr_rng rng = rr_rng_make(seed, 1000);
-    displace d;
-    d.amp[0] = 0.08;
-    d.amp[1] = 0.02;
-    d.kth[0] = 6;
-    d.kph[0] = 7;
-    d.kth[1] = 40;
-    d.kph[1] = 45;
-    d.phase[0] = 2.0 * RR_PI * rr_rng_uniform(&rng);
-    d.phase[1] = 2.0 * RR_PI * rr_rng_uniform(&rng);
-    add_uv_sphere(&b->mesh, rr_v3(0, 0, 0), 1.0, &d, 1000, 501);
-    b->eye = rr_v3(0.0, 0.8, 3.2);
-    b->target = rr_v3(0, 0, 0);
-    b->fov = 40.0;
-    b->light = rr_v3(3, 4, 4);
-}
-
-/* Binary little-endian PLY: float x y z, faces as "list uchar int". */
-static int write_ply(const char *path, const soup *m)
-{
-    FILE *f = fopen(path, "wb");
-    if (!f)
-        return -1;
-    fprintf(f,
-            "ply\nformat binary_little_endian 1.0\nelement vertex %zu\nproperty float x\nproperty float y\n"
-            "property float z\nelement face %zu\nproperty list uchar int vertex_indices\nend_header\n",
-            m->nverts, m->ntris);
-    int ok = 1;
-    /* The host is little-endian (x86-64/aarch64); checked in main. */
-    ok &= fwrite(m->pos, sizeof(float), 3 * m->nverts, f) == 3 * m->nverts;
-    unsigned char rec[13];
-    rec[0] = 3;
-    for (size_t i = 0; i < m->ntris && ok; i++) {
-        memcpy(rec + 1, m->idx + 3 * i, 12);
-        ok &= fwrite(rec, 1, sizeof rec, f) == sizeof rec;
-    }
-    ok &= fclose(f) == 0;
-    return ok ? 0 : -1;
-}
-
-/* ------------------------------------------------------------------- rays */
-
-typedef struct ray_set {
-    rr_ray *rays;
-    size_t n;
-    double tmax; /* the same for every ray of a set */
-} ray_set;
-
-/* Cosine-weighted direction around unit n (Duff et al. 2017 orthonormal basis). */
-static rr_vec3 cosine_dir(rr_vec3 n, double u1, double u2)
-{
-    double sign = copysign(1.0, n.z);
-    double a = -1.0 / (sign + n.z);
-    double b = n.x * n.y * a;
-    rr_vec3 t = rr_v3(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x);
-    rr_vec3 bt = rr_v3(b, sign + n.y * n.y * a, -n.y);
-    double r = sqrt(u1), phi = 2.0 * RR_PI * u2;
-    double x = r * cos(phi), y = r * sin(phi), z = sqrt(fmax(0.0, 1.0 - u1));
-    return rr_v3_add(rr_v3_add(rr_v3_scale(t, x), rr_v3_scale(bt, y)), rr_v3_scale(n, z));
-}
-
-/* Origin nudged off the surface to the side the new ray leaves towards, as the
- * renderer does (raytrace/rt_render.c offset_origin). */
-static rr_vec3 offset_origin(rr_vec3 p, rr_vec3 n, rr_vec3 dir, double extent)
-{
-    double m = fmax(fabs(p.x), fmax(fabs(p.y), fabs(p.z)));
-    double eps = 1e-9 * (m + extent);
-    return rr_v3_madd(p, n, rr_v3_dot(n, dir) >= 0.0 ? eps : -eps);
-}
 
 /* ----------------------------------------------------------------- timing */
 
@@ -408,63 +138,16 @@ static int parse_threads(const char *s, options *o)
     return o->nthreads ? 0 : -1;
 }
 
-static void cpu_model(char *out, size_t size)
-{
-    snprintf(out, size, "unknown");
-    FILE *f = fopen("/proc/cpuinfo", "r");
-    if (!f)
-        return;
-    char line[512];
-    while (fgets(line, sizeof line, f)) {
-        if (strncmp(line, "model name", 10) == 0) {
-            const char *c = strchr(line, ':');
-            if (c) {
-                c++;
-                while (*c == ' ' || *c == '\t')
-                    c++;
-                snprintf(out, size, "%s", c);
-                out[strcspn(out, "\n")] = '\0';
-            }
-            break;
-        }
-    }
-    fclose(f);
-}
 
 static void run_scene(bench_scene *b, const options *o, const char *tmpdir)
 {
-    char path[4096], json[4096];
     int res = o->quick ? 256 : 1024;
 
     printf("\n== %s: %s\n", b->name, b->recipe);
-    /* Generate and write (untimed in the table; reported for information). */
-    double t0 = now_s();
-    int pn = snprintf(path, sizeof path, "%s/%s.ply", tmpdir, b->name);
-    if (pn < 0 || (size_t)pn >= sizeof path || write_ply(path, &b->mesh)) {
-        fprintf(stderr, "radray-bench: cannot write %s\n", path);
-        exit(1);
-    }
-    double t_write = now_s() - t0;
-    snprintf(json, sizeof json,
-             "{\"format\":\"radray-scene/1\",\"name\":\"%s\","
-             "\"camera\":{\"type\":\"lookat\",\"eye\":[%.17g,%.17g,%.17g],\"target\":[%.17g,%.17g,%.17g],"
-             "\"up\":[0,1,0],\"fov\":%.17g,\"width\":%d,\"height\":%d},"
-             "\"materials\":{\"grey\":{\"diffuse\":[0.5,0.5,0.5]}},"
-             "\"lights\":[{\"type\":\"point\",\"position\":[%.17g,%.17g,%.17g],\"intensity\":[1,1,1]}],"
-             "\"objects\":[{\"name\":\"geometry\",\"type\":\"mesh\",\"file\":\"%s.ply\",\"material\":\"grey\"}]}",
-             b->name, b->eye.x, b->eye.y, b->eye.z, b->target.x, b->target.y, b->target.z, b->fov, res, res,
-             b->light.x, b->light.y, b->light.z, b->name);
-
-    scene *s = NULL;
+    double t_write, t_load;
+    scene *s = bench_load_scene(b, res, tmpdir, &t_write, &t_load);
     rr_error err;
-    t0 = now_s();
-    if (scene_load_string(json, b->name, tmpdir, NULL, &s, &err) != RR_OK) {
-        fprintf(stderr, "radray-bench: %s\n", err.msg);
-        exit(1);
-    }
-    double t_load = now_s() - t0;
-    unlink(path);
-    soup_free(&b->mesh);
+    double t0;
 
     /* BVH: median of BENCH_BUILD_REPS builds; the last one is kept. */
     double tb[BENCH_BUILD_REPS];
@@ -490,47 +173,8 @@ static void run_scene(bench_scene *b, const options *o, const char *tmpdir)
            BENCH_BUILD_REPS, nodes, bpt);
 
     /* Primary rays, and their hits (needed for the other two workloads). */
-    rr_view view = s->view;
-    size_t n = (size_t)view.width * (size_t)view.height;
-    ray_set prim = {xmalloc(n * sizeof(rr_ray)), n, INFINITY};
-    for (size_t i = 0; i < n; i++)
-        prim.rays[i] = rr_view_ray(&view, (int)(i % (size_t)view.width), (int)(i / (size_t)view.width), 0.0, 0.0);
-    rr_vec3 *hp = xmalloc(n * sizeof *hp), *hn = xmalloc(n * sizeof *hn);
-    unsigned char *hit = xmalloc(n);
-    const long ln = (long)n;
-#pragma omp parallel for schedule(dynamic, 1024)
-    for (long i = 0; i < ln; i++) {
-        rt_hit h;
-        hit[i] = (unsigned char)rt_accel_closest(a, prim.rays[i], 0.0, INFINITY, &h);
-        if (hit[i]) {
-            hp[i] = h.point;
-            hn[i] = h.normal;
-        }
-    }
-    rr_vec3 ext = rr_v3_sub(s->bbox_max, s->bbox_min);
-    double extent = fmax(ext.x, fmax(ext.y, ext.z));
-    ray_set diff = {xmalloc(n * sizeof(rr_ray)), 0, INFINITY};
-    ray_set shad = {xmalloc(n * sizeof(rr_ray)), 0, 1.0 - 1e-7};
-    for (size_t i = 0; i < n; i++) {
-        if (!hit[i])
-            continue;
-        rr_rng rng = rr_rng_make(o->seed, i);
-        double u1 = rr_rng_uniform(&rng), u2 = rr_rng_uniform(&rng);
-        rr_vec3 d = cosine_dir(hn[i], u1, u2);
-        rr_ray r = {offset_origin(hp[i], hn[i], d, extent), d};
-        diff.rays[diff.n++] = r;
-        /* To the light, from the hits that face it (the renderer skips the
-         * others): unnormalised direction, t = 1 at the light. */
-        rr_vec3 to_light = rr_v3_sub(b->light, hp[i]);
-        if (rr_v3_dot(hn[i], to_light) <= 0.0)
-            continue;
-        rr_vec3 org = offset_origin(hp[i], hn[i], to_light, extent);
-        rr_ray sr = {org, rr_v3_sub(b->light, org)};
-        shad.rays[shad.n++] = sr;
-    }
-    free(hp);
-    free(hn);
-    free(hit);
+    ray_set prim, diff, shad;
+    bench_make_rays(s, a, b, o->seed, &prim, &diff, &shad);
 
     const char *wname[3] = {"primary", "diffuse", "shadow"};
     const ray_set *wset[3] = {&prim, &diff, &shad};
