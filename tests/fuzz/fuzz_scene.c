@@ -9,6 +9,7 @@
  */
 #include <stddef.h>
 #include <stdint.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -17,6 +18,16 @@
 #ifndef FUZZ_BASE_DIR
 #define FUZZ_BASE_DIR ""
 #endif
+
+/* A broken loader contract is a finding: say which, then abort so that
+ * libFuzzer saves the input. */
+#define FUZZ_CHECK(cond, what)                                                       \
+    do {                                                                             \
+        if (!(cond)) {                                                               \
+            fprintf(stderr, "fuzz: contract broken: %s\n", what);                    \
+            abort();                                                                 \
+        }                                                                            \
+    } while (0)
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 
@@ -38,14 +49,11 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     rr_error_clear(&err);
     rr_status st = scene_load_string(text, "fuzz.json", base ? base : FUZZ_BASE_DIR, &opts, &s, &err);
     if (st == RR_OK) {
-        if (!s)
-            abort(); /* RR_OK must come with a scene */
+        FUZZ_CHECK(s != NULL, "RR_OK must come with a scene");
         scene_destroy(s);
     } else {
-        if (s)
-            abort(); /* on failure *out is untouched */
-        if (err.msg[0] == '\0')
-            abort(); /* every failure carries a message */
+        FUZZ_CHECK(s == NULL, "on failure *out is untouched");
+        FUZZ_CHECK(err.msg[0] != '\0', "every failure carries a message");
     }
     free(text);
     return 0;
