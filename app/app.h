@@ -89,6 +89,14 @@ rr_warn_sink app_warn_sink(void);
  * or SVG by extension, atomically. 0 on success. */
 int app_plot_residuals(const char *path, const double *res, int n, const char *title, rr_error *err);
 
+/* Monotonic wall clock in seconds. */
+double app_now_seconds(void);
+/* s ends with suffix, ignoring case. */
+int app_ends_with(const char *s, const char *suffix);
+/* Refuses an output path before any work is done: creates missing folders
+ * and checks that a file can be created there; prints the error, returns -1. */
+int app_check_writable(const char *path);
+
 /* Parses a whole decimal integer in [lo, hi]; 0 on success. */
 int app_parse_int(const char *s, long lo, long hi, long *out);
 

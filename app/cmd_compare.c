@@ -100,33 +100,6 @@ static int parse_list(const char *arg, const char *opt, const char *what, const 
     }
 }
 
-/* Refuses an output path before any work is done (as render does): creates
- * missing folders and checks that a file can be created there. */
-static int check_writable(const char *path)
-{
-    rr_error err;
-    char tmp[4200];
-    if (rr_file_make_parent_dirs(path, &err) != RR_OK || rr_file_tmpname(path, tmp, sizeof tmp, &err) != RR_OK) {
-        app_error("%s", err.msg);
-        return -1;
-    }
-    remove(tmp);
-    return 0;
-}
-
-static double now_seconds(void)
-{
-    struct timespec t;
-    clock_gettime(CLOCK_MONOTONIC, &t);
-    return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
-}
-
-static int ends_with(const char *s, const char *suffix)
-{
-    size_t n = strlen(s), m = strlen(suffix);
-    return n >= m && strcasecmp(s + n - m, suffix) == 0;
-}
-
 /* Whether mode will run the radiosity pass: the same rule as app_render_mode
  * (the hybrid skips it when nothing emits), so that the pass can be run and
  * timed on its own before the first mode that needs it. */
@@ -331,11 +304,11 @@ static int prepare(job *j)
         snprintf(j->out_default, sizeof j->out_default, "out/%.*s-compare.png", (int)strcspn(base, "."), base);
         j->out = j->out_default;
     }
-    if (!ends_with(j->out, ".png") && !ends_with(j->out, ".pdf") && !ends_with(j->out, ".svg")) {
+    if (!app_ends_with(j->out, ".png") && !app_ends_with(j->out, ".pdf") && !app_ends_with(j->out, ".svg")) {
         app_error("-o %s: the figure must end in .png, .pdf or .svg", j->out);
         return APP_EXIT_USAGE;
     }
-    if (check_writable(j->out))
+    if (app_check_writable(j->out))
         return APP_EXIT_USAGE;
     if (rt_film_init(&j->film, j->sc->view.width, j->sc->view.height, &err) != RR_OK ||
         rt_accel_build(j->sc, &j->accel, &err) != RR_OK) {
@@ -374,14 +347,14 @@ static int render_panels(job *j)
             snprintf(j->pass_users + strlen(j->pass_users), sizeof j->pass_users - strlen(j->pass_users), "%s%s",
                      j->pass_users[0] ? " and " : "", app_mode_names[m]);
             if (!j->pl.sol) {
-                double t0 = now_seconds();
+                double t0 = app_now_seconds();
                 rr_status st = app_pipeline_radiosity(&j->pl, &err);
                 if (st != RR_OK) {
                     app_error("%s", err.msg);
                     /* A scene the pass cannot take is bad input, as in render. */
                     return st == RR_ERR_INVALID ? APP_EXIT_USAGE : APP_EXIT_RUNTIME;
                 }
-                j->pass_secs = now_seconds() - t0;
+                j->pass_secs = app_now_seconds() - t0;
             }
         }
         if (m == APP_MODE_SECONDARY)

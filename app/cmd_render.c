@@ -107,25 +107,6 @@ static void draw_progress(void *user, int done, int total)
     fflush(stderr);
 }
 
-/* Refuses an output path before any work is done: creates missing folders and
- * checks that a file can be created there. */
-static int check_writable(const char *path)
-{
-    rr_error err;
-    char tmp[4200];
-    if (rr_file_make_parent_dirs(path, &err) != RR_OK || rr_file_tmpname(path, tmp, sizeof tmp, &err) != RR_OK) {
-        app_error("%s", err.msg);
-        return -1;
-    }
-    remove(tmp);
-    return 0;
-}
-
-static int ends_with(const char *s, const char *suffix)
-{
-    size_t n = strlen(s), m = strlen(suffix);
-    return n >= m && strcasecmp(s + n - m, suffix) == 0;
-}
 
 enum {
     OPT_PNG = 256,
@@ -306,7 +287,7 @@ int app_cmd_render(int argc, char **argv)
         snprintf(exr_default, sizeof exr_default, "out/%.*s.exr", (int)n, base);
         out_exr = exr_default;
     }
-    if (!ends_with(out_exr, ".exr")) {
+    if (!app_ends_with(out_exr, ".exr")) {
         app_error("-o %s: the output must end in .exr (the PNG preview is written beside it)", out_exr);
         goto done;
     }
@@ -314,7 +295,7 @@ int app_cmd_render(int argc, char **argv)
         snprintf(png_default, sizeof png_default, "%.*s.png", (int)(strlen(out_exr) - 4), out_exr);
         out_png = png_default;
     }
-    if (check_writable(out_exr) || (!no_png && check_writable(out_png)) || (plot && check_writable(plot)))
+    if (app_check_writable(out_exr) || (!no_png && app_check_writable(out_png)) || (plot && app_check_writable(plot)))
         goto done;
     if (plot && mode != APP_MODE_RADIOSITY && app_mode_indirect(mode, indirect) != RT_INDIRECT_RADIOSITY) {
         app_error("--plot: the convergence plot belongs to the radiosity pass: use it with --mode radiosity");

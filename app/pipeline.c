@@ -7,6 +7,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <strings.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -23,11 +24,29 @@ int app_pick(const char *name, const char *const *names)
     return -1;
 }
 
-static double now_seconds(void)
+double app_now_seconds(void)
 {
     struct timespec t;
     clock_gettime(CLOCK_MONOTONIC, &t);
     return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
+}
+
+int app_ends_with(const char *s, const char *suffix)
+{
+    size_t n = strlen(s), m = strlen(suffix);
+    return n >= m && strcasecmp(s + n - m, suffix) == 0;
+}
+
+int app_check_writable(const char *path)
+{
+    rr_error err;
+    char tmp[4200];
+    if (rr_file_make_parent_dirs(path, &err) != RR_OK || rr_file_tmpname(path, tmp, sizeof tmp, &err) != RR_OK) {
+        app_error("%s", err.msg);
+        return -1;
+    }
+    remove(tmp);
+    return 0;
 }
 
 static rr_rgb radiosity_hook(void *user, const rt_hit *hit)
@@ -268,7 +287,7 @@ rr_status app_render_mode(app_pipeline *p, int mode, int indirect_override, int 
                           double *seconds, void (*progress)(void *, int, int), void *progress_user, rr_error *err)
 {
     const scene *sc = p->sc;
-    double t0 = now_seconds();
+    double t0 = app_now_seconds();
     rt_render_opts ro;
     memset(&ro, 0, sizeof ro);
     ro.spp = sc->settings.spp;
@@ -295,6 +314,6 @@ rr_status app_render_mode(app_pipeline *p, int mode, int indirect_override, int 
     }
     rr_status st = rt_render(sc, p->accel, &ro, film, err);
     if (seconds)
-        *seconds = now_seconds() - t0;
+        *seconds = app_now_seconds() - t0;
     return st;
 }
