@@ -20,13 +20,13 @@
 int LLVMFuzzerInitialize(int *argc, char ***argv);
 /* A broken loader contract is a finding: say which, then abort so that
  * libFuzzer saves the input. */
-#define FUZZ_CHECK(cond, what)                                                       \
-    do {                                                                             \
-        if (!(cond)) {                                                               \
-            fprintf(stderr, "fuzz: contract broken: %s\n", what);                    \
-            abort();                                                                 \
-        }                                                                            \
-    } while (0)
+static void fuzz_check(int ok, const char *what)
+{
+    if (!ok) {
+        fprintf(stderr, "fuzz: contract broken: %s\n", what);
+        abort();
+    }
+}
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 
@@ -72,22 +72,22 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     for (size_t i = fuzz_first; i < fuzz_first + fuzz_count; i++) {
         snprintf(path, sizeof path, "%s/in.%s", fuzz_dir, fuzz_exts[i]);
         FILE *f = fopen(path, "wb");
-        FUZZ_CHECK(f != NULL, "cannot create the input file");
-        FUZZ_CHECK(!size || fwrite(data, 1, size, f) == size, "cannot write the input file");
-        FUZZ_CHECK(fclose(f) == 0, "cannot close the input file");
+        fuzz_check(f != NULL, "cannot create the input file");
+        fuzz_check(!size || fwrite(data, 1, size, f) == size, "cannot write the input file");
+        fuzz_check(fclose(f) == 0, "cannot close the input file");
 
         mesh_tri *m = NULL;
         rr_error err;
         rr_error_clear(&err);
         rr_status st = mesh_load(path, &m, &err);
         if (st == RR_OK) {
-            FUZZ_CHECK(m != NULL, "RR_OK must come with a mesh");
+            fuzz_check(m != NULL, "RR_OK must come with a mesh");
             mesh_report rep;
-            FUZZ_CHECK(mesh_analyze(m, &rep, &err) == RR_OK || err.msg[0] != '\0', "analysis failures carry a message");
+            fuzz_check(mesh_analyze(m, &rep, &err) == RR_OK || err.msg[0] != '\0', "analysis failures carry a message");
             mesh_destroy(m);
         } else {
-            FUZZ_CHECK(m == NULL, "on failure *out is untouched");
-            FUZZ_CHECK(err.msg[0] != '\0', "every failure carries a message");
+            fuzz_check(m == NULL, "on failure *out is untouched");
+            fuzz_check(err.msg[0] != '\0', "every failure carries a message");
         }
     }
     return 0;

@@ -21,13 +21,13 @@
 
 /* A broken loader contract is a finding: say which, then abort so that
  * libFuzzer saves the input. */
-#define FUZZ_CHECK(cond, what)                                                       \
-    do {                                                                             \
-        if (!(cond)) {                                                               \
-            fprintf(stderr, "fuzz: contract broken: %s\n", what);                    \
-            abort();                                                                 \
-        }                                                                            \
-    } while (0)
+static void fuzz_check(int ok, const char *what)
+{
+    if (!ok) {
+        fprintf(stderr, "fuzz: contract broken: %s\n", what);
+        abort();
+    }
+}
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 
@@ -49,11 +49,11 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     rr_error_clear(&err);
     rr_status st = scene_load_string(text, "fuzz.json", base ? base : FUZZ_BASE_DIR, &opts, &s, &err);
     if (st == RR_OK) {
-        FUZZ_CHECK(s != NULL, "RR_OK must come with a scene");
+        fuzz_check(s != NULL, "RR_OK must come with a scene");
         scene_destroy(s);
     } else {
-        FUZZ_CHECK(s == NULL, "on failure *out is untouched");
-        FUZZ_CHECK(err.msg[0] != '\0', "every failure carries a message");
+        fuzz_check(s == NULL, "on failure *out is untouched");
+        fuzz_check(err.msg[0] != '\0', "every failure carries a message");
     }
     free(text);
     return 0;
