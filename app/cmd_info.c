@@ -26,6 +26,7 @@ static const char *kind_name(scene_object_kind k)
     case SCENE_OBJ_QUAD: return "quad";
     case SCENE_OBJ_BOX: return "box";
     case SCENE_OBJ_SPHERE: return "sphere";
+    case SCENE_OBJ_CSG: return "solid";
     }
     return "?";
 }

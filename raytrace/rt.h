@@ -66,7 +66,8 @@ typedef struct rt_hit {
     rr_vec3 normal;    /* unit geometric normal, facing the ray's origin */
     uint32_t object;   /* index into scene->objects */
     uint32_t material;
-    int64_t tri;       /* triangle index, or -1 for a sphere */
+    int64_t tri;       /* triangle index, or -1 for a sphere or a solid */
+    int64_t part;      /* solids: the CSG leaf (index into scene->csg) whose surface was hit; else -1 */
     int front;         /* the ray met the surface's front side */
 } rt_hit;
 
@@ -78,6 +79,46 @@ int rt_ref_closest(const scene *s, rr_ray ray, double tmin, double tmax, rt_hit 
 /* Ray-sphere hits in closed form, numerically stable (no cancellation for far
  * or grazing rays): the smallest t in (tmin, tmax), or 0 when none. */
 int rt_sphere_hit(rr_vec3 center, double radius, rr_ray ray, double tmin, double tmax, double *t);
+
+/* ---- solids (CSG trees and quadrics, rt_solid.c) ----
+ *
+ * A ray meets a solid in a sorted list of disjoint spans [t_in, t_out] where
+ * it is inside; CSG combines the lists of the children (Roth 1982). Each end
+ * records the leaf whose surface it lies on and which of that leaf's surfaces
+ * (quadric body, a clip-box face, a mesh triangle), so the normal and material
+ * of the final hit are those of the surface actually hit (normals flipped on
+ * surfaces taken from a subtracted solid). */
+#define RT_SPAN_MAX 64 /* spans per list; more crossings than this along one ray are cut (the farthest) */
+
+typedef struct rt_span_end {
+    double t;
+    uint32_t leaf;     /* index into scene->csg */
+    int32_t surface;   /* leaf-specific: -1 quadric/sphere body, 0..5 box/clip face, >= 0 mesh triangle (csg_tris) */
+    int flip;          /* 1 when the leaf's outward normal must be negated (surface of a subtracted solid) */
+} rt_span_end;
+
+typedef struct rt_span {
+    rt_span_end in, out;
+} rt_span;
+
+typedef struct rt_spans {
+    int n;
+    rt_span s[RT_SPAN_MAX];
+} rt_spans;
+
+/* All spans of object obj's solid along the ray, clipped to (tmin, tmax), sorted. */
+void rt_solid_spans(const scene *s, uint32_t obj, rr_ray ray, double tmin, double tmax, rt_spans *out);
+/* The same for one node (subtree) of scene->csg. */
+void rt_csg_spans(const scene *s, uint32_t node, rr_ray ray, double tmin, double tmax, rt_spans *out);
+/* Front-most surface hit of a solid with t in (tmin, tmax): hit->tri = -1,
+ * hit->part = the leaf, material of that leaf, unit normal facing the ray;
+ * back faces culled when the object culls. hit->point is filled. */
+int rt_solid_closest(const scene *s, uint32_t obj, rr_ray ray, double tmin, double tmax, rt_hit *hit);
+/* 1 when world point p lies inside the solid of CSG node `node` (its closure,
+ * up to rounding; for tessellation and tests). */
+int rt_csg_contains(const scene *s, uint32_t node, rr_vec3 p);
+/* Outward unit normal of a leaf's surface at world point p (surface as in rt_span_end). */
+rr_vec3 rt_csg_leaf_normal(const scene *s, uint32_t leaf, int32_t surface, rr_vec3 p);
 
 /* The fast path: a BVH over every triangle and sphere of a scene (binned SAH,
  * flat 32-byte nodes, watertight triangle test). The accel keeps a pointer to

@@ -68,22 +68,6 @@ static double box_area(box3 b)
     return 2.0 * (d.x * d.y + d.y * d.z + d.z * d.x);
 }
 
-static box3 prim_bounds(const scene *s, rt_prim p)
-{
-    box3 b = box_empty();
-    if (p.kind == RT_PRIM_TRIANGLE) {
-        const scene_tri *t = &s->tris[p.index];
-        for (int k = 0; k < 3; k++)
-            b = box_add(b, s->verts[t->v[k]]);
-    } else {
-        const scene_object *o = &s->objects[p.index];
-        rr_vec3 r = rr_v3(o->radius, o->radius, o->radius);
-        b.lo = rr_v3_sub(o->center, r);
-        b.hi = rr_v3_add(o->center, r);
-    }
-    return b;
-}
-
 typedef struct build_item {
     box3 box;
     rr_vec3 centroid;
@@ -224,30 +208,23 @@ static int build_rec(builder *b, size_t first, size_t count, int depth)
 
 rr_status rt_accel_build(const scene *s, rt_accel **out, rr_error *err)
 {
-    size_t nspheres = 0;
-    for (size_t i = 0; i < s->nobjects; i++)
-        nspheres += s->objects[i].kind == SCENE_OBJ_SPHERE;
-    size_t n = s->ntris + nspheres;
+    size_t n = rt__prim_count(s);
     if (n > UINT32_MAX / 2)
         return rr_error_set(err, RR_ERR_LIMIT, "%s: %zu primitives exceed the BVH limit", s->path, n);
     rt_accel *a = calloc(1, sizeof *a);
     builder b = {0};
     b.items = n ? malloc(n * sizeof *b.items) : NULL;
-    if (!a || (n && !b.items))
+    rt_prim *list = n ? malloc(n * sizeof *list) : NULL;
+    if (!a || (n && (!b.items || !list))) {
+        free(list);
         goto nomem;
-    size_t k = 0;
-    for (size_t i = 0; i < s->ntris; i++, k++) {
-        b.items[k].prim.kind = RT_PRIM_TRIANGLE;
-        b.items[k].prim.index = (uint32_t)i;
     }
-    for (size_t i = 0; i < s->nobjects; i++)
-        if (s->objects[i].kind == SCENE_OBJ_SPHERE) {
-            b.items[k].prim.kind = RT_PRIM_SPHERE;
-            b.items[k].prim.index = (uint32_t)i;
-            k++;
-        }
+    rt__prim_list(s, list);
+    for (size_t i = 0; i < n; i++)
+        b.items[i].prim = list[i];
+    free(list);
     for (size_t i = 0; i < n; i++) {
-        b.items[i].box = prim_bounds(s, b.items[i].prim);
+        rt__prim_bounds(s, b.items[i].prim, &b.items[i].box.lo, &b.items[i].box.hi);
         b.items[i].centroid = rr_v3_scale(rr_v3_add(b.items[i].box.lo, b.items[i].box.hi), 0.5);
     }
     if (n && build_rec(&b, 0, n, 0))

@@ -7,10 +7,10 @@
 /* Build depth limit = traversal stack size. */
 #define RT_BVH_STACK 64
 
-typedef enum rt_prim_kind { RT_PRIM_TRIANGLE = 0, RT_PRIM_SPHERE = 1 } rt_prim_kind;
+typedef enum rt_prim_kind { RT_PRIM_TRIANGLE = 0, RT_PRIM_SPHERE = 1, RT_PRIM_SOLID = 2 } rt_prim_kind;
 
 /* A primitive: its kind and its index in the scene (triangle index, or object
- * index for spheres). */
+ * index for spheres and solids). */
 typedef struct rt_prim {
     uint32_t kind;
     uint32_t index;
@@ -49,5 +49,16 @@ void rt__ray_prepare(rr_ray ray, rt_ray_pre *p);
  * back faces. */
 int rt__tri_hit(const rt_ray_pre *p, rr_vec3 A, rr_vec3 B, rr_vec3 C, int cull, double tmin, double tmax, double *t,
                 int *front);
+
+/* ---- rt_prim.c: the primitive interface the BVH is built on ---- */
+
+/* How many primitives the scene has, and the list of them (out has that many). */
+size_t rt__prim_count(const scene *s);
+void rt__prim_list(const scene *s, rt_prim *out);
+/* World-space bounds of one primitive (containing it exactly). */
+void rt__prim_bounds(const scene *s, rt_prim p, rr_vec3 *lo, rr_vec3 *hi);
+/* Intersects one primitive; on a hit with tmin < t < *tmax fills hit (when not
+ * NULL; hit->point is left to the caller) and lowers *tmax. */
+int rt__prim_hit(const rt_accel *a, rt_prim pr, const rt_ray_pre *p, double tmin, double *tmax, rt_hit *hit);
 
 #endif

@@ -88,6 +88,7 @@ int rt_ref_closest(const scene *s, rr_ray ray, double tmin, double tmax, rt_hit 
         rr_vec3 n = scene_tri_normal(s, i);
         hit->t = t;
         hit->tri = (int64_t)i;
+        hit->part = -1;
         hit->object = tr->object;
         hit->material = tr->material;
         hit->front = front;
@@ -107,10 +108,20 @@ int rt_ref_closest(const scene *s, rr_ray ray, double tmin, double tmax, rt_hit 
         found = 1;
         hit->t = t;
         hit->tri = -1;
+        hit->part = -1;
         hit->object = (uint32_t)i;
         hit->material = o->material;
         hit->front = front;
         hit->normal = front ? n : rr_v3_neg(n);
+    }
+    /* Solids have no lecture form: their own span code is the reference. */
+    for (size_t i = 0; i < s->nobjects; i++) {
+        rt_hit h;
+        if (s->objects[i].kind != SCENE_OBJ_CSG || !rt_solid_closest(s, (uint32_t)i, ray, tmin, best, &h))
+            continue;
+        best = h.t;
+        found = 1;
+        *hit = h;
     }
     if (found)
         hit->point = rr_ray_at(ray, hit->t);

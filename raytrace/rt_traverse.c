@@ -96,48 +96,6 @@ static double node_entry(const rt_node *n, const rt_ray_pre *p, double tmin, dou
     return t0 <= t1 ? t0 : INFINITY;
 }
 
-/* Intersects one primitive; on a hit with t < *tmax fills hit and lowers *tmax. */
-static int prim_hit(const rt_accel *a, rt_prim pr, const rt_ray_pre *p, double tmin, double *tmax, rt_hit *hit)
-{
-    const scene *s = a->scene;
-    double t;
-    int front;
-    if (pr.kind == RT_PRIM_TRIANGLE) {
-        const scene_tri *tr = &s->tris[pr.index];
-        int cull = s->objects[tr->object].cull_backfaces;
-        if (!rt__tri_hit(p, s->verts[tr->v[0]], s->verts[tr->v[1]], s->verts[tr->v[2]], cull, tmin, *tmax, &t,
-                         &front))
-            return 0;
-        if (hit) {
-            rr_vec3 n = scene_tri_normal(s, pr.index);
-            hit->tri = (int64_t)pr.index;
-            hit->object = tr->object;
-            hit->material = tr->material;
-            hit->normal = front ? n : rr_v3_neg(n);
-        }
-    } else {
-        const scene_object *o = &s->objects[pr.index];
-        if (!rt_sphere_hit(o->center, o->radius, p->ray, tmin, *tmax, &t))
-            return 0;
-        rr_vec3 n = rr_v3_scale(rr_v3_sub(rr_ray_at(p->ray, t), o->center), 1.0 / o->radius);
-        front = rr_v3_dot(n, p->ray.d) < 0.0;
-        if (!front && o->cull_backfaces)
-            return 0;
-        if (hit) {
-            hit->tri = -1;
-            hit->object = pr.index;
-            hit->material = o->material;
-            hit->normal = front ? n : rr_v3_neg(n);
-        }
-    }
-    if (hit) {
-        hit->t = t;
-        hit->front = front;
-    }
-    *tmax = t;
-    return 1;
-}
-
 /* Shared walk: any != 0 returns at the first hit. */
 static int traverse(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_hit *hit, int any)
 {
@@ -156,7 +114,7 @@ static int traverse(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_
         const rt_node *n = &a->nodes[cur];
         if (n->count) {
             for (uint32_t i = 0; i < n->count; i++) {
-                if (prim_hit(a, a->prims[n->index + i], &p, tmin, &best, any ? NULL : hit)) {
+                if (rt__prim_hit(a, a->prims[n->index + i], &p, tmin, &best, any ? NULL : hit)) {
                     found = 1;
                     if (any)
                         return 1;

@@ -161,6 +161,9 @@ void scene_destroy(scene *s)
     free(s->verts);
     free(s->normals);
     free(s->tris);
+    free(s->csg);
+    free(s->csg_verts);
+    free(s->csg_tris);
     free(s->emissive_tris);
     free(s);
 }

@@ -49,8 +49,70 @@ typedef enum scene_object_kind {
     SCENE_OBJ_TRIANGLES = 1, /* inline vertices + indices */
     SCENE_OBJ_QUAD = 2,      /* four vertices, split (v0,v1,v2), (v0,v2,v3) */
     SCENE_OBJ_BOX = 3,       /* axis-aligned box before its transform, 12 outward-facing triangles */
-    SCENE_OBJ_SPHERE = 4     /* analytic sphere (not tessellated) */
+    SCENE_OBJ_SPHERE = 4,    /* analytic sphere (not tessellated) */
+    SCENE_OBJ_CSG = 5        /* a solid: a CSG tree ("csg") or one quadric ("quadric"); see scene_csg_node */
 } scene_object_kind;
+
+/* ---- solids: CSG trees over spheres, quadrics, boxes and closed meshes ----
+ *
+ * Every "csg" object and every standalone "quadric" object is a tree of
+ * scene_csg_node in scene->csg (a quadric object is a tree of one leaf).
+ * Transforms of inner nodes are already composed into their leaves, so a leaf
+ * holds its whole local-to-world map; inner nodes only combine.
+ *
+ * A leaf is a closed solid, described in its local frame:
+ *   SPHERE   |x - center|^2 <= radius^2 (center, radius: local)
+ *   QUADRIC  x^T Q x <= 0 with x = (p, 1) and p inside the clip box
+ *            [clip_lo, clip_hi] (named shapes are turned into Q + box by the
+ *            loader; the box is always finite)
+ *   BOX      p in [clip_lo, clip_hi]
+ *   MESH     the inside of a watertight, consistently and outward oriented
+ *            triangle mesh: triangles csg_tris[tri_first .. +tri_count),
+ *            vertices in csg_verts, both already in WORLD space (to_world and
+ *            to_local are then the identity)
+ */
+typedef enum scene_csg_op {
+    SCENE_CSG_LEAF = 0,
+    SCENE_CSG_UNION = 1,
+    SCENE_CSG_INTERSECTION = 2,
+    SCENE_CSG_DIFFERENCE = 3 /* left minus right */
+} scene_csg_op;
+
+typedef enum scene_solid_kind {
+    SCENE_SOLID_SPHERE = 0,
+    SCENE_SOLID_QUADRIC = 1,
+    SCENE_SOLID_BOX = 2,
+    SCENE_SOLID_MESH = 3
+} scene_solid_kind;
+
+/* What a quadric leaf was written as (for messages, tessellation and tests). */
+typedef enum scene_quadric_shape {
+    SCENE_QUADRIC_GENERAL = 0,
+    SCENE_QUADRIC_ELLIPSOID = 1,
+    SCENE_QUADRIC_CYLINDER = 2,
+    SCENE_QUADRIC_CONE = 3,
+    SCENE_QUADRIC_PARABOLOID = 4,
+    SCENE_QUADRIC_HYPERBOLOID = 5
+} scene_quadric_shape;
+
+typedef struct scene_csg_node {
+    scene_csg_op op;
+    uint32_t object;           /* the scene object whose tree this node belongs to */
+    uint32_t left, right;      /* inner nodes: children, indices into scene->csg */
+    rr_vec3 bbox_lo, bbox_hi;  /* world bounds, pruned by the op (intersection: the overlap;
+                                  difference: the left child's); may be empty (lo > hi) */
+    /* leaves only: */
+    scene_solid_kind solid;
+    scene_quadric_shape shape; /* quadric leaves */
+    uint32_t material;         /* the material of this leaf's surface */
+    rr_xform to_world, to_local; /* local <-> world (affine, inverse of each other) */
+    rr_vec3 center;            /* sphere, local */
+    double radius;
+    double q[4][4];            /* quadric, local, symmetric */
+    rr_vec3 clip_lo, clip_hi;  /* quadric clip box / box, local */
+    size_t tri_first, tri_count; /* mesh: range in scene->csg_tris */
+    char name[SCENE_NAME_MAX]; /* JSON path of the node, e.g. "objects[2].children[1]" */
+} scene_csg_node;
 
 typedef struct scene_object {
     char name[SCENE_NAME_MAX]; /* from the file, or "objects[i]" */
@@ -60,6 +122,7 @@ typedef struct scene_object {
     size_t tri_first, tri_count; /* range in scene->tris (0, 0 for spheres) */
     rr_vec3 center;            /* spheres: world-space centre and radius */
     double radius;
+    uint32_t csg_root;         /* solids (SCENE_OBJ_CSG): root node in scene->csg */
     char source[4096];         /* meshes: the resolved file path; "" otherwise */
     mesh_report report;        /* topology of this object's triangles (meshes, boxes, quads, triangles) */
     size_t dropped_degenerate; /* zero-area triangles dropped at load */
@@ -113,9 +176,15 @@ typedef struct scene {
     size_t nverts;
     scene_tri *tris;
     size_t ntris;
+    scene_csg_node *csg;    /* nodes of every solid's tree (see scene_csg_node) */
+    size_t ncsg;
+    rr_vec3 *csg_verts;     /* mesh leaves' vertices, world space */
+    size_t ncsg_verts;
+    uint32_t (*csg_tris)[3]; /* mesh leaves' triangles, outward counter-clockwise */
+    size_t ncsg_tris;
     uint32_t *emissive_tris; /* indices of triangles whose material emits */
     size_t nemissive;
-    rr_vec3 bbox_min, bbox_max; /* of all triangles and spheres */
+    rr_vec3 bbox_min, bbox_max; /* of all triangles, spheres and solids */
 } scene;
 
 typedef struct scene_load_opts {
