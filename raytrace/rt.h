@@ -80,6 +80,9 @@ int rt_ref_closest(const scene *s, rr_ray ray, double tmin, double tmax, rt_hit 
  * or grazing rays): the smallest t in (tmin, tmax), or 0 when none. */
 int rt_sphere_hit(rr_vec3 center, double radius, rr_ray ray, double tmin, double tmax, double *t);
 
+/* The BVH over a scene (below). */
+typedef struct rt_accel rt_accel;
+
 /* ---- solids (CSG trees and quadrics, rt_solid.c) ----
  *
  * A ray meets a solid in a sorted list of disjoint spans [t_in, t_out] where
@@ -106,24 +109,29 @@ typedef struct rt_spans {
     rt_span s[RT_SPAN_MAX];
 } rt_spans;
 
+/* In all of these, a is the accel built over s (its per-mesh BVHs make mesh
+ * leaves fast) or NULL, which tests every mesh triangle (the reference). */
+
 /* All spans of object obj's solid along the ray, clipped to (tmin, tmax), sorted. */
-void rt_solid_spans(const scene *s, uint32_t obj, rr_ray ray, double tmin, double tmax, rt_spans *out);
+void rt_solid_spans(const scene *s, const rt_accel *a, uint32_t obj, rr_ray ray, double tmin, double tmax,
+                    rt_spans *out);
 /* The same for one node (subtree) of scene->csg. */
-void rt_csg_spans(const scene *s, uint32_t node, rr_ray ray, double tmin, double tmax, rt_spans *out);
+void rt_csg_spans(const scene *s, const rt_accel *a, uint32_t node, rr_ray ray, double tmin, double tmax,
+                  rt_spans *out);
 /* Front-most surface hit of a solid with t in (tmin, tmax): hit->tri = -1,
  * hit->part = the leaf, material of that leaf, unit normal facing the ray;
  * back faces culled when the object culls. hit->point is filled. */
-int rt_solid_closest(const scene *s, uint32_t obj, rr_ray ray, double tmin, double tmax, rt_hit *hit);
+int rt_solid_closest(const scene *s, const rt_accel *a, uint32_t obj, rr_ray ray, double tmin, double tmax,
+                     rt_hit *hit);
 /* 1 when world point p lies inside the solid of CSG node `node` (its closure,
  * up to rounding; for tessellation and tests). */
-int rt_csg_contains(const scene *s, uint32_t node, rr_vec3 p);
+int rt_csg_contains(const scene *s, const rt_accel *a, uint32_t node, rr_vec3 p);
 /* Outward unit normal of a leaf's surface at world point p (surface as in rt_span_end). */
 rr_vec3 rt_csg_leaf_normal(const scene *s, uint32_t leaf, int32_t surface, rr_vec3 p);
 
 /* The fast path: a BVH over every triangle and sphere of a scene (binned SAH,
  * flat 32-byte nodes, watertight triangle test). The accel keeps a pointer to
  * the scene, which must outlive it. Queries are thread-safe (read-only). */
-typedef struct rt_accel rt_accel;
 
 rr_status rt_accel_build(const scene *s, rt_accel **out, rr_error *err);
 void rt_accel_destroy(rt_accel *a); /* NULL is a no-op */

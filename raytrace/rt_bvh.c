@@ -239,6 +239,12 @@ rr_status rt_accel_build(const scene *s, rt_accel **out, rr_error *err)
     for (size_t i = 0; i < n; i++)
         a->prims[i] = b.items[i].prim;
     free(b.items);
+    b.items = NULL;
+    rr_status st = rt__solids_build(s, &a->solids, err);
+    if (st != RR_OK) {
+        rt_accel_destroy(a);
+        return st;
+    }
     *out = a;
     return RR_OK;
 nomem:
@@ -256,6 +262,7 @@ void rt_accel_destroy(rt_accel *a)
         return;
     free(a->nodes);
     free(a->prims);
+    rt__solids_destroy(a->solids);
     free(a);
 }
 

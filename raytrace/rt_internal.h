@@ -31,6 +31,7 @@ struct rt_accel {
     size_t nnodes;
     rt_prim *prims;
     size_t nprims;
+    struct rt_solid_accel *solids; /* per-mesh-leaf BVHs of the scene's solids (rt_solid.c); NULL if none */
 };
 
 /* Per-ray constants of the watertight test (Woop et al. 2013) and the slab test. */
@@ -49,6 +50,10 @@ void rt__ray_prepare(rr_ray ray, rt_ray_pre *p);
  * back faces. */
 int rt__tri_hit(const rt_ray_pre *p, rr_vec3 A, rr_vec3 B, rr_vec3 C, int cull, double tmin, double tmax, double *t,
                 int *front);
+
+/* ---- rt_solid.c: acceleration for the solids' mesh leaves ---- */
+rr_status rt__solids_build(const scene *s, struct rt_solid_accel **out, rr_error *err);
+void rt__solids_destroy(struct rt_solid_accel *sa); /* NULL is a no-op */
 
 /* ---- rt_prim.c: the primitive interface the BVH is built on ---- */
 

@@ -93,7 +93,7 @@ int rt__prim_hit(const rt_accel *a, rt_prim pr, const rt_ray_pre *p, double tmin
         }
     } else {
         rt_hit h;
-        if (!rt_solid_closest(s, pr.index, p->ray, tmin, *tmax, &h))
+        if (!rt_solid_closest(s, a, pr.index, p->ray, tmin, *tmax, &h))
             return 0;
         t = h.t;
         front = h.front;

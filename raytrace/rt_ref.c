@@ -117,7 +117,7 @@ int rt_ref_closest(const scene *s, rr_ray ray, double tmin, double tmax, rt_hit 
     /* Solids have no lecture form: their own span code is the reference. */
     for (size_t i = 0; i < s->nobjects; i++) {
         rt_hit h;
-        if (s->objects[i].kind != SCENE_OBJ_CSG || !rt_solid_closest(s, (uint32_t)i, ray, tmin, best, &h))
+        if (s->objects[i].kind != SCENE_OBJ_CSG || !rt_solid_closest(s, NULL, (uint32_t)i, ray, tmin, best, &h))
             continue;
         best = h.t;
         found = 1;
