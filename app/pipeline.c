@@ -181,7 +181,8 @@ static const char *count_text(double v, char *buf, size_t n)
 }
 
 /* The patch count rad_patches_build would make for limits po, by the same
- * formulas (one level per object, level^2 patches per triangle; spheres on a
+ * formulas (one level per object, level^2 patches per triangle; solids by
+ * rad_solid_patch_estimate; spheres on a
  * UV grid of S stacks), without building anything. */
 static double count_patches(const scene *s, rad_patch_opts po)
 {
@@ -201,6 +202,9 @@ static double count_patches(const scene *s, rad_patch_opts po)
     }
     for (size_t t = 0; t < s->ntris; t++)
         n += olevel[s->tris[t].object] * olevel[s->tris[t].object];
+    for (size_t i = 0; i < s->nobjects; i++)
+        if (s->objects[i].kind == SCENE_OBJ_CSG)
+            n += rad_solid_patch_estimate(s, (uint32_t)i, &po);
     for (size_t i = 0; i < s->nobjects; i++)
         if (s->objects[i].kind == SCENE_OBJ_SPHERE)
             rmax = fmax(rmax, s->objects[i].radius);
@@ -227,9 +231,11 @@ rr_status app_check_memory(const app_pipeline *p, int mode, int indirect_overrid
     const scene *sc = p->sc;
     char a[32], b[32], c[32], d[32];
     double film = 8.0 * (double)sc->view.width * (double)sc->view.height * 3.0 * sizeof(float);
-    double prims = (double)sc->ntris;
+    /* Solids count one primitive each, plus their mesh leaves' triangles
+     * (which get BVHs of their own). */
+    double prims = (double)sc->ntris + (double)sc->ncsg_tris;
     for (size_t i = 0; i < sc->nobjects; i++)
-        prims += sc->objects[i].kind == SCENE_OBJ_SPHERE;
+        prims += sc->objects[i].kind == SCENE_OBJ_SPHERE || sc->objects[i].kind == SCENE_OBJ_CSG;
     double bvh = APP_BVH_BYTES_PER_PRIM * prims;
     double patches = 0, rad = 0;
     if (app_needs_radiosity(sc, mode, indirect_override)) {

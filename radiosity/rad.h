@@ -35,8 +35,17 @@ typedef struct rad_patch {
     rr_rgb rho;        /* diffuse reflectance of the material */
     rr_rgb emission;   /* emitted radiosity E = pi * Le */
     uint32_t object;   /* scene object */
-    int64_t tri;       /* source scene triangle, or -1 for a tessellated sphere */
+    int64_t tri;       /* source scene triangle, or -1 for a tessellated sphere or solid */
 } rad_patch;
+
+/* Where a solid's patches came from: the cells of the grid its surface was
+ * tessellated on (rad_solid.c). The patches made in cell c (x fastest) are
+ * [cell_first[c], cell_first[c + 1]). */
+typedef struct rad_solid_grid {
+    rr_vec3 lo, cell;      /* grid origin and cell size per axis */
+    uint32_t n[3];         /* cells per axis; 0 for objects that are not solids */
+    uint32_t *cell_first;  /* n[0] n[1] n[2] + 1 entries, absolute patch indices */
+} rad_solid_grid;
 
 typedef struct rad_patches {
     rad_patch *p;
@@ -53,24 +62,48 @@ typedef struct rad_patches {
      * grid of sphere_stacks x sphere_slices cells (2 triangles per cell). */
     uint32_t *sphere_first;
     uint32_t sphere_stacks, sphere_slices;
+    /* Solids (CSG and quadric objects), per object (nsolid = the scene's object count). */
+    rad_solid_grid *solid;
+    size_t nsolid;
 } rad_patches;
 
 typedef struct rad_patch_opts {
     double max_area;   /* > 0 */
     double max_edge;   /* > 0 */
+    /* The BVH over the scene, for the solids' inside tests (mesh leaves);
+     * NULL tests every mesh triangle (slow for big meshes, same result). */
+    const rt_accel *accel;
 } rad_patch_opts;
 
 /* Subdivides every triangle of every object into level^2 similar triangles,
  * with one level per object (the smallest that brings every triangle of the
  * object under both limits), so edges shared inside an object are split the
  * same way on both sides: no T-vertices. Spheres are tessellated into a UV grid
- * fine enough for the same limits. Fails (RR_ERR_LIMIT) beyond 2^31 patches. */
+ * fine enough for the same limits. Solids (CSG trees, quadrics) are
+ * tessellated by marching tetrahedra over a grid of their bounding box, so
+ * only the surface of the final solid gets patches (rad_solid.c); each patch
+ * takes the material of the leaf surface under its centre. Fails
+ * (RR_ERR_LIMIT) beyond 2^31 patches. */
 rr_status rad_patches_build(const scene *s, const rad_patch_opts *o, rad_patches **out, rr_error *err);
 void rad_patches_destroy(rad_patches *P);
 
 /* The patch that contains point p (on the surface) of a hit reported by the
- * ray tracer (scene triangle tri >= 0, or sphere object obj when tri < 0). */
+ * ray tracer (scene triangle tri >= 0, or sphere / solid object obj when
+ * tri < 0). For a solid, the patch nearest to p; UINT32_MAX when the solid
+ * has no patches (too thin for its grid). */
 uint32_t rad_patch_locate(const rad_patches *P, const scene *s, int64_t tri, uint32_t obj, rr_vec3 p);
+
+/* The surface point a ray from (or to) point x of patch k starts (ends) at,
+ * and the unit normal there on the patch's front side: x itself for patches
+ * of triangles; facets of spheres and solids are chords of curved surfaces,
+ * so x is moved onto the analytic surface (radially for spheres, along the
+ * facet normal for solids). a may be NULL (see rad_patch_opts.accel). */
+void rad_patch_surface(const rad_patches *P, const scene *s, const rt_accel *a, uint32_t k, rr_vec3 x, rr_vec3 *xs,
+                       rr_vec3 *ns);
+
+/* About how many patches solid object obj gets under limits o (for memory
+ * estimates before building). */
+double rad_solid_patch_estimate(const scene *s, uint32_t obj, const rad_patch_opts *o);
 
 /* Barycentric coordinates of p in patch k (for interpolation). */
 void rad_patch_barycentric(const rad_patches *P, uint32_t k, rr_vec3 p, double b[3]);

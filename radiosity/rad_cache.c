@@ -65,7 +65,30 @@ static uint64_t cache_key(const scene *s, const rad_pass_opts *o)
             hash_vec(&x, ob->center);
             hash_double(&x, ob->radius);
         }
+        hash_bytes(&x, &ob->csg_root, sizeof ob->csg_root);
     }
+    /* Solids: field by field (the structs have padding). */
+    for (size_t i = 0; i < s->ncsg; i++) {
+        const scene_csg_node *n = &s->csg[i];
+        uint32_t w[6] = {(uint32_t)n->op, n->left, n->right, (uint32_t)n->solid, n->material, n->object};
+        hash_bytes(&x, w, sizeof w);
+        for (int r = 0; r < 3; r++)
+            hash_vec(&x, rr_v3(n->to_world.m[r][0], n->to_world.m[r][1], n->to_world.m[r][2]));
+        hash_vec(&x, n->to_world.t);
+        hash_vec(&x, n->center);
+        hash_double(&x, n->radius);
+        for (int r = 0; r < 4; r++)
+            for (int c = 0; c < 4; c++)
+                hash_double(&x, n->q[r][c]);
+        hash_vec(&x, n->clip_lo);
+        hash_vec(&x, n->clip_hi);
+        uint64_t tr[2] = {n->tri_first, n->tri_count};
+        hash_bytes(&x, tr, sizeof tr);
+    }
+    for (size_t i = 0; i < s->ncsg_verts; i++)
+        hash_vec(&x, s->csg_verts[i]);
+    if (s->ncsg_tris)
+        hash_bytes(&x, s->csg_tris, s->ncsg_tris * sizeof *s->csg_tris);
     for (size_t i = 0; i < s->nlights; i++) {
         hash_bytes(&x, &s->lights[i].type, sizeof s->lights[i].type);
         hash_vec(&x, s->lights[i].direction);
@@ -186,6 +209,7 @@ rr_status rad_pass_run_cached(const scene *s, const rt_accel *a, const rad_pass_
     if (!sol)
         return rr_error_set(err, RR_ERR_NOMEM, "out of memory");
     rad_patch_opts po = rad_pass_patch_limits(s, o);
+    po.accel = a;
     rr_status st = rad_patches_build(s, &po, &sol->P, err);
     if (st == RR_OK)
         st = cache_load(cache_path, key, sol, err);

@@ -122,20 +122,11 @@ static rr_vec3 patch_point(const rad_patches *P, const rad_patch *q, double u, d
     return rr_v3_add(A, rr_v3_add(rr_v3_scale(rr_v3_sub(B, A), u), rr_v3_scale(rr_v3_sub(C, A), v)));
 }
 
-/* Where a ray starts or ends for point x of patch q, and the normal there:
- * x itself for triangle patches; the radial projection onto the analytic
- * sphere for sphere facets (see the top of the file). */
+/* Where a ray starts or ends for point x of patch q, and the normal there
+ * (rad_patch_surface: on the analytic surface for spheres and solids). */
 static void surface_at(const ff_ctx *c, const rad_patch *q, rr_vec3 x, rr_vec3 *xs, rr_vec3 *ns)
 {
-    if (q->tri >= 0) {
-        *xs = x;
-        *ns = q->normal;
-        return;
-    }
-    const scene_object *o = &c->s->objects[q->object];
-    rr_vec3 d = rr_v3_norm(rr_v3_sub(x, o->center));
-    *xs = rr_v3_madd(o->center, d, o->radius);
-    *ns = rr_v3_dot(d, q->normal) >= 0.0 ? d : rr_v3_neg(d);
+    rad_patch_surface(c->P, c->s, c->a, (uint32_t)(q - c->P->p), x, xs, ns);
 }
 
 /* Pushed off the surface towards its front by the renderer's one rule

@@ -18,14 +18,24 @@ rad_patch_opts rad_pass_patch_limits(const scene *s, const rad_pass_opts *o)
     rad_patch_opts p;
     p.max_area = o && o->patch.max_area > 0 ? o->patch.max_area : s->radiosity.patch_area;
     p.max_edge = o && o->patch.max_edge > 0 ? o->patch.max_edge : s->radiosity.patch_edge;
+    p.accel = o ? o->patch.accel : NULL;
     if (!(p.max_area > 0)) {
         /* Automatic: about 2000 patches' worth of the scene's surface. */
         double total = 0;
         for (size_t t = 0; t < s->ntris; t++)
             total += scene_tri_area(s, t);
-        for (size_t i = 0; i < s->nobjects; i++)
-            if (s->objects[i].kind == SCENE_OBJ_SPHERE)
-                total += 4.0 * RR_PI * s->objects[i].radius * s->objects[i].radius;
+        for (size_t i = 0; i < s->nobjects; i++) {
+            const scene_object *ob = &s->objects[i];
+            if (ob->kind == SCENE_OBJ_SPHERE)
+                total += 4.0 * RR_PI * ob->radius * ob->radius;
+            if (ob->kind == SCENE_OBJ_CSG) {
+                /* A solid's area is known only once tessellated: its bounding
+                 * box's (an overestimate by at most a few times). */
+                rr_vec3 d = rr_v3_sub(s->csg[ob->csg_root].bbox_hi, s->csg[ob->csg_root].bbox_lo);
+                if (d.x > 0 && d.y > 0 && d.z > 0)
+                    total += 2.0 * (d.x * d.y + d.y * d.z + d.z * d.x);
+            }
+        }
         p.max_area = total > 0 ? total / 2000.0 : 1.0;
     }
     if (!(p.max_edge > 0))
@@ -58,8 +68,10 @@ static rr_rgb first_shot(const scene *s, const rt_accel *a, const rad_patches *P
     const rad_patch *p = &P->p[k];
     rr_rgb H = rr_rgb_make(0, 0, 0);
     for (int q = 0; q < 4; q++) {
-        rr_vec3 x = rr_v3_add(rr_v3_add(rr_v3_scale(P->verts[p->v[0]], w[q][0]), rr_v3_scale(P->verts[p->v[1]], w[q][1])),
-                              rr_v3_scale(P->verts[p->v[2]], w[q][2]));
+        rr_vec3 xf = rr_v3_add(rr_v3_add(rr_v3_scale(P->verts[p->v[0]], w[q][0]), rr_v3_scale(P->verts[p->v[1]], w[q][1])),
+                               rr_v3_scale(P->verts[p->v[2]], w[q][2]));
+        rr_vec3 x, N;
+        rad_patch_surface(P, s, a, (uint32_t)k, xf, &x, &N);
         for (size_t i = 0; i < s->nlights; i++) {
             const scene_light *l = &s->lights[i];
             rr_vec3 L;
@@ -77,10 +89,10 @@ static rr_rgb first_shot(const scene *s, const rt_accel *a, const rad_patches *P
                 fall = 1.0 / r2;
                 tmax *= 1.0 - 1e-9;
             }
-            double c = rr_v3_dot(p->normal, L);
+            double c = rr_v3_dot(N, L);
             if (c <= 0)
                 continue;
-            rr_ray r = {rt_offset_origin(scale, x, p->normal, L), L};
+            rr_ray r = {rt_offset_origin(scale, x, N, L), L};
             if (rt_accel_occluded(a, r, 0.0, tmax))
                 continue;
             H = rr_rgb_add(H, rr_rgb_scale(l->intensity, 0.25 * c * fall));
@@ -123,6 +135,7 @@ rr_status rad_pass_run(const scene *s, const rt_accel *a, const rad_pass_opts *o
     rr_status st;
     double t0 = now_seconds();
     rad_patch_opts po = rad_pass_patch_limits(s, o);
+    po.accel = a;
     if ((st = rad_patches_build(s, &po, &sol->P, err)) != RR_OK)
         goto fail;
     double t1 = now_seconds();
@@ -203,6 +216,8 @@ fail:
 static rr_rgb interpolate(const rad_solution *sol, const scene *s, const rt_hit *h, const rr_rgb *vertex_values)
 {
     uint32_t k = rad_patch_locate(sol->P, s, h->tri, h->object, h->point);
+    if (k >= sol->P->n)
+        return rr_rgb_make(0, 0, 0); /* a solid too thin to have patches */
     const rad_patch *p = &sol->P->p[k];
     double b[3];
     rad_patch_barycentric(sol->P, k, h->point, b);

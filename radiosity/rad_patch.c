@@ -9,40 +9,78 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "rad.h"
+#include "rad_patch_internal.h"
 
-/* ---- a small open-addressing map: (a, b, k) -> vertex index ---- */
+/* ---- the shared-vertex map: (a, b, k) -> vertex index ---- */
 
-typedef struct edge_map {
-    uint64_t *key; /* 0 = empty; else ((a * 2^24 + b) * 2^... packed, +1) */
-    uint32_t *val;
-    size_t cap;
-} edge_map;
-
-static uint64_t edge_key(uint32_t a, uint32_t b, uint32_t k) { return (((uint64_t)a << 32) | b) * 0x9e3779b97f4a7c15ULL ^ ((uint64_t)k << 1) ^ 1; }
-
-typedef struct edge_entry {
-    uint32_t a, b, k;
-} edge_entry;
-
-/* Looks up (a, b, k) (a < b); inserts val when missing. Returns the stored
- * value, or UINT32_MAX when out of memory. Entries carry their full key in ek. */
-static uint32_t edge_get(edge_map *m, edge_entry *ek, uint32_t a, uint32_t b, uint32_t k, uint32_t val)
+static uint64_t edge_hash(uint32_t a, uint32_t b, uint32_t k)
 {
-    uint64_t h = edge_key(a, b, k);
-    size_t mask = m->cap - 1;
-    for (size_t i = (size_t)(h >> 17) & mask;; i = (i + 1) & mask) {
-        if (m->key[i] == 0) {
-            m->key[i] = h | 1;
-            m->val[i] = val;
-            ek[i].a = a;
-            ek[i].b = b;
-            ek[i].k = k;
-            return val;
-        }
-        if (m->key[i] == (h | 1) && ek[i].a == a && ek[i].b == b && ek[i].k == k)
-            return m->val[i];
+    return ((((uint64_t)a << 32) | b) * 0x9e3779b97f4a7c15ULL ^ ((uint64_t)k * 0xc2b2ae3d27d4eb4fULL)) | 1;
+}
+
+int rad__edge_map_init(rad__edge_map *m, size_t n)
+{
+    memset(m, 0, sizeof *m);
+    m->cap = 16;
+    while (m->cap < 2 * n + 16)
+        m->cap *= 2;
+    m->key = calloc(m->cap, sizeof *m->key);
+    m->abk = malloc(m->cap * sizeof *m->abk);
+    m->val = malloc(m->cap * sizeof *m->val);
+    if (!m->key || !m->abk || !m->val) {
+        rad__edge_map_free(m);
+        return -1;
     }
+    return 0;
+}
+
+void rad__edge_map_free(rad__edge_map *m)
+{
+    free(m->key);
+    free(m->abk);
+    free(m->val);
+    memset(m, 0, sizeof *m);
+}
+
+static void edge_put(rad__edge_map *m, uint64_t h, const uint32_t abk[3], uint32_t val)
+{
+    size_t mask = m->cap - 1;
+    size_t i = (size_t)(h >> 17) & mask;
+    while (m->key[i])
+        i = (i + 1) & mask;
+    m->key[i] = h;
+    memcpy(m->abk[i], abk, sizeof m->abk[i]);
+    m->val[i] = val;
+    m->count++;
+}
+
+uint32_t rad__edge_get(rad__edge_map *m, uint32_t a, uint32_t b, uint32_t k, uint32_t val)
+{
+    uint64_t h = edge_hash(a, b, k);
+    size_t mask = m->cap - 1;
+    for (size_t i = (size_t)(h >> 17) & mask; m->key[i]; i = (i + 1) & mask)
+        if (m->key[i] == h && m->abk[i][0] == a && m->abk[i][1] == b && m->abk[i][2] == k)
+            return m->val[i];
+    if (2 * (m->count + 1) > m->cap) { /* keep the load under 1/2 */
+        rad__edge_map old = *m;
+        m->cap = old.cap * 2;
+        m->count = 0;
+        m->key = calloc(m->cap, sizeof *m->key);
+        m->abk = malloc(m->cap * sizeof *m->abk);
+        m->val = malloc(m->cap * sizeof *m->val);
+        if (!m->key || !m->abk || !m->val) {
+            rad__edge_map_free(m);
+            *m = old;
+            return UINT32_MAX;
+        }
+        for (size_t i = 0; i < old.cap; i++)
+            if (old.key[i])
+                edge_put(m, old.key[i], old.abk[i], old.val[i]);
+        rad__edge_map_free(&old);
+    }
+    const uint32_t abk[3] = {a, b, k};
+    edge_put(m, h, abk, val);
+    return val;
 }
 
 /* ---- building ---- */
@@ -83,11 +121,21 @@ static rr_vec3 sphere_point(const scene_object *o, uint32_t S, uint32_t i, uint3
     return rr_v3_add(o->center, rr_v3(o->radius * sin(th) * cos(ph), o->radius * sin(th) * sin(ph), o->radius * cos(th)));
 }
 
+static void free_solid_meshes(rad__solid_mesh *sm, size_t n)
+{
+    if (!sm)
+        return;
+    for (size_t i = 0; i < n; i++)
+        rad__solid_mesh_free(&sm[i]);
+    free(sm);
+}
+
 rr_status rad_patches_build(const scene *s, const rad_patch_opts *o, rad_patches **out, rr_error *err)
 {
     if (!(o->max_area > 0) || !(o->max_edge > 0) || !isfinite(o->max_area) || !isfinite(o->max_edge))
         return rr_error_set(err, RR_ERR_INVALID, "%s: radiosity: patch area and edge limits must be > 0 (got %g, %g)",
                             s->path, o->max_area, o->max_edge);
+    rad__solid_mesh *sm = NULL;
     rad_patches *P = calloc(1, sizeof *P);
     uint32_t *olevel = calloc(s->nobjects ? s->nobjects : 1, sizeof *olevel);
     if (!P || !olevel)
@@ -123,7 +171,24 @@ rr_status rad_patches_build(const scene *s, const rad_patch_opts *o, rad_patches
             npatch += (double)sphere_patch_count(S);
             nvert += (double)(S - 1) * (2.0 * S) + 2;
         }
+    /* Solids are tessellated first (their counts are known only then). */
+    sm = calloc(s->nobjects ? s->nobjects : 1, sizeof *sm);
+    if (!sm)
+        goto nomem;
+    for (size_t i = 0; i < s->nobjects; i++)
+        if (s->objects[i].kind == SCENE_OBJ_CSG) {
+            rr_status st = rad__solid_tessellate(s, o->accel, (uint32_t)i, o, &sm[i], err);
+            if (st != RR_OK) {
+                free_solid_meshes(sm, s->nobjects);
+                free(olevel);
+                free(P);
+                return st;
+            }
+            npatch += (double)sm[i].ntris;
+            nvert += (double)sm[i].nverts;
+        }
     if (npatch > (double)(1u << 31) || nvert > (double)(1u << 31)) {
+        free_solid_meshes(sm, s->nobjects);
         free(olevel);
         free(P);
         return rr_error_set(err, RR_ERR_LIMIT,
@@ -138,20 +203,17 @@ rr_status rad_patches_build(const scene *s, const rad_patch_opts *o, rad_patches
     P->tri_first = malloc((s->ntris ? s->ntris : 1) * sizeof *P->tri_first);
     P->tri_level = malloc((s->ntris ? s->ntris : 1) * sizeof *P->tri_level);
     P->sphere_first = malloc((s->nobjects ? s->nobjects : 1) * sizeof *P->sphere_first);
+    P->solid = calloc(s->nobjects ? s->nobjects : 1, sizeof *P->solid);
+    P->nsolid = P->solid ? s->nobjects : 0;
     uint32_t *corner = malloc((s->nverts ? s->nverts : 1) * sizeof *corner);
     /* Edge points: at most 3 (l - 1) per triangle; the map is twice that. */
     size_t edge_pts = 0;
     for (size_t t = 0; t < s->ntris; t++)
         edge_pts += 3 * (size_t)(olevel[s->tris[t].object] - 1);
-    edge_map em = {0};
-    em.cap = 16;
-    while (em.cap < 2 * edge_pts + 16)
-        em.cap *= 2;
-    em.key = calloc(em.cap, sizeof *em.key);
-    em.val = malloc(em.cap * sizeof *em.val);
-    edge_entry *ek = malloc(em.cap * sizeof *ek);
+    rad__edge_map em;
+    int em_ok = rad__edge_map_init(&em, edge_pts) == 0;
     uint32_t *grid = NULL;
-    if (!P->p || !P->verts || !P->tri_first || !P->tri_level || !P->sphere_first || !corner || !em.key || !em.val || !ek)
+    if (!P->p || !P->verts || !P->tri_first || !P->tri_level || !P->sphere_first || !P->solid || !corner || !em_ok)
         goto nomem_local;
     for (size_t i = 0; i < s->nverts; i++)
         corner[i] = UINT32_MAX;
@@ -203,7 +265,9 @@ rr_status rad_patches_build(const scene *s, const rad_patch_opts *o, rad_patches
                         eb = tmp;
                         step = n - step;
                     }
-                    uint32_t got = edge_get(&em, ek, ea, eb, step, (uint32_t)nv);
+                    uint32_t got = rad__edge_get(&em, ea, eb, step, (uint32_t)nv);
+                    if (got == UINT32_MAX)
+                        goto nomem_local;
                     if (got == nv)
                         P->verts[nv++] = p;
                     *g = got;
@@ -254,23 +318,50 @@ rr_status rad_patches_build(const scene *s, const rad_patch_opts *o, rad_patches
             }
 #undef RV
     }
+    for (size_t oi = 0; oi < s->nobjects; oi++) {
+        if (s->objects[oi].kind != SCENE_OBJ_CSG)
+            continue;
+        rad__solid_mesh *m = &sm[oi];
+        uint32_t vbase = (uint32_t)nv, pbase = (uint32_t)np;
+        memcpy(P->verts + nv, m->verts, m->nverts * sizeof *m->verts);
+        nv += m->nverts;
+        /* The grid moves into P, with absolute patch indices. */
+        P->solid[oi] = m->grid;
+        m->grid.cell_first = NULL;
+        if (P->solid[oi].n[0]) {
+            size_t ncells = (size_t)P->solid[oi].n[0] * P->solid[oi].n[1] * P->solid[oi].n[2];
+            for (size_t c = 0; c <= ncells; c++)
+                P->solid[oi].cell_first[c] += pbase;
+        }
+        for (size_t t = 0; t < m->ntris; t++) {
+            fill_patch(P, np, vbase + m->tris[t][0], vbase + m->tris[t][1], vbase + m->tris[t][2],
+                       &s->materials[s->objects[oi].material], (uint32_t)oi, -1);
+            /* The material of the leaf surface under the patch's centre. */
+            rr_vec3 xs, ns;
+            uint32_t leaf;
+            if (rad__solid_surface(P, s, o->accel, (uint32_t)oi, P->p[np].centroid, P->p[np].normal, &xs, &ns, &leaf)) {
+                const scene_material *lm = &s->materials[s->csg[leaf].material];
+                P->p[np].rho = lm->diffuse;
+                P->p[np].emission = rr_rgb_scale(lm->emission, RR_PI);
+            }
+            np++;
+        }
+    }
     RR_CHECK(np == P->n);
     P->nverts = nv;
     free(grid);
     free(corner);
-    free(em.key);
-    free(em.val);
-    free(ek);
+    rad__edge_map_free(&em);
+    free_solid_meshes(sm, s->nobjects);
     free(olevel);
     *out = P;
     return RR_OK;
 nomem_local:
     free(grid);
     free(corner);
-    free(em.key);
-    free(em.val);
-    free(ek);
+    rad__edge_map_free(&em);
 nomem:
+    free_solid_meshes(sm, s->nobjects);
     free(olevel);
     rad_patches_destroy(P);
     return rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory building patches", s->path);
@@ -285,6 +376,10 @@ void rad_patches_destroy(rad_patches *P)
     free(P->tri_first);
     free(P->tri_level);
     free(P->sphere_first);
+    if (P->solid)
+        for (size_t i = 0; i < P->nsolid; i++)
+            free(P->solid[i].cell_first);
+    free(P->solid);
     free(P);
 }
 
@@ -323,6 +418,8 @@ uint32_t rad_patch_locate(const rad_patches *P, const scene *s, int64_t tri, uin
         uint32_t idx = j * (2 * n - j) + 2 * i + (uint32_t)down;
         return P->tri_first[tri] + idx;
     }
+    if (s->objects[obj].kind == SCENE_OBJ_CSG)
+        return rad__solid_locate(P, obj, p);
     const scene_object *o = &s->objects[obj];
     uint32_t S = P->sphere_stacks, L = P->sphere_slices;
     rr_vec3 d = rr_v3_scale(rr_v3_sub(p, o->center), 1.0 / o->radius);
@@ -360,4 +457,23 @@ void rad_patch_barycentric(const rad_patches *P, uint32_t k, rr_vec3 p, double b
     b[0] = 1.0 - u - v;
     b[1] = u;
     b[2] = v;
+}
+
+void rad_patch_surface(const rad_patches *P, const scene *s, const rt_accel *a, uint32_t k, rr_vec3 x, rr_vec3 *xs,
+                       rr_vec3 *ns)
+{
+    const rad_patch *q = &P->p[k];
+    if (q->tri >= 0) {
+        *xs = x;
+        *ns = q->normal;
+        return;
+    }
+    const scene_object *o = &s->objects[q->object];
+    if (o->kind == SCENE_OBJ_CSG) {
+        rad__solid_surface(P, s, a, q->object, x, q->normal, xs, ns, NULL);
+        return;
+    }
+    rr_vec3 d = rr_v3_norm(rr_v3_sub(x, o->center));
+    *xs = rr_v3_madd(o->center, d, o->radius);
+    *ns = rr_v3_dot(d, q->normal) >= 0.0 ? d : rr_v3_neg(d);
 }

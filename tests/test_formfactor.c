@@ -71,7 +71,7 @@ static void fx_open(fx *f, const char *objects, double max_edge)
         fail_msg("%s", err.msg);
     free(json);
     assert_int_equal(rt_accel_build(f->s, &f->a, &err), RR_OK);
-    rad_patch_opts po = {max_edge * max_edge, max_edge};
+    rad_patch_opts po = {max_edge * max_edge, max_edge, NULL};
     if (rad_patches_build(f->s, &po, &f->P, &err) != RR_OK)
         fail_msg("%s", err.msg);
 }

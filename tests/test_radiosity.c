@@ -39,7 +39,7 @@ static void limits_and_areas(void **state)
 {
     (void)state;
     scene *s = load();
-    rad_patch_opts o = {0.05, 0.4};
+    rad_patch_opts o = {0.05, 0.4, NULL};
     rad_patches *P = NULL;
     rr_error err;
     assert_int_equal(rad_patches_build(s, &o, &P, &err), RR_OK);
@@ -91,7 +91,7 @@ static void conforming_box(void **state)
 {
     (void)state;
     scene *s = load();
-    rad_patch_opts o = {0.03, 0.3};
+    rad_patch_opts o = {0.03, 0.3, NULL};
     rad_patches *P = NULL;
     assert_int_equal(rad_patches_build(s, &o, &P, NULL), RR_OK);
     size_t n = 0, cap = 3 * P->n;
@@ -122,7 +122,7 @@ static void locate_hits(void **state)
 {
     (void)state;
     scene *s = load();
-    rad_patch_opts o = {0.02, 0.25};
+    rad_patch_opts o = {0.02, 0.25, NULL};
     rad_patches *P = NULL;
     assert_int_equal(rad_patches_build(s, &o, &P, NULL), RR_OK);
     rr_rng rng = rr_rng_make(3, 3);
@@ -172,10 +172,10 @@ static void bad_limits(void **state)
     scene *s = load();
     rad_patches *P = NULL;
     rr_error err;
-    rad_patch_opts o = {0, 1};
+    rad_patch_opts o = {0, 1, NULL};
     assert_int_equal(rad_patches_build(s, &o, &P, &err), RR_ERR_INVALID);
     assert_null(P);
-    rad_patch_opts tiny = {1e-12, 1e-6};
+    rad_patch_opts tiny = {1e-12, 1e-6, NULL};
     assert_int_equal(rad_patches_build(s, &tiny, &P, &err), RR_ERR_LIMIT);
     assert_non_null(strstr(err.msg, "patches"));
     assert_null(P);

@@ -1,0 +1,410 @@
+/* rad_solid.c - patches on solids (CSG trees and quadrics).
+ *
+ * A solid's surface is pieced together from its leaves' surfaces, and only
+ * the parts that lie on the final solid count. Rather than clip every leaf
+ * surface against every other (exact, but a case analysis per pair of leaf
+ * kinds), the solid is tessellated from its inside test alone, by marching
+ * tetrahedra:
+ *
+ *  - a grid over the solid's bounding box (cells about the patch edge limit
+ *    across), the inside test rt_csg_contains at every grid point;
+ *  - every cell split into the 6 tetrahedra of the Kuhn triangulation (all
+ *    share the cell's main diagonal), which is conforming across cells, so
+ *    the surface comes out closed with shared vertices (no T-vertices; the
+ *    vertex radiosity interpolates continuously);
+ *  - a tetrahedron whose corners disagree gives one or two triangles, with
+ *    their corners on the tetrahedron's edges, placed on the surface by
+ *    bisection of the inside test (to 2^-30 of the edge), oriented from the
+ *    inside corners to the outside ones.
+ *
+ * What this gives up: features smaller than a cell may be missed, and sharp
+ * edges of the solid (where two leaf surfaces meet) are cut off by a chamfer
+ * about a cell wide. For radiosity, which averages over patches anyway, that
+ * is an error of the order of the patch size, the discretisation error it
+ * already has. The ray tracer still sees the exact surfaces.
+ *
+ * Patches are written cell by cell, so the patches near a point are found
+ * through the grid (rad_patch_locate). A patch takes the material of the
+ * leaf surface under its centre (found along its normal by
+ * rad_patch_surface).
+ */
+#include <stdlib.h>
+#include <string.h>
+
+#include "rad_patch_internal.h"
+
+#define SOLID_CELLS_MAX 160 /* per axis */
+#define SOLID_CELLS_MIN 6
+#define SOLID_BISECT 30
+
+/* Cells per axis and their size for object obj's solid under limits o. The
+ * box is padded by a fraction of a cell so that flat faces of the solid (a
+ * box leaf, a clip plane) do not lie exactly on grid planes. */
+static int solid_grid(const scene *s, uint32_t obj, const rad_patch_opts *o, rr_vec3 *lo, rr_vec3 *cell, uint32_t n[3])
+{
+    const scene_csg_node *root = &s->csg[s->objects[obj].csg_root];
+    rr_vec3 blo = root->bbox_lo, bhi = root->bbox_hi;
+    if (!(blo.x <= bhi.x && blo.y <= bhi.y && blo.z <= bhi.z))
+        return 0;
+    /* Marching tetrahedra make triangles with edges up to a cell diagonal
+     * and, on average, several per cell the surface crosses: a cell of
+     * max_edge / 1.5 keeps edges near the limit and the count near the one
+     * the area limit asks for. */
+    double h = fmin(o->max_edge / 1.5, 1.5 * sqrt(o->max_area));
+    double e[3] = {bhi.x - blo.x, bhi.y - blo.y, bhi.z - blo.z};
+    double emax = fmax(e[0], fmax(e[1], e[2]));
+    if (!(emax > 0))
+        return 0;
+    double l[3], c[3];
+    for (int k = 0; k < 3; k++) {
+        double m = ceil(e[k] / h) + 1.0;
+        m = fmin(fmax(m, SOLID_CELLS_MIN), SOLID_CELLS_MAX);
+        n[k] = (uint32_t)m;
+        /* Pad by 0.37 of a cell on each side (an odd fraction, so no grid
+         * plane meets a face at a round coordinate). */
+        double ek = fmax(e[k], 1e-9 * emax);
+        c[k] = ek / (m - 0.74);
+        l[k] = (k == 0 ? blo.x : (k == 1 ? blo.y : blo.z)) - 0.37 * c[k];
+    }
+    *lo = rr_v3(l[0], l[1], l[2]);
+    *cell = rr_v3(c[0], c[1], c[2]);
+    return 1;
+}
+
+double rad_solid_patch_estimate(const scene *s, uint32_t obj, const rad_patch_opts *o)
+{
+    rr_vec3 lo, cell;
+    uint32_t n[3];
+    if (!solid_grid(s, obj, o, &lo, &cell, n))
+        return 0;
+    /* The surface crosses about (area of the box faces) / (cell face) cells,
+     * with about 4 triangles in each. */
+    double a = (double)n[0] * n[1] + (double)n[1] * n[2] + (double)n[2] * n[0];
+    return 8.0 * a;
+}
+
+/* Kuhn triangulation: the 6 monotone paths from corner 0 to corner 7 (bit 0:
+ * +x, bit 1: +y, bit 2: +z). Faces between cells are split along the same
+ * diagonal from both sides. */
+static const int k_tets[6][4] = {{0, 1, 3, 7}, {0, 1, 5, 7}, {0, 2, 3, 7}, {0, 2, 6, 7}, {0, 4, 5, 7}, {0, 4, 6, 7}};
+
+typedef struct tess {
+    const scene *s;
+    const rt_accel *a;
+    uint32_t root;
+    rr_vec3 lo, cell;
+    uint32_t n[3];
+    unsigned char *inside; /* (n+1)^3 grid points */
+    rad__edge_map map;
+    rad__solid_mesh *out;
+    size_t cap_v, cap_t;
+} tess;
+
+static uint32_t gid(const tess *T, uint32_t i, uint32_t j, uint32_t k)
+{
+    return i + (T->n[0] + 1) * (j + (T->n[1] + 1) * k);
+}
+
+static rr_vec3 gpos(const tess *T, uint32_t id)
+{
+    uint32_t nx = T->n[0] + 1, ny = T->n[1] + 1;
+    uint32_t i = id % nx, j = (id / nx) % ny, k = id / (nx * ny);
+    return rr_v3(T->lo.x + i * T->cell.x, T->lo.y + j * T->cell.y, T->lo.z + k * T->cell.z);
+}
+
+static int grow(void **p, size_t *cap, size_t need, size_t elem)
+{
+    if (need <= *cap)
+        return 0;
+    size_t c = *cap ? *cap : 256;
+    while (c < need)
+        c *= 2;
+    void *q = realloc(*p, c * elem);
+    if (!q)
+        return -1;
+    *p = q;
+    *cap = c;
+    return 0;
+}
+
+/* The surface point on grid edge (a inside, b outside): bisection. */
+static rr_vec3 edge_point(const tess *T, uint32_t a, uint32_t b)
+{
+    rr_vec3 pin = gpos(T, a), pout = gpos(T, b);
+    for (int it = 0; it < SOLID_BISECT; it++) {
+        rr_vec3 m = rr_v3_scale(rr_v3_add(pin, pout), 0.5);
+        if (rt_csg_contains(T->s, T->a, T->root, m))
+            pin = m;
+        else
+            pout = m;
+    }
+    return rr_v3_scale(rr_v3_add(pin, pout), 0.5);
+}
+
+/* The vertex on grid edge (a, b), one per edge whichever tetrahedron asks. */
+static int edge_vertex(tess *T, uint32_t a, uint32_t b, uint32_t *out)
+{
+    uint32_t lo = a < b ? a : b, hi = a < b ? b : a;
+    uint32_t v = (uint32_t)T->out->nverts;
+    uint32_t got = rad__edge_get(&T->map, lo, hi, 0, v);
+    if (got == UINT32_MAX)
+        return -1;
+    if (got == v) {
+        if (grow((void **)&T->out->verts, &T->cap_v, T->out->nverts + 1, sizeof *T->out->verts))
+            return -1;
+        T->out->verts[T->out->nverts++] = T->inside[a] ? edge_point(T, a, b) : edge_point(T, b, a);
+    }
+    *out = got;
+    return 0;
+}
+
+/* Appends triangle (a, b, c), turned so that its normal points away from
+ * `inward` (a point on the inside side); zero-area triangles (two corners at
+ * the same surface point) are left out. */
+static int emit(tess *T, uint32_t a, uint32_t b, uint32_t c, rr_vec3 inward)
+{
+    rr_vec3 A = T->out->verts[a], B = T->out->verts[b], C = T->out->verts[c];
+    rr_vec3 n = rr_v3_cross(rr_v3_sub(B, A), rr_v3_sub(C, A));
+    double h2 = rr_v3_len2(T->cell);
+    if (!(rr_v3_len(n) > 1e-12 * h2))
+        return 0;
+    rr_vec3 ctr = rr_v3_scale(rr_v3_add(rr_v3_add(A, B), C), 1.0 / 3.0);
+    if (rr_v3_dot(n, rr_v3_sub(ctr, inward)) < 0) {
+        uint32_t t = b;
+        b = c;
+        c = t;
+    }
+    if (grow((void **)&T->out->tris, &T->cap_t, T->out->ntris + 1, sizeof *T->out->tris))
+        return -1;
+    uint32_t *t = T->out->tris[T->out->ntris++];
+    t[0] = a;
+    t[1] = b;
+    t[2] = c;
+    return 0;
+}
+
+static int march_tet(tess *T, const uint32_t g[4])
+{
+    uint32_t in[4], out[4];
+    int nin = 0, nout = 0;
+    rr_vec3 cin = rr_v3(0, 0, 0);
+    for (int k = 0; k < 4; k++) {
+        if (T->inside[g[k]]) {
+            in[nin++] = g[k];
+            cin = rr_v3_add(cin, gpos(T, g[k]));
+        } else {
+            out[nout++] = g[k];
+        }
+    }
+    if (nin == 0 || nout == 0)
+        return 0;
+    cin = rr_v3_scale(cin, 1.0 / nin);
+    uint32_t v[4];
+    if (nin == 1 || nout == 1) {
+        /* One corner alone on its side: the triangle across its three edges. */
+        uint32_t lone = nin == 1 ? in[0] : out[0];
+        const uint32_t *others = nin == 1 ? out : in;
+        for (int k = 0; k < 3; k++)
+            if (edge_vertex(T, lone, others[k], &v[k]))
+                return -1;
+        return emit(T, v[0], v[1], v[2], cin);
+    }
+    /* Two and two: a quadrilateral in0-out0, in0-out1, in1-out1, in1-out0
+     * (consecutive corners share a tetrahedron face), split along a diagonal. */
+    if (edge_vertex(T, in[0], out[0], &v[0]) || edge_vertex(T, in[0], out[1], &v[1]) ||
+        edge_vertex(T, in[1], out[1], &v[2]) || edge_vertex(T, in[1], out[0], &v[3]))
+        return -1;
+    if (emit(T, v[0], v[1], v[2], cin) || emit(T, v[0], v[2], v[3], cin))
+        return -1;
+    return 0;
+}
+
+rr_status rad__solid_tessellate(const scene *s, const rt_accel *a, uint32_t obj, const rad_patch_opts *o,
+                                rad__solid_mesh *out, rr_error *err)
+{
+    memset(out, 0, sizeof *out);
+    tess T;
+    memset(&T, 0, sizeof T);
+    T.s = s;
+    T.a = a;
+    T.root = s->objects[obj].csg_root;
+    T.out = out;
+    if (!solid_grid(s, obj, o, &T.lo, &T.cell, T.n))
+        return RR_OK; /* empty solid: no patches */
+    out->grid.lo = T.lo;
+    out->grid.cell = T.cell;
+    memcpy(out->grid.n, T.n, sizeof T.n);
+    size_t npts = (size_t)(T.n[0] + 1) * (T.n[1] + 1) * (T.n[2] + 1);
+    size_t ncells = (size_t)T.n[0] * T.n[1] * T.n[2];
+    T.inside = malloc(npts);
+    out->grid.cell_first = malloc((ncells + 1) * sizeof *out->grid.cell_first);
+    if (!T.inside || !out->grid.cell_first || rad__edge_map_init(&T.map, 4 * (size_t)(T.n[0] + T.n[1] + T.n[2]) * 64))
+        goto nomem;
+    /* The inside test at every grid point: independent, so in parallel. */
+#pragma omp parallel for schedule(dynamic, 1)
+    for (long k = 0; k <= (long)T.n[2]; k++)
+        for (uint32_t j = 0; j <= T.n[1]; j++)
+            for (uint32_t i = 0; i <= T.n[0]; i++) {
+                uint32_t id = gid(&T, i, j, (uint32_t)k);
+                T.inside[id] = (unsigned char)rt_csg_contains(s, a, T.root, gpos(&T, id));
+            }
+    size_t c = 0;
+    for (uint32_t k = 0; k < T.n[2]; k++)
+        for (uint32_t j = 0; j < T.n[1]; j++)
+            for (uint32_t i = 0; i < T.n[0]; i++, c++) {
+                out->grid.cell_first[c] = (uint32_t)out->ntris;
+                uint32_t corner[8];
+                for (int q = 0; q < 8; q++)
+                    corner[q] = gid(&T, i + (q & 1), j + ((q >> 1) & 1), k + ((q >> 2) & 1));
+                for (int t = 0; t < 6; t++) {
+                    uint32_t g[4] = {corner[k_tets[t][0]], corner[k_tets[t][1]], corner[k_tets[t][2]],
+                                     corner[k_tets[t][3]]};
+                    if (march_tet(&T, g))
+                        goto nomem;
+                }
+                if (out->ntris > (size_t)1 << 31)
+                    goto toomany;
+            }
+    out->grid.cell_first[ncells] = (uint32_t)out->ntris;
+    free(T.inside);
+    rad__edge_map_free(&T.map);
+    return RR_OK;
+toomany:
+    free(T.inside);
+    rad__edge_map_free(&T.map);
+    rad__solid_mesh_free(out);
+    return rr_error_set(err, RR_ERR_LIMIT, "%s: radiosity: solid '%s' would need more than 2^31 patches", s->path,
+                        s->objects[obj].name);
+nomem:
+    free(T.inside);
+    rad__edge_map_free(&T.map);
+    rad__solid_mesh_free(out);
+    return rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory tessellating solid '%s'", s->path,
+                        s->objects[obj].name);
+}
+
+void rad__solid_mesh_free(rad__solid_mesh *m)
+{
+    free(m->verts);
+    free(m->tris);
+    free(m->grid.cell_first);
+    memset(m, 0, sizeof *m);
+}
+
+/* ---- lookups ---- */
+
+/* Squared distance from p to triangle abc (Ericson, Real-Time Collision
+ * Detection 5.1.5: the closest point by Voronoi regions). */
+static double tri_dist2(rr_vec3 p, rr_vec3 a, rr_vec3 b, rr_vec3 c)
+{
+    rr_vec3 ab = rr_v3_sub(b, a), ac = rr_v3_sub(c, a), ap = rr_v3_sub(p, a);
+    double d1 = rr_v3_dot(ab, ap), d2 = rr_v3_dot(ac, ap);
+    rr_vec3 q;
+    if (d1 <= 0 && d2 <= 0) {
+        q = a;
+    } else {
+        rr_vec3 bp = rr_v3_sub(p, b);
+        double d3 = rr_v3_dot(ab, bp), d4 = rr_v3_dot(ac, bp);
+        rr_vec3 cp = rr_v3_sub(p, c);
+        double d5 = rr_v3_dot(ab, cp), d6 = rr_v3_dot(ac, cp);
+        double vc = d1 * d4 - d3 * d2, vb = d5 * d2 - d1 * d6, va = d3 * d6 - d5 * d4;
+        if (d3 >= 0 && d4 <= d3)
+            q = b;
+        else if (d6 >= 0 && d5 <= d6)
+            q = c;
+        else if (vc <= 0 && d1 >= 0 && d3 <= 0)
+            q = rr_v3_madd(a, ab, d1 / (d1 - d3));
+        else if (vb <= 0 && d2 >= 0 && d6 <= 0)
+            q = rr_v3_madd(a, ac, d2 / (d2 - d6));
+        else if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0)
+            q = rr_v3_madd(b, rr_v3_sub(c, b), (d4 - d3) / ((d4 - d3) + (d5 - d6)));
+        else {
+            double den = 1.0 / (va + vb + vc);
+            q = rr_v3_add(a, rr_v3_add(rr_v3_scale(ab, vb * den), rr_v3_scale(ac, vc * den)));
+        }
+    }
+    return rr_v3_len2(rr_v3_sub(p, q));
+}
+
+uint32_t rad__solid_locate(const rad_patches *P, uint32_t obj, rr_vec3 p)
+{
+    const rad_solid_grid *g = &P->solid[obj];
+    if (!g->n[0] || g->cell_first[(size_t)g->n[0] * g->n[1] * g->n[2]] == g->cell_first[0])
+        return UINT32_MAX;
+    double f[3] = {(p.x - g->lo.x) / g->cell.x, (p.y - g->lo.y) / g->cell.y, (p.z - g->lo.z) / g->cell.z};
+    long c[3];
+    for (int k = 0; k < 3; k++) {
+        double x = floor(f[k]);
+        c[k] = x < 0 ? 0 : (x >= g->n[k] ? (long)g->n[k] - 1 : (long)x);
+    }
+    /* The surface lies within a cell of its tessellation: the neighbouring
+     * cells hold the nearest patch; widen the search only if they are empty. */
+    uint32_t best = UINT32_MAX;
+    double bd = INFINITY;
+    for (long r = 1; r <= 4 && best == UINT32_MAX; r *= 2)
+        for (long dk = -r; dk <= r; dk++)
+            for (long dj = -r; dj <= r; dj++)
+                for (long di = -r; di <= r; di++) {
+                    long i = c[0] + di, j = c[1] + dj, k = c[2] + dk;
+                    if (i < 0 || j < 0 || k < 0 || i >= (long)g->n[0] || j >= (long)g->n[1] || k >= (long)g->n[2])
+                        continue;
+                    size_t cell = (size_t)i + g->n[0] * ((size_t)j + g->n[1] * (size_t)k);
+                    for (uint32_t q = g->cell_first[cell]; q < g->cell_first[cell + 1]; q++) {
+                        const rad_patch *t = &P->p[q];
+                        double d = tri_dist2(p, P->verts[t->v[0]], P->verts[t->v[1]], P->verts[t->v[2]]);
+                        if (d < bd) {
+                            bd = d;
+                            best = q;
+                        }
+                    }
+                }
+    if (best == UINT32_MAX) {
+        /* Far from every patch (a feature the grid missed): the nearest by brute force. */
+        for (uint32_t q = g->cell_first[0]; q < g->cell_first[(size_t)g->n[0] * g->n[1] * g->n[2]]; q++) {
+            double d = rr_v3_len2(rr_v3_sub(p, P->p[q].centroid));
+            if (d < bd) {
+                bd = d;
+                best = q;
+            }
+        }
+    }
+    return best;
+}
+
+int rad__solid_surface(const rad_patches *P, const scene *s, const rt_accel *a, uint32_t obj, rr_vec3 x, rr_vec3 n,
+                       rr_vec3 *xs, rr_vec3 *ns, uint32_t *leaf)
+{
+    const rad_solid_grid *g = &P->solid[obj];
+    /* The facet is within about a cell of the surface: look both ways along
+     * its normal, two cell diagonals far, for the nearest boundary. */
+    double r = 2.0 * rr_v3_len(g->cell);
+    rt_spans sp;
+    rr_ray ray = {x, n};
+    rt_solid_spans(s, a, obj, ray, -r, r, &sp);
+    double bt = INFINITY;
+    const rt_span_end *be = NULL;
+    for (int k = 0; k < sp.n; k++) {
+        const rt_span_end *e[2] = {&sp.s[k].in, &sp.s[k].out};
+        for (int q = 0; q < 2; q++)
+            if (e[q]->t > -r && e[q]->t < r && fabs(e[q]->t) < fabs(bt)) {
+                bt = e[q]->t;
+                be = e[q];
+            }
+    }
+    if (!be) {
+        *xs = x;
+        *ns = n;
+        return 0;
+    }
+    *xs = rr_v3_madd(x, n, bt);
+    rr_vec3 m = rt_csg_leaf_normal(s, be->leaf, be->surface, *xs);
+    if (be->flip)
+        m = rr_v3_neg(m);
+    /* The facet's side is the front (it faces out of the solid, as m does);
+     * near a chamfered edge the two can disagree by more than 90 degrees,
+     * and the facet's own normal is then the better guess. */
+    *ns = rr_v3_dot(m, n) > 0 ? m : n;
+    if (leaf)
+        *leaf = be->leaf;
+    return 1;
+}
