@@ -206,6 +206,145 @@ static int build_rec(builder *b, size_t first, size_t count, int depth)
     return build_rec(b, first + left, count - left, depth + 1);
 }
 
+/* ---- collapse into the wide tree ---- */
+
+typedef struct collapser {
+    const rt_node *bin;
+    rt_wnode *w;
+    size_t nw, cap;
+} collapser;
+
+static double node_area(const rt_node *n)
+{
+    double dx = (double)n->hi[0] - n->lo[0], dy = (double)n->hi[1] - n->lo[1], dz = (double)n->hi[2] - n->lo[2];
+    return dx * dy + dy * dz + dz * dx;
+}
+
+/* Children of binary inner node `bi` for a wide node: starts from its two
+ * children and keeps opening the inner child of largest surface area (the one
+ * most rays enter) until RT_WIDE children or only leaves are left. */
+static int gather(const rt_node *bin, uint32_t bi, uint32_t out[RT_WIDE])
+{
+    int m = 2;
+    out[0] = bi + 1;
+    out[1] = bin[bi].index;
+    while (m < RT_WIDE) {
+        int best = -1;
+        double best_area = -1.0;
+        for (int i = 0; i < m; i++) {
+            if (bin[out[i]].count == 0 && node_area(&bin[out[i]]) > best_area) {
+                best_area = node_area(&bin[out[i]]);
+                best = i;
+            }
+        }
+        if (best < 0)
+            break;
+        uint32_t o = out[best];
+        out[best] = o + 1;
+        out[m++] = bin[o].index;
+    }
+    return m;
+}
+
+/* Writes the wide node for binary inner node bi (and, depth first, its
+ * subtree); returns its index or -1 when out of memory. */
+static long collapse_rec(collapser *c, uint32_t bi)
+{
+    if (c->nw == c->cap) {
+        size_t cap = c->cap ? 2 * c->cap : 256;
+        rt_wnode *w = realloc(c->w, cap * sizeof *w);
+        if (!w)
+            return -1;
+        c->w = w;
+        c->cap = cap;
+    }
+    size_t idx = c->nw++;
+    uint32_t kids[RT_WIDE];
+    int m = gather(c->bin, bi, kids);
+    rt_wnode wn;
+    for (int i = 0; i < RT_WIDE; i++) {
+        wn.child[i] = RT_EMPTY;
+        wn.pad[i] = 0;
+        for (int k = 0; k < 3; k++) {
+            wn.b[2 * k][i] = INFINITY; /* empty box: missed by every ray */
+            wn.b[2 * k + 1][i] = -INFINITY;
+        }
+    }
+    for (int i = 0; i < m; i++) {
+        const rt_node *ch = &c->bin[kids[i]];
+        for (int k = 0; k < 3; k++) {
+            wn.b[2 * k][i] = ch->lo[k];
+            wn.b[2 * k + 1][i] = ch->hi[k];
+        }
+        if (ch->count) {
+            wn.child[i] = RT_LEAF | ch->index;
+        } else {
+            long sub = collapse_rec(c, kids[i]);
+            if (sub < 0)
+                return -1;
+            wn.child[i] = (uint32_t)sub;
+        }
+    }
+    c->w[idx] = wn;
+    return (long)idx;
+}
+
+/* The wide tree over binary tree bin (nbin nodes, bin[0] the root). A root
+ * that is a leaf gets a wide node with that one child. */
+static int collapse(const rt_node *bin, rt_wnode **out, size_t *nout)
+{
+    collapser c = {bin, NULL, 0, 0};
+    if (bin[0].count) {
+        c.w = malloc(sizeof *c.w);
+        if (!c.w)
+            return -1;
+        rt_wnode *wn = c.w;
+        for (int i = 0; i < RT_WIDE; i++) {
+            wn->child[i] = RT_EMPTY;
+            wn->pad[i] = 0;
+            for (int k = 0; k < 3; k++) {
+                wn->b[2 * k][i] = i ? INFINITY : bin[0].lo[k];
+                wn->b[2 * k + 1][i] = i ? -INFINITY : bin[0].hi[k];
+            }
+        }
+        wn->child[0] = RT_LEAF | bin[0].index;
+        c.nw = 1;
+    } else if (collapse_rec(&c, 0) < 0) {
+        free(c.w);
+        return -1;
+    }
+    *out = c.w;
+    *nout = c.nw;
+    return 0;
+}
+
+/* Leaf records in leaf order, the last of each leaf flagged. */
+static void fill_records(const scene *s, const rt_node *bin, size_t nbin, const build_item *items, size_t n,
+                         rt_rec *recs)
+{
+    for (size_t i = 0; i < n; i++) {
+        rt_prim pr = items[i].prim;
+        rt_rec *r = &recs[i];
+        memset(r, 0, sizeof *r);
+        r->index = pr.index;
+        r->flags = pr.kind & RT_REC_KIND;
+        if (pr.kind == RT_PRIM_TRIANGLE) {
+            const scene_tri *t = &s->tris[pr.index];
+            for (int k = 0; k < 3; k++) {
+                rr_vec3 v = s->verts[t->v[k]];
+                r->v[k][0] = v.x;
+                r->v[k][1] = v.y;
+                r->v[k][2] = v.z;
+            }
+            if (s->objects[t->object].cull_backfaces)
+                r->flags |= RT_REC_CULL;
+        }
+    }
+    for (size_t i = 0; i < nbin; i++)
+        if (bin[i].count)
+            recs[bin[i].index + bin[i].count - 1].flags |= RT_REC_LAST;
+}
+
 rr_status rt_accel_build(const scene *s, rt_accel **out, rr_error *err)
 {
     size_t n = rt__prim_count(s);
@@ -230,16 +369,17 @@ rr_status rt_accel_build(const scene *s, rt_accel **out, rr_error *err)
     if (n && build_rec(&b, 0, n, 0))
         goto nomem;
     a->scene = s;
-    a->nodes = b.nodes;
-    a->nnodes = b.nnodes;
-    a->nprims = n;
-    a->prims = n ? malloc(n * sizeof *a->prims) : NULL;
-    if (n && !a->prims)
-        goto nomem;
-    for (size_t i = 0; i < n; i++)
-        a->prims[i] = b.items[i].prim;
+    if (n) {
+        a->recs = malloc(n * sizeof *a->recs);
+        if (!a->recs || collapse(b.nodes, &a->wnodes, &a->nwnodes))
+            goto nomem;
+        a->nrecs = n;
+        fill_records(s, b.nodes, b.nnodes, b.items, n, a->recs);
+    }
     free(b.items);
+    free(b.nodes);
     b.items = NULL;
+    b.nodes = NULL;
     rr_status st = rt__solids_build(s, &a->solids, err);
     if (st != RR_OK) {
         rt_accel_destroy(a);
@@ -250,8 +390,10 @@ rr_status rt_accel_build(const scene *s, rt_accel **out, rr_error *err)
 nomem:
     free(b.items);
     free(b.nodes);
-    if (a)
-        free(a->prims);
+    if (a) {
+        free(a->recs);
+        free(a->wnodes);
+    }
     free(a);
     return rr_error_set(err, RR_ERR_NOMEM, "%s: out of memory building the BVH over %zu primitives", s->path, n);
 }
@@ -260,10 +402,10 @@ void rt_accel_destroy(rt_accel *a)
 {
     if (!a)
         return;
-    free(a->nodes);
-    free(a->prims);
+    free(a->wnodes);
+    free(a->recs);
     rt__solids_destroy(a->solids);
     free(a);
 }
 
-size_t rt_accel_node_count(const rt_accel *a) { return a->nnodes; }
+size_t rt_accel_node_count(const rt_accel *a) { return a->nwnodes; }

@@ -4,7 +4,9 @@
 
 #include "rt.h"
 
-/* Build depth limit = traversal stack size. */
+/* Build depth limit of the binary build tree. The wide tree is no deeper, and
+ * each wide level pushes at most RT_WIDE - 1 entries, so this bounds the
+ * traversal stack (RT_STACK_SIZE). */
 #define RT_BVH_STACK 64
 
 typedef enum rt_prim_kind { RT_PRIM_TRIANGLE = 0, RT_PRIM_SPHERE = 1, RT_PRIM_SOLID = 2 } rt_prim_kind;
@@ -16,8 +18,9 @@ typedef struct rt_prim {
     uint32_t index;
 } rt_prim;
 
-/* 32 bytes. Inner node (count == 0): left child is the next node, right child
- * is nodes[index]; leaf: prims[index .. index + count). */
+/* 32 bytes: a node of the binary build tree (rt_bvh.c builds it, then collapses
+ * it into rt_wnode; it is not kept). Inner node (count == 0): left child is the
+ * next node, right child is nodes[index]; leaf: items[index .. index + count). */
 typedef struct rt_node {
     float lo[3], hi[3];
     uint32_t index;
@@ -25,22 +28,67 @@ typedef struct rt_node {
     uint16_t axis;
 } rt_node;
 
+/* ---- the wide BVH the queries walk ----
+ *
+ * RT_WIDE children per node, their boxes stored SoA as floats rounded outward
+ * (so a box still contains its primitives exactly): b[2k] = lower bounds on
+ * axis k, b[2k+1] = upper bounds, one lane per child. An unused lane has the
+ * empty box lo = +inf, hi = -inf, which every ray misses (no NaN arises from
+ * it, see rt_wide.h). 128 bytes, two cache lines.
+ *
+ * child[i]: an inner node's index in wnodes, or RT_LEAF | the index of the
+ * leaf's first primitive record; a leaf runs to the record flagged
+ * RT_REC_LAST. */
+#define RT_WIDE 4
+#define RT_LEAF 0x80000000u
+#define RT_EMPTY 0xffffffffu
+#define RT_STACK_SIZE ((RT_WIDE - 1) * RT_BVH_STACK + 1)
+
+typedef struct rt_wnode {
+    float b[6][RT_WIDE];
+    uint32_t child[RT_WIDE];
+    uint32_t pad[RT_WIDE];
+} rt_wnode;
+
+/* A leaf primitive record, in leaf order: the primitive (kind in flags) and,
+ * for triangles, a private copy of its three vertices, so the triangle test
+ * reads one contiguous record instead of scene->tris -> scene->verts ->
+ * scene->objects. 80 bytes. */
+#define RT_REC_KIND 0x3u  /* rt_prim_kind */
+#define RT_REC_CULL 0x4u  /* triangle of an object that culls back faces */
+#define RT_REC_LAST 0x8u  /* last record of its leaf */
+typedef struct rt_rec {
+    double v[3][3]; /* triangles: vertices A, B, C (scene->verts, unchanged); else unused */
+    uint32_t index; /* scene triangle index, or object index (rt_prim.index) */
+    uint32_t flags;
+} rt_rec;
+
 struct rt_accel {
     const scene *scene;
-    rt_node *nodes;
-    size_t nnodes;
-    rt_prim *prims;
-    size_t nprims;
+    rt_wnode *wnodes; /* wnodes[0] is the root; NULL when the scene has no primitives */
+    size_t nwnodes;
+    rt_rec *recs;
+    size_t nrecs;
     struct rt_solid_accel *solids; /* per-mesh-leaf BVHs of the scene's solids (rt_solid.c); NULL if none */
 };
 
-/* Per-ray constants of the watertight test (Woop et al. 2013) and the slab test. */
+/* Per-ray constants of the watertight test (Woop et al. 2013) and the slab
+ * tests (rt_wide.h). */
 typedef struct rt_ray_pre {
     rr_ray ray;
     int kx, ky, kz;
     double Sx, Sy, Sz;
     double inv[3];
-    int neg[3];
+    int neg[3]; /* the sign bit of d (so -0 counts as negative, like 1/-0 = -inf) */
+    /* Float slab test: the origin rounded towards the near planes (org_near)
+     * and towards the far planes (org_far), 1/d rounded to float, and which
+     * row of rt_wnode.b holds each axis's near planes (2k + neg[k]). */
+    float org_near[3], org_far[3], inv_f[3];
+    int near_row[3];
+    /* 1 when the float test is not safe for this ray (coordinates beyond
+     * 1e30, direction components outside [1e-30, 1e30], tmin < 0): the
+     * double test is used instead. */
+    int box_double;
 } rt_ray_pre;
 
 void rt__ray_prepare(rr_ray ray, rt_ray_pre *p);

@@ -1,13 +1,22 @@
-/* rt_traverse.c - ray queries through the BVH: closest hit and any hit.
+/* rt_traverse.c - ray queries through the wide BVH: closest hit and any hit.
  *
  * Both walk the same nodes with the same per-primitive kernels; the only
- * difference is that the any-hit query returns at the first occluder. */
-#include "rt_internal.h"
+ * difference is that the any-hit query returns at the first occluder.
+ *
+ * Ordered traversal: the children a ray enters are visited nearest entry
+ * first; the others go on the stack with their entry distance, and an entry
+ * taken from the stack that lies beyond the best hit so far is dropped without
+ * touching its node. Triangles are tested from the leaf records (rt_rec, a
+ * private copy of the vertices), other primitives through rt__prim_hit. */
+#include <float.h>
+
+#include "rt_wide.h"
 
 void rt__ray_prepare(rr_ray ray, rt_ray_pre *p)
 {
     p->ray = ray;
     double d[3] = {ray.d.x, ray.d.y, ray.d.z};
+    double o[3] = {ray.o.x, ray.o.y, ray.o.z};
     /* kz: the dimension where the direction is largest, so the shear is stable. */
     int kz = fabs(d[0]) > fabs(d[1]) ? (fabs(d[0]) > fabs(d[2]) ? 0 : 2) : (fabs(d[1]) > fabs(d[2]) ? 1 : 2);
     int kx = (kz + 1) % 3, ky = (kx + 1) % 3;
@@ -22,9 +31,21 @@ void rt__ray_prepare(rr_ray ray, rt_ray_pre *p)
     p->Sx = d[kx] / d[kz];
     p->Sy = d[ky] / d[kz];
     p->Sz = 1.0 / d[kz];
+    p->box_double = 0;
     for (int i = 0; i < 3; i++) {
-        p->inv[i] = 1.0 / d[i]; /* +-inf for a zero component: the slab test handles it */
-        p->neg[i] = d[i] < 0.0;
+        p->inv[i] = 1.0 / d[i]; /* +-inf for a zero component: the slab tests handle it */
+        /* The sign bit, not d < 0: for d = -0, 1/d = -inf and the near plane is
+         * the upper one (with d < 0 a ray parallel to a slab with d = -0 missed
+         * every box whose slab it lies in). */
+        p->neg[i] = signbit(d[i]) ? 1 : 0;
+        p->near_row[i] = 2 * i + p->neg[i];
+        float up = rt__f_up(o[i]), down = rt__f_down(o[i]);
+        p->org_near[i] = p->neg[i] ? down : up;
+        p->org_far[i] = p->neg[i] ? up : down;
+        p->inv_f[i] = (float)p->inv[i];
+        double ad = fabs(d[i]);
+        if (!(fabs(o[i]) < 1e30) || (ad != 0.0 && !(ad > 1e-30 && ad < 1e30)))
+            p->box_double = 1;
     }
 }
 
@@ -69,99 +90,138 @@ int rt__tri_hit(const rt_ray_pre *p, rr_vec3 A, rr_vec3 B, rr_vec3 C, int cull, 
     return 1;
 }
 
-/* Slab test against a node box; returns the entry distance or INFINITY. */
-static double node_entry(const rt_node *n, const rt_ray_pre *p, double tmin, double tmax)
+/* Fills hit for scene triangle `tri` met with `front` at t (as rt__prim_hit does). */
+static void tri_fill(const scene *s, uint32_t tri, int front, double t, rt_hit *hit)
 {
-    const double o[3] = {p->ray.o.x, p->ray.o.y, p->ray.o.z};
-    double t0 = tmin, t1 = tmax;
-    for (int i = 0; i < 3; i++) {
-        double lo = (double)(p->neg[i] ? n->hi[i] : n->lo[i]);
-        double hi = (double)(p->neg[i] ? n->lo[i] : n->hi[i]);
-        double ta = (lo - o[i]) * p->inv[i];
-        double tb = (hi - o[i]) * p->inv[i];
-        /* 0 * inf = NaN when the origin lies on a slab plane of an axis the
-         * ray is parallel to: treat as "inside that slab". */
-        if (ta != ta)
-            ta = -INFINITY;
-        if (tb != tb)
-            tb = INFINITY;
-        if (ta > t0)
-            t0 = ta;
-        /* Widen the exit a little (Ize 2013: 1 + 2 gamma(3)) so rounding in the
-         * slab arithmetic can never cull a box the ray really touches. */
-        tb *= 1.0 + 6.7e-16;
-        if (tb < t1)
-            t1 = tb;
-    }
-    return t0 <= t1 ? t0 : INFINITY;
+    const scene_tri *tr = &s->tris[tri];
+    rr_vec3 n = scene_tri_normal(s, tri);
+    hit->tri = (int64_t)tri;
+    hit->part = -1;
+    hit->object = tr->object;
+    hit->material = tr->material;
+    hit->normal = front ? n : rr_v3_neg(n);
+    hit->t = t;
+    hit->front = front;
 }
+
+typedef struct stack_entry {
+    uint32_t ref;
+    float dist;
+} stack_entry;
 
 /* Shared walk: any != 0 returns at the first hit. */
 static int traverse(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_hit *hit, int any)
 {
-    if (a->nnodes == 0)
+    if (a->nwnodes == 0)
         return 0;
     rt_ray_pre p;
     rt__ray_prepare(ray, &p);
-    uint32_t stack[RT_BVH_STACK];
+    if (!(tmin >= 0.0))
+        p.box_double = 1;
+    const float grow = 1.0f + RT_BOX_GROW;
+    const float tmin_f = rt__f_down(tmin);
+    stack_entry stack[RT_STACK_SIZE];
     int sp = 0;
-    uint32_t cur = 0;
+    uint32_t cur = 0; /* the root */
     int found = 0;
+    /* A triangle hit is filled in at the end (one normal instead of one per
+     * improving hit); tri_best >= 0 says the best hit is that triangle. */
+    int64_t tri_best = -1;
+    int tri_front = 0;
     double best = tmax;
-    if (node_entry(&a->nodes[0], &p, tmin, best) == INFINITY)
-        return 0;
+    float best_f = rt__f_up(best);
+    float cull = best_f * grow;
     for (;;) {
-        const rt_node *n = &a->nodes[cur];
-        if (n->count) {
-            for (uint32_t i = 0; i < n->count; i++) {
-                if (rt__prim_hit(a, a->prims[n->index + i], &p, tmin, &best, any ? NULL : hit)) {
-                    found = 1;
-                    if (any)
-                        return 1;
+        if (!(cur & RT_LEAF)) {
+            const rt_wnode *n = &a->wnodes[cur];
+            float dist[RT_WIDE];
+            unsigned mask = p.box_double ? rt__box4_double(n, &p, tmin, best, dist)
+                                         : rt__box4(n, &p, tmin_f, best_f, dist);
+            if (mask) {
+                /* Collect the children entered, then push all but the nearest,
+                 * farthest first. */
+                uint32_t ref[RT_WIDE];
+                float d[RT_WIDE];
+                int m = 0;
+                for (; mask; mask &= mask - 1) {
+                    int i = __builtin_ctz(mask);
+                    uint32_t r = n->child[i];
+                    float di = dist[i];
+                    int j = m++;
+                    /* insertion sort, descending distance */
+                    while (j > 0 && d[j - 1] < di) {
+                        d[j] = d[j - 1];
+                        ref[j] = ref[j - 1];
+                        j--;
+                    }
+                    d[j] = di;
+                    ref[j] = r;
                 }
+                RR_CHECK(sp + m - 1 <= RT_STACK_SIZE);
+                for (int j = 0; j < m - 1; j++) {
+                    stack[sp].ref = ref[j];
+                    stack[sp].dist = d[j];
+                    sp++;
+                }
+                cur = ref[m - 1];
+                continue;
             }
         } else {
-            /* Near child first (by the ray's direction on the split axis). */
-            uint32_t first = cur + 1, second = n->index;
-            if (p.neg[n->axis]) {
-                uint32_t t = first;
-                first = second;
-                second = t;
-            }
-            double t1 = node_entry(&a->nodes[first], &p, tmin, best);
-            double t2 = node_entry(&a->nodes[second], &p, tmin, best);
-            if (t1 != INFINITY && t2 != INFINITY) {
-                if (t2 < t1) {
-                    uint32_t t = first;
-                    first = second;
-                    second = t;
+            const rt_rec *r = &a->recs[cur & ~RT_LEAF];
+            for (;; r++) {
+                uint32_t fl = r->flags;
+#ifdef RT_ABLATE_TRI_COPY /* measurement only: triangles through the scene arrays */
+                if (0) {
+#else
+                if ((fl & RT_REC_KIND) == RT_PRIM_TRIANGLE) {
+#endif
+                    double t;
+                    int front;
+                    rr_vec3 A = rr_v3(r->v[0][0], r->v[0][1], r->v[0][2]);
+                    rr_vec3 B = rr_v3(r->v[1][0], r->v[1][1], r->v[1][2]);
+                    rr_vec3 C = rr_v3(r->v[2][0], r->v[2][1], r->v[2][2]);
+                    if (rt__tri_hit(&p, A, B, C, (fl & RT_REC_CULL) != 0, tmin, best, &t, &front)) {
+                        if (any)
+                            return 1;
+                        found = 1;
+                        best = t;
+                        tri_best = r->index;
+                        tri_front = front;
+                        best_f = rt__f_up(best);
+                        cull = best_f * grow;
+                    }
+                } else {
+                    rt_prim pr = {fl & RT_REC_KIND, r->index};
+                    if (rt__prim_hit(a, pr, &p, tmin, &best, any ? NULL : hit)) {
+                        if (any)
+                            return 1;
+                        found = 1;
+                        tri_best = -1;
+                        best_f = rt__f_up(best);
+                        cull = best_f * grow;
+                    }
                 }
-                RR_CHECK(sp < RT_BVH_STACK);
-                stack[sp++] = second;
-                cur = first;
-                continue;
-            }
-            if (t1 != INFINITY) {
-                cur = first;
-                continue;
-            }
-            if (t2 != INFINITY) {
-                cur = second;
-                continue;
+                if (fl & RT_REC_LAST)
+                    break;
             }
         }
-        /* Pop, skipping nodes that are now farther than the best hit. */
+        /* Pop, dropping entries that now lie beyond the best hit. */
         for (;;) {
             if (sp == 0)
                 goto out;
-            cur = stack[--sp];
-            if (node_entry(&a->nodes[cur], &p, tmin, best) != INFINITY)
+            sp--;
+            if (!(stack[sp].dist > cull)) {
+                cur = stack[sp].ref;
                 break;
+            }
         }
     }
 out:
-    if (found && hit)
+    if (found && hit) {
+        if (tri_best >= 0)
+            tri_fill(a->scene, (uint32_t)tri_best, tri_front, best, hit);
         hit->point = rr_ray_at(ray, hit->t);
+    }
     return found;
 }
 

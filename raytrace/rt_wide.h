@@ -1,0 +1,142 @@
+/* rt_wide.h - private to raytrace/: the slab test of one wide node against a
+ * ray, all RT_WIDE children at once.
+ *
+ * Three versions with one contract (tests/test_raytrace.c checks that they
+ * agree and that none culls a box the ray touches):
+ *   rt__box4_scalar  float, plain C (the portable fallback, RADRAY_SIMD=OFF)
+ *   rt__box4_sse     float, SSE2 (x86-64 always has it; RADRAY_SIMD=SSE/AUTO)
+ *   rt__box4_double  double, for the rays the float test cannot take
+ *                    (rt_ray_pre.box_double), and as the reference in tests
+ * rt__box4 is the one the build selected (RT_SIMD, set by CMake).
+ *
+ * Contract: returns a bit mask of the children whose box the ray meets within
+ * [tmin, tmax], up to rounding and always erring on the side of "meets" (a box
+ * the ray touches in that interval is never culled). For the children in the
+ * mask, dist[i] <= (exact entry distance) * (1 + RT_BOX_GROW), so a child
+ * taken from the stack whose dist exceeds the best hit's t times
+ * (1 + RT_BOX_GROW) cannot hold a nearer hit and is skipped.
+ *
+ * Why the float test is conservative (Ize 2013, "Robust BVH ray traversal",
+ * JCGT 2(2)): the box planes are floats rounded outward at build time. The
+ * double origin is rounded to float twice, towards each slab's near plane
+ * (org_near) and towards its far plane (org_far), so that plane - origin is
+ * never smaller than the exact value on the far side and never larger on the
+ * near side, whatever the direction's sign. What remains are three roundings
+ * (the difference, 1/d, the product), each of relative size at most 2^-24 and
+ * sign-preserving: an entry distance comes out at most (1 + g3) too large, an
+ * exit at most (1 - g3) too small, g3 = 3u/(1-3u). Scaling the exit by
+ * (1 + g3)/(1 - g3) < 1 + RT_BOX_GROW therefore keeps every box whose exact
+ * entry <= exit. tmin is rounded down and tmax up (callers pass them so).
+ *
+ * Zero direction components: 1/+-0 = +-inf, and (plane - origin) * inf is
+ * +-inf, or NaN when the origin lies on the plane. MINPS/MAXPS return their
+ * second operand when either is NaN, so with the running bound as the second
+ * operand a NaN slab does not restrict the interval ("inside that slab"), as
+ * in the double test; the scalar version writes the same comparisons. The
+ * empty lanes (lo = +inf, hi = -inf) give entry +inf, exit -inf for every
+ * direction, never NaN: always missed.
+ */
+#ifndef RT_WIDE_H
+#define RT_WIDE_H
+
+#include "rt_internal.h"
+
+#if defined(RT_SIMD) && RT_SIMD >= 1
+#include <emmintrin.h>
+#endif
+
+/* 1 + RT_BOX_GROW >= (1 + g3) / (1 - g3) with g3 = 3 * 2^-24 / (1 - 3 * 2^-24)
+ * (about 1 + 3.6e-7), with room to spare. */
+#define RT_BOX_GROW 4.8e-7f
+
+/* Float nearest to x rounded up / down (x a double). */
+static inline float rt__f_up(double x)
+{
+    float f = (float)x;
+    return (double)f < x ? nextafterf(f, INFINITY) : f;
+}
+static inline float rt__f_down(double x)
+{
+    float f = (float)x;
+    return (double)f > x ? nextafterf(f, -INFINITY) : f;
+}
+
+static inline unsigned rt__box4_scalar(const rt_wnode *n, const rt_ray_pre *p, float tmin, float tmax,
+                                       float dist[RT_WIDE])
+{
+    unsigned mask = 0;
+    for (int i = 0; i < RT_WIDE; i++) {
+        float t0 = tmin, t1 = INFINITY;
+        for (int k = 0; k < 3; k++) {
+            float ta = (n->b[p->near_row[k]][i] - p->org_near[k]) * p->inv_f[k];
+            float tb = (n->b[p->near_row[k] ^ 1][i] - p->org_far[k]) * p->inv_f[k];
+            t0 = ta > t0 ? ta : t0; /* NaN: keeps t0, like MAXPS(ta, t0) */
+            t1 = tb < t1 ? tb : t1;
+        }
+        t1 *= 1.0f + RT_BOX_GROW;
+        t1 = tmax < t1 ? tmax : t1;
+        dist[i] = t0;
+        mask |= (unsigned)(t0 <= t1) << i;
+    }
+    return mask;
+}
+
+#if defined(RT_SIMD) && RT_SIMD >= 1
+static inline unsigned rt__box4_sse(const rt_wnode *n, const rt_ray_pre *p, float tmin, float tmax,
+                                    float dist[RT_WIDE])
+{
+    const int nx = p->near_row[0], ny = p->near_row[1], nz = p->near_row[2];
+    __m128 tx0 = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(n->b[nx]), _mm_set1_ps(p->org_near[0])), _mm_set1_ps(p->inv_f[0]));
+    __m128 ty0 = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(n->b[ny]), _mm_set1_ps(p->org_near[1])), _mm_set1_ps(p->inv_f[1]));
+    __m128 tz0 = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(n->b[nz]), _mm_set1_ps(p->org_near[2])), _mm_set1_ps(p->inv_f[2]));
+    __m128 tx1 =
+        _mm_mul_ps(_mm_sub_ps(_mm_load_ps(n->b[nx ^ 1]), _mm_set1_ps(p->org_far[0])), _mm_set1_ps(p->inv_f[0]));
+    __m128 ty1 =
+        _mm_mul_ps(_mm_sub_ps(_mm_load_ps(n->b[ny ^ 1]), _mm_set1_ps(p->org_far[1])), _mm_set1_ps(p->inv_f[1]));
+    __m128 tz1 =
+        _mm_mul_ps(_mm_sub_ps(_mm_load_ps(n->b[nz ^ 1]), _mm_set1_ps(p->org_far[2])), _mm_set1_ps(p->inv_f[2]));
+    /* Running bound second: a NaN slab leaves it as it is. */
+    __m128 t0 = _mm_max_ps(tz0, _mm_max_ps(ty0, _mm_max_ps(tx0, _mm_set1_ps(tmin))));
+    __m128 t1 = _mm_min_ps(tz1, _mm_min_ps(ty1, _mm_min_ps(tx1, _mm_set1_ps(INFINITY))));
+    t1 = _mm_min_ps(_mm_set1_ps(tmax), _mm_mul_ps(t1, _mm_set1_ps(1.0f + RT_BOX_GROW)));
+    _mm_storeu_ps(dist, t0);
+    return (unsigned)_mm_movemask_ps(_mm_cmple_ps(t0, t1));
+}
+#endif
+
+/* The double test (the binary BVH's node_entry, for each lane): exact up to
+ * the double roundings, which the exit widening by (1 + 2 g3 in double)
+ * covers. dist is the entry rounded down to float. */
+static inline unsigned rt__box4_double(const rt_wnode *n, const rt_ray_pre *p, double tmin, double tmax,
+                                       float dist[RT_WIDE])
+{
+    const double o[3] = {p->ray.o.x, p->ray.o.y, p->ray.o.z};
+    unsigned mask = 0;
+    for (int i = 0; i < RT_WIDE; i++) {
+        double t0 = tmin, t1 = tmax;
+        for (int k = 0; k < 3; k++) {
+            double ta = ((double)n->b[2 * k + p->neg[k]][i] - o[k]) * p->inv[k];
+            double tb = ((double)n->b[2 * k + 1 - p->neg[k]][i] - o[k]) * p->inv[k];
+            if (ta != ta)
+                ta = -INFINITY;
+            if (tb != tb)
+                tb = INFINITY;
+            if (ta > t0)
+                t0 = ta;
+            tb *= 1.0 + 6.7e-16;
+            if (tb < t1)
+                t1 = tb;
+        }
+        dist[i] = rt__f_down(t0);
+        mask |= (unsigned)(t0 <= t1) << i;
+    }
+    return mask;
+}
+
+#if defined(RT_SIMD) && RT_SIMD >= 1
+#define rt__box4 rt__box4_sse
+#else
+#define rt__box4 rt__box4_scalar
+#endif
+
+#endif
