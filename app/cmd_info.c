@@ -31,11 +31,46 @@ static const char *kind_name(scene_object_kind k)
     return "?";
 }
 
-static void print_topology(const scene_object *o)
+/* "closed (csg difference, 3 leaves: 1 sphere, 2 box)" or "closed (quadric cylinder)". */
+static void print_solid(const scene *s, const scene_object *o)
+{
+    static const char *const ops[] = {"leaf", "union", "intersection", "difference"};
+    static const char *const solids[] = {"sphere", "quadric", "box", "mesh"};
+    static const char *const shapes[] = {"general", "ellipsoid", "cylinder", "cone", "paraboloid", "hyperboloid"};
+    const scene_csg_node *root = &s->csg[o->csg_root];
+    if (root->op == SCENE_CSG_LEAF) {
+        printf("closed (%s", solids[root->solid & 3]);
+        if (root->solid == SCENE_SOLID_QUADRIC && (unsigned)root->shape < 6)
+            printf(" %s", shapes[root->shape]);
+        printf(")");
+        return;
+    }
+    /* The object's nodes are contiguous and end at its root. */
+    size_t nleaves = 0, count[4] = {0, 0, 0, 0};
+    for (size_t i = 0; i <= o->csg_root; i++)
+        if (s->csg[i].object == (uint32_t)(o - s->objects) && s->csg[i].op == SCENE_CSG_LEAF) {
+            nleaves++;
+            count[s->csg[i].solid & 3]++;
+        }
+    printf("closed (csg %s, %zu leaves:", ops[root->op & 3], nleaves);
+    const char *sep = " ";
+    for (int k = 0; k < 4; k++)
+        if (count[k]) {
+            printf("%s%zu %s", sep, count[k], solids[k]);
+            sep = ", ";
+        }
+    printf(")");
+}
+
+static void print_topology(const scene *s, const scene_object *o)
 {
     const mesh_report *r = &o->report;
     if (o->kind == SCENE_OBJ_SPHERE) {
         printf("closed (analytic)");
+        return;
+    }
+    if (o->kind == SCENE_OBJ_CSG) {
+        print_solid(s, o);
         return;
     }
     if (r->watertight)
@@ -115,7 +150,7 @@ int app_cmd_info(int argc, char **argv)
         const scene_object *o = &s->objects[i];
         printf("  %-16s %-9s %7zu tri  material %-10s cull %-3s  ", o->name, kind_name(o->kind), o->tri_count,
                s->materials[o->material].name, o->cull_backfaces ? "yes" : "no");
-        print_topology(o);
+        print_topology(s, o);
         if (o->source[0])
             printf("  [%s]", o->source);
         printf("\n");

@@ -66,11 +66,19 @@ static void compute_bbox(scene *s)
     }
     for (size_t i = 0; i < s->nobjects; i++) {
         const scene_object *o = &s->objects[i];
-        if (o->kind != SCENE_OBJ_SPHERE)
-            continue;
-        rr_vec3 r = rr_v3(o->radius, o->radius, o->radius);
-        lo = rr_v3_min(lo, rr_v3_sub(o->center, r));
-        hi = rr_v3_max(hi, rr_v3_add(o->center, r));
+        if (o->kind == SCENE_OBJ_SPHERE) {
+            rr_vec3 r = rr_v3(o->radius, o->radius, o->radius);
+            lo = rr_v3_min(lo, rr_v3_sub(o->center, r));
+            hi = rr_v3_max(hi, rr_v3_add(o->center, r));
+        } else if (o->kind == SCENE_OBJ_CSG) {
+            /* The root's bounds, already pruned by the ops; an empty solid
+             * (lo > hi, warned about at load) adds nothing. */
+            const scene_csg_node *r = &s->csg[o->csg_root];
+            if (r->bbox_lo.x <= r->bbox_hi.x && r->bbox_lo.y <= r->bbox_hi.y && r->bbox_lo.z <= r->bbox_hi.z) {
+                lo = rr_v3_min(lo, r->bbox_lo);
+                hi = rr_v3_max(hi, r->bbox_hi);
+            }
+        }
     }
     if (!(lo.x <= hi.x)) /* nothing at all (cannot happen: objects are required) */
         lo = hi = rr_v3(0, 0, 0);

@@ -8,6 +8,7 @@
  *   scene_parse.c    camera, render settings, materials, lights
  *   scene_xform.c    an object's transform steps
  *   scene_objects.c  objects: shapes, transforms, triangles into the scene
+ *   scene_csg.c      solids: "quadric" and "csg" objects into scene->csg
  *   scene.c          the public API, the top level, and the finishing passes
  *                    (bounding box, emissive triangle list)
  *
@@ -115,7 +116,47 @@ rr_status sp_parse_transform(const sp_ctx *c, const cJSON *obj, const char *opat
 
 /* ---- scene_objects.c ---- */
 
-/* Fills s->objects, s->verts, s->normals and s->tris. Needs s->materials. */
+/* Capacities of the scene arrays that grow while objects are parsed. */
+typedef struct sp_build {
+    size_t cap_verts, cap_tris;         /* s->verts (and s->normals), s->tris */
+    size_t cap_csg;                     /* s->csg */
+    size_t cap_csg_verts, cap_csg_tris; /* s->csg_verts, s->csg_tris */
+} sp_build;
+
+/* Fills s->objects, s->verts, s->normals and s->tris (and, through
+ * sp_parse_solid, s->csg, s->csg_verts, s->csg_tris). Needs s->materials. */
 rr_status sp_parse_objects(const sp_ctx *c, const cJSON *root, scene *s);
+
+/* obj's required "material" (a name from s->materials) into *out. */
+rr_status sp_find_material(const sp_ctx *c, const cJSON *obj, const char *opath, const scene *s, uint32_t *out);
+
+/* Twice the area below 1e-12 of the longest edge squared: no usable normal. */
+int sp_tri_degenerate(rr_vec3 a, rr_vec3 b, rr_vec3 c);
+
+/* The "mesh" object's path for obj's "file" (relative to c->base_dir):
+ * loads it, applies x (when has_x) with the winding reversed when x mirrors
+ * XOR flip, and hands back the mesh (the caller frees it with mesh_destroy).
+ * source (4096 bytes) receives the resolved path. Degenerate triangles are
+ * kept; nothing is analysed. */
+rr_status sp_load_mesh(const sp_ctx *c, const cJSON *obj, const char *opath, const rr_xform *x, int has_x, int flip,
+                       char *source, mesh_tri **out);
+
+/* ---- scene_csg.c ---- */
+
+/* Deepest root-to-leaf path of a stored CSG tree, in nodes (a lone leaf is 1
+ * deep). n-ary children fold left into a chain, so a node with n children
+ * adds n - 1 levels. Bounds the ray tracer's recursion and span stacks. */
+#define SP_CSG_DEPTH_MAX 32
+
+/* Checks the keys of a solid (a "quadric" or "csg" object, or any CSG child
+ * when top is 0: then "name" and "cull" are refused, "material" optional). */
+rr_status sp_solid_check_keys(const sp_ctx *c, const cJSON *obj, const char *path, int top);
+
+/* Builds object oi (a "quadric" or "csg"; keys checked, its material, name,
+ * cull and transform x already parsed into s->objects[oi]) into s->csg and
+ * sets its csg_root, and its report to closed (a solid is closed by
+ * construction). */
+rr_status sp_parse_solid(const sp_ctx *c, const cJSON *obj, const char *opath, size_t oi, const rr_xform *x,
+                         scene *s, sp_build *b);
 
 #endif

@@ -4,7 +4,9 @@
  * object's own vertex and index arrays, apply the transform (points by the
  * affine map, normals by the inverse transpose, winding reversed when the map
  * mirrors), analyse the topology, then append the non-degenerate triangles to
- * the scene. Spheres stay analytic. Transforms are parsed in scene_xform.c.
+ * the scene. Spheres stay analytic. Transforms are parsed in scene_xform.c;
+ * solids ("quadric", "csg") are built in scene_csg.c, whose mesh leaves load
+ * through the same mesh path (sp_load_mesh).
  */
 #include <math.h>
 #include <stdint.h>
@@ -25,21 +27,21 @@ typedef struct obj_type {
     const char *const *keys;
 } obj_type;
 
+/* Solids (keys NULL) check their keys in scene_csg.c: a quadric's keys
+ * depend on its shape. */
 static const obj_type k_types[] = {
     {"mesh", SCENE_OBJ_MESH, k_mesh},       {"triangles", SCENE_OBJ_TRIANGLES, k_triangles},
     {"quad", SCENE_OBJ_QUAD, k_quad},       {"box", SCENE_OBJ_BOX, k_box},
-    {"sphere", SCENE_OBJ_SPHERE, k_sphere},
+    {"sphere", SCENE_OBJ_SPHERE, k_sphere}, {"quadric", SCENE_OBJ_CSG, NULL},
+    {"csg", SCENE_OBJ_CSG, NULL},
 };
 #define N_TYPES (sizeof k_types / sizeof k_types[0])
-
-/* Types the format sets aside for a later extension (notes/scene-format.md):
- * naming them now gives a clear message instead of "unknown type". */
-static const char *const k_reserved[] = {"quadric", "csg", NULL};
+#define TYPE_LIST "mesh, triangles, quad, box, sphere, quadric, csg"
 
 /* A triangle is dropped as zero-area when twice its area is below 1e-12 of
  * its longest edge squared: repeated or collinear vertices, up to the
  * rounding a transform adds. Such a triangle has no usable normal. */
-static int tri_degenerate(rr_vec3 a, rr_vec3 b, rr_vec3 c)
+int sp_tri_degenerate(rr_vec3 a, rr_vec3 b, rr_vec3 c)
 {
     rr_vec3 e0 = rr_v3_sub(b, a), e1 = rr_v3_sub(c, a), e2 = rr_v3_sub(c, b);
     double cr = rr_v3_len(rr_v3_cross(e0, e1));
@@ -48,10 +50,6 @@ static int tri_degenerate(rr_vec3 a, rr_vec3 b, rr_vec3 c)
 }
 
 /* ---- growing the scene's arrays ---- */
-
-typedef struct sp_build {
-    size_t cap_verts, cap_tris;
-} sp_build;
 
 static rr_status reserve(const sp_ctx *c, scene *s, sp_build *b, size_t add_verts, size_t add_tris,
                          int need_normals, const char *opath)
@@ -249,34 +247,35 @@ static rr_status build_box(const sp_ctx *c, const cJSON *obj, const char *opath,
     return RR_OK;
 }
 
-static rr_status build_mesh(const sp_ctx *c, const cJSON *obj, const char *opath, scene_object *o, obj_geom *g)
+/* source (4096 bytes) receives the resolved path. */
+static rr_status build_mesh(const sp_ctx *c, const cJSON *obj, const char *opath, char *source, obj_geom *g)
 {
     char file[4096] = "", p[SP_PATH_MAX];
     rr_status st = sp_string(c, obj, opath, "file", SP_REQUIRED, 1, file, sizeof file);
     if (st != RR_OK)
         return st;
     sp_key(p, opath, "file");
-    if ((st = rr_path_join(c->base_dir, file, o->source, sizeof o->source, c->err)) != RR_OK)
+    if ((st = rr_path_join(c->base_dir, file, source, 4096, c->err)) != RR_OK)
         return rr_error_prefix(c->err, "%s: %s", c->file, p);
     mesh_tri *m = NULL;
-    if ((st = mesh_load(o->source, &m, c->err)) != RR_OK)
+    if ((st = mesh_load(source, &m, c->err)) != RR_OK)
         return rr_error_prefix(c->err, "%s: %s", c->file, p);
     g->loaded = m;
     g->m = *m;
     if (m->ntris == 0)
-        return sp_fail(c, RR_ERR_INVALID, p, "%s has no triangles", o->source);
+        return sp_fail(c, RR_ERR_INVALID, p, "%s has no triangles", source);
     /* mesh_load promises valid indices; a broken promise must not become an
      * out-of-bounds read in the renderer. */
     for (size_t i = 0; i < 3 * m->ntris; i++)
         if (m->tris[i] >= m->nverts)
-            return sp_fail(c, RR_ERR_INTERNAL, p, "%s: triangle %zu refers to vertex %u of %zu", o->source, i / 3,
+            return sp_fail(c, RR_ERR_INTERNAL, p, "%s: triangle %zu refers to vertex %u of %zu", source, i / 3,
                            (unsigned)m->tris[i], m->nverts);
     return RR_OK;
 }
 
 /* ---- one object ---- */
 
-static rr_status find_material(const sp_ctx *c, const cJSON *obj, const char *opath, const scene *s, uint32_t *out)
+rr_status sp_find_material(const sp_ctx *c, const cJSON *obj, const char *opath, const scene *s, uint32_t *out)
 {
     char name[SCENE_NAME_MAX + 1] = "", p[SP_PATH_MAX];
     const cJSON *v = sp_get(obj, "material");
@@ -342,8 +341,8 @@ static rr_status build_sphere(const sp_ctx *c, const cJSON *obj, const char *opa
                     sp_key(p, opath, "transform");
                     return sp_fail(c, RR_ERR_INVALID, p,
                                    "a sphere takes only rotations, translations and uniform scales; non-uniform "
-                                   "scale (or shear) of a sphere needs the quadric type, reserved for a later "
-                                   "extension of the format");
+                                   "scale (or shear) of a sphere needs the quadric type (\"type\": \"quadric\", "
+                                   "\"shape\": \"ellipsoid\") or a sphere inside a csg");
                 }
         o->center = rr_xform_point(x, o->center);
         r *= sqrt(s2);
@@ -355,12 +354,12 @@ static rr_status build_sphere(const sp_ctx *c, const cJSON *obj, const char *opa
     return RR_OK;
 }
 
-/* Transforms g in place, analyses it and appends its non-degenerate triangles
- * to the scene. */
-static rr_status finish_triangles(const sp_ctx *c, scene *s, sp_build *b, size_t oi, const char *opath,
-                                  const rr_xform *x, int has_x, int flip, obj_geom *g)
+/* Transforms g in place: points by x, normals by its inverse transpose,
+ * winding reversed when the map mirrors (negative determinant) XOR flip, and
+ * the file's normals negated when flip is set. */
+static rr_status transform_geom(const sp_ctx *c, const char *opath, const rr_xform *x, int has_x, int flip,
+                                obj_geom *g)
 {
-    scene_object *o = &s->objects[oi];
     mesh_tri *m = &g->m;
     int mirrored = flip;
     if (has_x) {
@@ -404,17 +403,46 @@ static rr_status finish_triangles(const sp_ctx *c, scene *s, sp_build *b, size_t
             m->tris[3 * t + 1] = m->tris[3 * t + 2];
             m->tris[3 * t + 2] = tmp;
         }
+    return RR_OK;
+}
+
+rr_status sp_load_mesh(const sp_ctx *c, const cJSON *obj, const char *opath, const rr_xform *x, int has_x, int flip,
+                       char *source, mesh_tri **out)
+{
+    obj_geom g;
+    memset(&g, 0, sizeof g);
+    rr_status st = build_mesh(c, obj, opath, source, &g);
+    if (st == RR_OK)
+        st = transform_geom(c, opath, x, has_x, flip, &g);
+    if (st != RR_OK) {
+        geom_free(&g);
+        return st;
+    }
+    *out = g.loaded;
+    return RR_OK;
+}
+
+/* Transforms g in place, analyses it and appends its non-degenerate triangles
+ * to the scene. */
+static rr_status finish_triangles(const sp_ctx *c, scene *s, sp_build *b, size_t oi, const char *opath,
+                                  const rr_xform *x, int has_x, int flip, obj_geom *g)
+{
+    scene_object *o = &s->objects[oi];
+    mesh_tri *m = &g->m;
+    rr_status st = transform_geom(c, opath, x, has_x, flip, g);
+    if (st != RR_OK)
+        return st;
 
     /* The report describes the object as written (degenerate triangles
      * included): a zero-area sliver that closes a seam still closes it. */
-    rr_status st = mesh_analyze(m, &o->report, c->err);
+    st = mesh_analyze(m, &o->report, c->err);
     if (st != RR_OK)
         return rr_error_prefix(c->err, "%s: %s", c->file, opath);
 
     size_t keep = 0;
     for (size_t t = 0; t < m->ntris; t++) {
         const uint32_t *v = m->tris + 3 * t;
-        if (!tri_degenerate(geom_get(m->pos, v[0]), geom_get(m->pos, v[1]), geom_get(m->pos, v[2])))
+        if (!sp_tri_degenerate(geom_get(m->pos, v[0]), geom_get(m->pos, v[1]), geom_get(m->pos, v[2])))
             keep++;
     }
     o->dropped_degenerate = m->ntris - keep;
@@ -440,7 +468,7 @@ static rr_status finish_triangles(const sp_ctx *c, scene *s, sp_build *b, size_t
     o->tri_first = s->ntris;
     for (size_t t = 0; t < m->ntris; t++) {
         const uint32_t *v = m->tris + 3 * t;
-        if (tri_degenerate(geom_get(m->pos, v[0]), geom_get(m->pos, v[1]), geom_get(m->pos, v[2])))
+        if (sp_tri_degenerate(geom_get(m->pos, v[0]), geom_get(m->pos, v[1]), geom_get(m->pos, v[2])))
             continue;
         scene_tri *st_ = &s->tris[s->ntris++];
         st_->v[0] = (uint32_t)(base + v[0]);
@@ -463,24 +491,17 @@ static rr_status parse_object(const sp_ctx *c, const cJSON *obj, size_t oi, scen
     char tpath[SP_PATH_MAX];
     sp_key(tpath, opath, "type");
     if (!type)
-        return sp_missing(c, opath, "type", "one of mesh, triangles, quad, box, sphere");
+        return sp_missing(c, opath, "type", "one of " TYPE_LIST);
     if (!cJSON_IsString(type))
-        return sp_fail(c, RR_ERR_INVALID, tpath, "expected one of mesh, triangles, quad, box, sphere (got %s)",
+        return sp_fail(c, RR_ERR_INVALID, tpath, "expected one of " TYPE_LIST " (got %s)",
                        sp_describe(type, got, sizeof got));
     const obj_type *ty = NULL;
     for (size_t i = 0; i < N_TYPES; i++)
         if (strcmp(type->valuestring, k_types[i].name) == 0)
             ty = &k_types[i];
-    if (!ty) {
-        for (size_t i = 0; k_reserved[i]; i++)
-            if (strcmp(type->valuestring, k_reserved[i]) == 0)
-                return sp_fail(c, RR_ERR_INVALID, tpath,
-                               "'%s' is reserved for a later %s extension and not supported yet", k_reserved[i],
-                               SCENE_FORMAT);
-        return sp_fail(c, RR_ERR_INVALID, tpath, "unknown type '%.64s' (known: mesh, triangles, quad, box, sphere)",
-                       type->valuestring);
-    }
-    rr_status st = sp_check_object(c, obj, opath, ty->keys);
+    if (!ty)
+        return sp_fail(c, RR_ERR_INVALID, tpath, "unknown type '%.64s' (known: " TYPE_LIST ")", type->valuestring);
+    rr_status st = ty->keys ? sp_check_object(c, obj, opath, ty->keys) : sp_solid_check_keys(c, obj, opath, 1);
     if (st != RR_OK)
         return st;
 
@@ -490,13 +511,16 @@ static rr_status parse_object(const sp_ctx *c, const cJSON *obj, size_t oi, scen
     int cull, has_x, flip = 0;
     rr_xform x;
     if ((st = sp_string(c, obj, opath, "name", SP_OPTIONAL, 1, o->name, sizeof o->name)) != RR_OK ||
-        (st = find_material(c, obj, opath, s, &o->material)) != RR_OK ||
+        (st = sp_find_material(c, obj, opath, s, &o->material)) != RR_OK ||
         (st = parse_cull(c, obj, opath, &cull)) != RR_OK ||
         (st = sp_parse_transform(c, obj, opath, &x, &has_x)) != RR_OK)
         return st;
 
+    size_t first_node = s->ncsg;
     if (ty->kind == SCENE_OBJ_SPHERE) {
         st = build_sphere(c, obj, opath, &x, has_x, o);
+    } else if (ty->kind == SCENE_OBJ_CSG) {
+        st = sp_parse_solid(c, obj, opath, oi, &x, s, b);
     } else {
         obj_geom g;
         memset(&g, 0, sizeof g);
@@ -504,7 +528,7 @@ static rr_status parse_object(const sp_ctx *c, const cJSON *obj, size_t oi, scen
         case SCENE_OBJ_MESH:
             st = sp_bool(c, obj, opath, "flip", SP_OPTIONAL, &flip);
             if (st == RR_OK)
-                st = build_mesh(c, obj, opath, o, &g);
+                st = build_mesh(c, obj, opath, o->source, &g);
             break;
         case SCENE_OBJ_TRIANGLES: st = build_triangles(c, obj, opath, &g); break;
         case SCENE_OBJ_QUAD: st = build_quad(c, obj, opath, &g); break;
@@ -523,7 +547,16 @@ static rr_status parse_object(const sp_ctx *c, const cJSON *obj, size_t oi, scen
         int closed = ty->kind == SCENE_OBJ_BOX || ty->kind == SCENE_OBJ_SPHERE ||
                      ((ty->kind == SCENE_OBJ_MESH || ty->kind == SCENE_OBJ_TRIANGLES) && o->report.watertight &&
                       o->report.consistently_oriented);
-        cull = closed && rr_rgb_max(s->materials[o->material].mirror) == 0.0;
+        int mirror = rr_rgb_max(s->materials[o->material].mirror) > 0.0;
+        /* A solid is closed by construction; its leaves may bring their own
+         * materials, and a mirror on any of them is a mirror path. */
+        if (ty->kind == SCENE_OBJ_CSG) {
+            closed = 1;
+            for (size_t i = first_node; i < s->ncsg; i++)
+                if (s->csg[i].op == SCENE_CSG_LEAF && rr_rgb_max(s->materials[s->csg[i].material].mirror) > 0.0)
+                    mirror = 1;
+        }
+        cull = closed && !mirror;
     }
     o->cull_backfaces = cull;
     return RR_OK;
@@ -544,7 +577,8 @@ rr_status sp_parse_objects(const sp_ctx *c, const cJSON *root, scene *s)
     s->objects = calloc(n, sizeof *s->objects);
     if (!s->objects)
         return sp_fail(c, RR_ERR_NOMEM, "objects", "out of memory");
-    sp_build b = {0, 0};
+    sp_build b;
+    memset(&b, 0, sizeof b);
     size_t i = 0;
     for (const cJSON *it = objs->child; it; it = it->next, i++) {
         s->nobjects = i + 1; /* counted before parsing, so destroy sees partial state */
