@@ -416,7 +416,7 @@ static rr_status quadric_shape(const sp_ctx *c, const cJSON *v, const char *path
          * 2 Q x agree whichever half a consumer reads. */
         for (int i = 0; i < 4; i++)
             for (int j = i + 1; j < 4; j++)
-                q[i][j] = q[j][i] = 0.5 * (q[i][j] + q[j][i]);
+                q[i][j] = q[j][i] = 0.5 * q[i][j] + 0.5 * q[j][i]; /* no overflow near DBL_MAX */
         const cJSON *cv = sp_get(v, "clip");
         static const char *const k_clip[] = {"min", "max", NULL};
         if (!cv)
@@ -425,7 +425,7 @@ static rr_status quadric_shape(const sp_ctx *c, const cJSON *v, const char *path
         sp_key(p, path, "clip");
         if ((st = sp_check_object(c, cv, p, k_clip)) != RR_OK || (st = read_box(c, cv, p, lo, hi)) != RR_OK)
             return st;
-        return RR_OK;
+        break;
     }
     }
     for (int i = 0; i < 4; i++)

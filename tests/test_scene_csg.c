@@ -599,6 +599,13 @@ static void bad_solids(void **state)
         {Q("\"shape\":\"cylinder\",\"radius\":1,\"height\":1,\"radii\":[1,1,1]"), RR_ERR_INVALID,
          "bad.json: objects[0]: unknown key 'radii' (allowed: type, name, material, transform, cull, shape, radius, "
          "height)"},
+        {Q("\"shape\":\"cylinder\",\"radius\":1e200,\"height\":1"), RR_ERR_INVALID,
+         "bad.json: objects[0]: the cylinder's coefficients overflow (lengths out of range)"},
+        {Q("\"shape\":\"ellipsoid\",\"radii\":[1,1e-200,1]"), RR_ERR_INVALID,
+         "bad.json: objects[0].radii[1]: the radius 1e-200 is out of range"},
+        {Q("\"shape\":\"general\",\"q\":[[1e308,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,-1]],\"clip\":{\"min\":[-1,-1,-1],"
+           "\"max\":[1e308,1,1]},\"transform\":[{\"scale\":10}]"),
+         RR_ERR_INVALID, "bad.json: objects[0]: the transformed solid is not finite"},
         {Q("\"shape\":\"ellipsoid\",\"radii\":[1,-2,1]"), RR_ERR_INVALID,
          "bad.json: objects[0].radii[1]: expected a number > 0 (got -2)"},
         {Q("\"shape\":\"ellipsoid\",\"radii\":[1,2]"), RR_ERR_INVALID,
@@ -664,6 +671,12 @@ static void bad_solids(void **state)
          RR_ERR_INVALID,
          "bad.json: objects[0].children[1].transform: the transform is singular (determinant 0): it flattens the "
          "object"},
+        /* each transform is fine alone, their composition underflows to a singular map */
+        {CSG("union", BOX ",{\"type\":\"csg\",\"op\":\"union\",\"transform\":[{\"scale\":1e-100}],\"children\":["
+                          BOX ",{\"type\":\"box\",\"min\":[0,0,0],\"max\":[1,1,1],\"transform\":[{\"scale\":1e-100}]}]}"),
+         RR_ERR_INVALID,
+         "bad.json: objects[0].children[1].children[1]: the transform, composed with those of the enclosing csg nodes, "
+         "is singular"},
         /* materials: the object's own is required as for every object */
         {"{\"type\":\"csg\",\"op\":\"union\",\"children\":[" BOX "," SPH "]}", RR_ERR_INVALID,
          "bad.json: objects[0].material: missing (expected the name of a material)"},
