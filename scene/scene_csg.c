@@ -649,17 +649,22 @@ static rr_status csg_node(solid_ctx *sc, const cJSON *v, const char *path, int l
             acc = ci, accd = cd;
             continue;
         }
+        /* Every enclosing csg adds at least one level above this node, so
+         * level - 1 + d is a lower bound of the final depth, exact at the
+         * object (level 1). */
         int d = 1 + (accd > cd ? accd : cd);
         if (level - 1 + d > SP_CSG_DEPTH_MAX)
-            return sp_fail(c, RR_ERR_LIMIT, path, "the CSG tree is deeper than the limit of %d levels",
-                           SP_CSG_DEPTH_MAX);
+            return sp_fail(c, RR_ERR_LIMIT, path,
+                           "the CSG tree is at least %d levels deep, over the limit of %d (n children fold left into "
+                           "a chain of n - 1 binary nodes; group them into nested csg objects)",
+                           level - 1 + d, SP_CSG_DEPTH_MAX);
         /* The last fold is the node the file wrote; the ones before it are
          * named after the children they combine. */
-        char np[SP_PATH_MAX];
+        char np[SP_PATH_MAX + 40]; /* path (< SP_PATH_MAX) + ".children[0..N]" */
         if (it->next)
-            snprintf(np, sizeof np, "%s.children[0..%zu]", path, i) < 0 ? (void)(np[0] = '\0') : (void)0;
+            snprintf(np, sizeof np, "%s.children[0..%zu]", path, i);
         else
-            snprintf(np, sizeof np, "%s", path) < 0 ? (void)(np[0] = '\0') : (void)0;
+            snprintf(np, sizeof np, "%s", path);
         uint32_t ni;
         if ((st = new_node(sc, np, (scene_csg_op)op, material, &ni)) != RR_OK)
             return st;

@@ -739,6 +739,22 @@ static void too_deep(void **state)
                 "bad.json: objects[0].children: 40 children fold into a chain of 39 binary nodes, deeper than the "
                 "limit of 32 levels");
 
+    /* 17 children, the first of which has 17 children: each fold alone is
+     * within the limit, together they are 16 + 17 = 33 deep */
+    len = (size_t)snprintf(obj, sizeof obj, "{\"type\":\"csg\",\"op\":\"union\",\"material\":\"white\",\"children\":[");
+    for (int k = 0; k < 2; k++) {
+        if (k == 0)
+            len += (size_t)snprintf(obj + len, sizeof obj - len, "{\"type\":\"csg\",\"op\":\"union\",\"children\":[");
+        for (int i = 0; i < 17 - k; i++)
+            len += (size_t)snprintf(obj + len, sizeof obj - len, "%s" BOX, i ? "," : "");
+        if (k == 0)
+            len += (size_t)snprintf(obj + len, sizeof obj - len, "]},");
+    }
+    snprintf(obj + len, sizeof obj - len, "]}");
+    snprintf(objs, sizeof objs, "[%s]", obj);
+    expect_fail(make_scene(NULL, NULL, "", objs, ""), RR_ERR_LIMIT,
+                "bad.json: objects[0]: the CSG tree is at least 33 levels deep, over the limit of 32");
+
     /* 20 levels of nesting with 2 children each is fine */
     len = 0;
     for (int i = 0; i < 20; i++)
