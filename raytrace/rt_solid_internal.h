@@ -1,0 +1,27 @@
+/* rt_solid_internal.h - private to rt_solid.c and rt_solid_mesh.c (the solids).
+ *
+ * rt_solid.c: analytic leaves (sphere, quadric, box), their normals, the CSG
+ * combination of span lists, closest hit and point membership.
+ * rt_solid_mesh.c: mesh leaves (crossings with a tie-broken watertight test,
+ * winding numbers) and their per-leaf BVHs (struct rt_solid_accel). */
+#ifndef RT_SOLID_INTERNAL_H
+#define RT_SOLID_INTERNAL_H
+
+#include "rt_internal.h"
+
+/* Appends the span [a, b] to a sorted list whose last span ends at or before
+ * a.t. Zero-length (or NaN) spans are dropped; a span that touches or overlaps
+ * the last one is merged into it (so no list ever holds two touching spans:
+ * that would show an inner face where two solids meet); when the list is full
+ * the span is dropped (lists are filled nearest first, so the nearest
+ * RT_SPAN_MAX are kept). */
+void rt__spans_push(rt_spans *l, rt_span_end a, rt_span_end b);
+
+/* Spans of mesh leaf `leaf` along the world ray, clipped to [tmin, tmax];
+ * sa may be NULL (every triangle is tested). */
+void rt__mesh_spans(const scene *s, const struct rt_solid_accel *sa, uint32_t leaf, rr_ray ray, double tmin,
+                    double tmax, rt_spans *out);
+/* 1 when world point p is inside mesh leaf `leaf` (winding number > 0). */
+int rt__mesh_contains(const scene *s, const struct rt_solid_accel *sa, uint32_t leaf, rr_vec3 p);
+
+#endif
