@@ -51,8 +51,8 @@ void rt__ray_prepare(rr_ray ray, rt_ray_pre *p)
 
 static double comp(rr_vec3 v, int k) { return k == 0 ? v.x : (k == 1 ? v.y : v.z); }
 
-int rt__tri_hit(const rt_ray_pre *p, rr_vec3 A, rr_vec3 B, rr_vec3 C, int cull, double tmin, double tmax, double *t,
-                int *front)
+static inline int tri_hit(const rt_ray_pre *p, rr_vec3 A, rr_vec3 B, rr_vec3 C, int cull, double tmin, double tmax,
+                          double *t, int *front)
 {
     rr_vec3 o = p->ray.o;
     rr_vec3 a = rr_v3_sub(A, o), b = rr_v3_sub(B, o), c = rr_v3_sub(C, o);
@@ -90,6 +90,12 @@ int rt__tri_hit(const rt_ray_pre *p, rr_vec3 A, rr_vec3 B, rr_vec3 C, int cull, 
     return 1;
 }
 
+int rt__tri_hit(const rt_ray_pre *p, rr_vec3 A, rr_vec3 B, rr_vec3 C, int cull, double tmin, double tmax, double *t,
+                int *front)
+{
+    return tri_hit(p, A, B, C, cull, tmin, tmax, t, front);
+}
+
 /* Fills hit for scene triangle `tri` met with `front` at t (as rt__prim_hit does). */
 static void tri_fill(const scene *s, uint32_t tri, int front, double t, rt_hit *hit)
 {
@@ -118,6 +124,8 @@ static int traverse(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_
     rt__ray_prepare(ray, &p);
     if (!(tmin >= 0.0))
         p.box_double = 1;
+    rt_boxray br;
+    rt__boxray_init(&p, &br);
     const float grow = 1.0f + RT_BOX_GROW;
     const float tmin_f = rt__f_down(tmin);
     stack_entry stack[RT_STACK_SIZE];
@@ -136,25 +144,54 @@ static int traverse(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_
             const rt_wnode *n = &a->wnodes[cur];
             float dist[RT_WIDE];
             unsigned mask = p.box_double ? rt__box4_double(n, &p, tmin, best, dist)
-                                         : rt__box4(n, &p, tmin_f, best_f, dist);
+                                         : rt__box4_fast(n, &br, tmin_f, best_f, dist);
             if (mask) {
-                /* Collect the children entered, then push all but the nearest,
-                 * farthest first. */
-                uint32_t ref[RT_WIDE];
-                float d[RT_WIDE];
-                int m = 0;
+                /* One child entered (the common case deep in the tree): go there. */
+                int i = __builtin_ctz(mask);
+                mask &= mask - 1;
+                if (!mask) {
+                    cur = n->child[i];
+                    continue;
+                }
+                /* Two: visit the nearer, push the other. */
+                int k = __builtin_ctz(mask);
+                mask &= mask - 1;
+                uint32_t ri = n->child[i], rk = n->child[k];
+                float di = dist[i], dk = dist[k];
+                if (!mask) {
+                    RR_CHECK(sp < RT_STACK_SIZE);
+                    if (dk < di) {
+                        stack[sp].ref = ri;
+                        stack[sp].dist = di;
+                        cur = rk;
+                    } else {
+                        stack[sp].ref = rk;
+                        stack[sp].dist = dk;
+                        cur = ri;
+                    }
+                    sp++;
+                    continue;
+                }
+                /* Three or four: sort by descending distance, push all but the
+                 * nearest (farthest first). */
+                uint32_t ref[RT_WIDE] = {ri, rk};
+                float d[RT_WIDE] = {di, dk};
+                int m = 2;
+                if (dk > di) {
+                    ref[0] = rk, ref[1] = ri;
+                    d[0] = dk, d[1] = di;
+                }
                 for (; mask; mask &= mask - 1) {
-                    int i = __builtin_ctz(mask);
-                    uint32_t r = n->child[i];
-                    float di = dist[i];
+                    int c = __builtin_ctz(mask);
+                    uint32_t r = n->child[c];
+                    float dc = dist[c];
                     int j = m++;
-                    /* insertion sort, descending distance */
-                    while (j > 0 && d[j - 1] < di) {
+                    while (j > 0 && d[j - 1] < dc) {
                         d[j] = d[j - 1];
                         ref[j] = ref[j - 1];
                         j--;
                     }
-                    d[j] = di;
+                    d[j] = dc;
                     ref[j] = r;
                 }
                 RR_CHECK(sp + m - 1 <= RT_STACK_SIZE);
@@ -180,7 +217,7 @@ static int traverse(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_
                     rr_vec3 A = rr_v3(r->v[0][0], r->v[0][1], r->v[0][2]);
                     rr_vec3 B = rr_v3(r->v[1][0], r->v[1][1], r->v[1][2]);
                     rr_vec3 C = rr_v3(r->v[2][0], r->v[2][1], r->v[2][2]);
-                    if (rt__tri_hit(&p, A, B, C, (fl & RT_REC_CULL) != 0, tmin, best, &t, &front)) {
+                    if (tri_hit(&p, A, B, C, (fl & RT_REC_CULL) != 0, tmin, best, &t, &front)) {
                         if (any)
                             return 1;
                         found = 1;

@@ -39,6 +39,9 @@
 #ifndef RT_WIDE_H
 #define RT_WIDE_H
 
+#include <float.h>
+#include <string.h>
+
 #include "rt_internal.h"
 
 #if defined(RT_SIMD) && RT_SIMD >= 1
@@ -49,16 +52,28 @@
  * (about 1 + 3.6e-7), with room to spare. */
 #define RT_BOX_GROW 4.8e-7f
 
-/* Float nearest to x rounded up / down (x a double). */
+/* Float nearest to x rounded up / down (x a double; NaN stays NaN). One ulp
+ * step by the bit pattern (floats of one sign are ordered as integers), which
+ * is nextafterf without the library call. */
+static inline float rt__f_step(float f, int up)
+{
+    if (f == 0.0f)
+        return up ? FLT_TRUE_MIN : -FLT_TRUE_MIN;
+    uint32_t u;
+    memcpy(&u, &f, sizeof u);
+    u = (up == (f > 0.0f)) ? u + 1 : u - 1;
+    memcpy(&f, &u, sizeof f);
+    return f;
+}
 static inline float rt__f_up(double x)
 {
     float f = (float)x;
-    return (double)f < x ? nextafterf(f, INFINITY) : f;
+    return (double)f < x ? rt__f_step(f, 1) : f;
 }
 static inline float rt__f_down(double x)
 {
     float f = (float)x;
-    return (double)f > x ? nextafterf(f, -INFINITY) : f;
+    return (double)f > x ? rt__f_step(f, 0) : f;
 }
 
 static inline unsigned rt__box4_scalar(const rt_wnode *n, const rt_ray_pre *p, float tmin, float tmax,
@@ -103,6 +118,54 @@ static inline unsigned rt__box4_sse(const rt_wnode *n, const rt_ray_pre *p, floa
     return (unsigned)_mm_movemask_ps(_mm_cmple_ps(t0, t1));
 }
 #endif
+
+/* The per-ray operands of the float test in the form the selected version
+ * wants them (for SSE: broadcast once per ray, kept in registers during the
+ * walk, instead of once per node). */
+typedef struct rt_boxray {
+#if defined(RT_SIMD) && RT_SIMD >= 1
+    __m128 on[3], of[3], inv[3];
+    int row[3];
+#else
+    const rt_ray_pre *p;
+#endif
+} rt_boxray;
+
+static inline void rt__boxray_init(const rt_ray_pre *p, rt_boxray *br)
+{
+#if defined(RT_SIMD) && RT_SIMD >= 1
+    for (int k = 0; k < 3; k++) {
+        br->on[k] = _mm_set1_ps(p->org_near[k]);
+        br->of[k] = _mm_set1_ps(p->org_far[k]);
+        br->inv[k] = _mm_set1_ps(p->inv_f[k]);
+        br->row[k] = p->near_row[k];
+    }
+#else
+    br->p = p;
+#endif
+}
+
+/* rt__box4 on prepared operands; same results. */
+static inline unsigned rt__box4_fast(const rt_wnode *n, const rt_boxray *br, float tmin, float tmax,
+                                     float dist[RT_WIDE])
+{
+#if defined(RT_SIMD) && RT_SIMD >= 1
+    const int nx = br->row[0], ny = br->row[1], nz = br->row[2];
+    __m128 tx0 = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(n->b[nx]), br->on[0]), br->inv[0]);
+    __m128 ty0 = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(n->b[ny]), br->on[1]), br->inv[1]);
+    __m128 tz0 = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(n->b[nz]), br->on[2]), br->inv[2]);
+    __m128 tx1 = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(n->b[nx ^ 1]), br->of[0]), br->inv[0]);
+    __m128 ty1 = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(n->b[ny ^ 1]), br->of[1]), br->inv[1]);
+    __m128 tz1 = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(n->b[nz ^ 1]), br->of[2]), br->inv[2]);
+    __m128 t0 = _mm_max_ps(tz0, _mm_max_ps(ty0, _mm_max_ps(tx0, _mm_set1_ps(tmin))));
+    __m128 t1 = _mm_min_ps(tz1, _mm_min_ps(ty1, _mm_min_ps(tx1, _mm_set1_ps(INFINITY))));
+    t1 = _mm_min_ps(_mm_set1_ps(tmax), _mm_mul_ps(t1, _mm_set1_ps(1.0f + RT_BOX_GROW)));
+    _mm_storeu_ps(dist, t0);
+    return (unsigned)_mm_movemask_ps(_mm_cmple_ps(t0, t1));
+#else
+    return rt__box4_scalar(n, br->p, tmin, tmax, dist);
+#endif
+}
 
 /* The double test (the binary BVH's node_entry, for each lane): exact up to
  * the double roundings, which the exit widening by (1 + 2 g3 in double)
