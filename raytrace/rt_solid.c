@@ -403,7 +403,9 @@ void rt_csg_spans(const scene *s, const rt_accel *a, uint32_t node, rr_ray ray, 
                   rt_spans *out)
 {
     out->n = 0;
-    if (!s || node >= s->ncsg || !(tmin <= tmax))
+    /* A zero or non-finite ray has no spans (and would make NaN ends). */
+    if (!s || node >= s->ncsg || !(tmin <= tmax) || !rr_v3_isfinite(ray.o) || !rr_v3_isfinite(ray.d) ||
+        !(rr_v3_len2(ray.d) > 0.0))
         return;
     csg_ctx c;
     c.s = s;
