@@ -45,11 +45,11 @@
 #endif
 
 /* Memory layout of the BVH (raytrace/rt_internal.h: a 4-wide rt_wnode is 128
- * bytes, a leaf record rt_rec 80 bytes, which includes the triangle's private
+ * bytes, a leaf record rt_rec 48 bytes, which includes the triangle's private
  * copy of its vertices). The header is private to raytrace/, so the sizes are
  * restated here. */
 #define BENCH_NODE_BYTES 128
-#define BENCH_PRIM_BYTES 80
+#define BENCH_PRIM_BYTES 48
 
 #define BENCH_SEED 20240601u
 #define BENCH_BUILD_REPS 3

@@ -339,14 +339,22 @@ static void fill_records(const scene *s, const rt_node *bin, size_t nbin, const 
         r->flags = pr.kind & RT_REC_KIND;
         if (pr.kind == RT_PRIM_TRIANGLE) {
             const scene_tri *t = &s->tris[pr.index];
+            int exact = t->object < (UINT32_MAX >> RT_REC_OBJ_SHIFT);
             for (int k = 0; k < 3; k++) {
                 rr_vec3 v = s->verts[t->v[k]];
-                r->v[k][0] = v.x;
-                r->v[k][1] = v.y;
-                r->v[k][2] = v.z;
+                r->v[k][0] = (float)v.x;
+                r->v[k][1] = (float)v.y;
+                r->v[k][2] = (float)v.z;
+                exact = exact && (double)r->v[k][0] == v.x && (double)r->v[k][1] == v.y && (double)r->v[k][2] == v.z;
             }
-            if (s->objects[t->object].cull_backfaces)
-                r->flags |= RT_REC_CULL;
+            if (exact) {
+                r->flags |= RT_REC_FAST | t->object << RT_REC_OBJ_SHIFT;
+                r->material = t->material;
+                if (s->objects[t->object].cull_backfaces)
+                    r->flags |= RT_REC_CULL;
+            } else {
+                memset(r->v, 0, sizeof r->v);
+            }
         }
     }
     for (size_t i = 0; i < nbin; i++)

@@ -51,16 +51,23 @@ typedef struct rt_wnode {
 } rt_wnode;
 
 /* A leaf primitive record, in leaf order: the primitive (kind in flags) and,
- * for triangles, a private copy of its three vertices, so the triangle test
- * reads one contiguous record instead of scene->tris -> scene->verts ->
- * scene->objects. 80 bytes. */
-#define RT_REC_KIND 0x3u  /* rt_prim_kind */
-#define RT_REC_CULL 0x4u  /* triangle of an object that culls back faces */
-#define RT_REC_LAST 0x8u  /* last record of its leaf */
+ * for a triangle whose vertices are all floats exactly (meshes read from PLY,
+ * OBJ, STL are), a private copy of them and of its object and material
+ * (RT_REC_FAST), so the test and the hit record read one contiguous record
+ * instead of scene->tris -> scene->verts -> scene->objects. The test converts
+ * them back to the same doubles, so results are those of the double vertices
+ * bit for bit. Other triangles (and every other kind) go through
+ * rt__prim_hit. 48 bytes. */
+#define RT_REC_KIND 0x3u   /* rt_prim_kind */
+#define RT_REC_CULL 0x4u   /* fast triangle of an object that culls back faces */
+#define RT_REC_LAST 0x8u   /* last record of its leaf */
+#define RT_REC_FAST 0x10u  /* v, object and material are valid */
+#define RT_REC_OBJ_SHIFT 5 /* flags >> RT_REC_OBJ_SHIFT = object (fast triangles) */
 typedef struct rt_rec {
-    double v[3][3]; /* triangles: vertices A, B, C (scene->verts, unchanged); else unused */
-    uint32_t index; /* scene triangle index, or object index (rt_prim.index) */
-    uint32_t flags;
+    float v[3][3];     /* fast triangles: vertices A, B, C */
+    uint32_t index;    /* scene triangle index, or object index (rt_prim.index) */
+    uint32_t flags;    /* RT_REC_* | object << RT_REC_OBJ_SHIFT */
+    uint32_t material; /* fast triangles: scene->tris[index].material */
 } rt_rec;
 
 struct rt_accel {

@@ -96,15 +96,22 @@ int rt__tri_hit(const rt_ray_pre *p, rr_vec3 A, rr_vec3 B, rr_vec3 C, int cull, 
     return tri_hit(p, A, B, C, cull, tmin, tmax, t, front);
 }
 
-/* Fills hit for scene triangle `tri` met with `front` at t (as rt__prim_hit does). */
-static void tri_fill(const scene *s, uint32_t tri, int front, double t, rt_hit *hit)
+static inline rr_vec3 rec_vert(const rt_rec *r, int k)
 {
-    const scene_tri *tr = &s->tris[tri];
-    rr_vec3 n = scene_tri_normal(s, tri);
-    hit->tri = (int64_t)tri;
+    return rr_v3((double)r->v[k][0], (double)r->v[k][1], (double)r->v[k][2]);
+}
+
+/* Fills hit for the fast triangle of record r met with `front` at t, as
+ * rt__prim_hit does (the normal by the formula of scene_tri_normal, on the
+ * same doubles). */
+static void tri_fill(const rt_rec *r, int front, double t, rt_hit *hit)
+{
+    rr_vec3 A = rec_vert(r, 0);
+    rr_vec3 n = rr_v3_norm(rr_v3_cross(rr_v3_sub(rec_vert(r, 1), A), rr_v3_sub(rec_vert(r, 2), A)));
+    hit->tri = (int64_t)r->index;
     hit->part = -1;
-    hit->object = tr->object;
-    hit->material = tr->material;
+    hit->object = r->flags >> RT_REC_OBJ_SHIFT;
+    hit->material = r->material;
     hit->normal = front ? n : rr_v3_neg(n);
     hit->t = t;
     hit->front = front;
@@ -133,8 +140,8 @@ static int traverse(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_
     uint32_t cur = 0; /* the root */
     int found = 0;
     /* A triangle hit is filled in at the end (one normal instead of one per
-     * improving hit); tri_best >= 0 says the best hit is that triangle. */
-    int64_t tri_best = -1;
+     * improving hit); tri_best != NULL says the best hit is that record's triangle. */
+    const rt_rec *tri_best = NULL;
     int tri_front = 0;
     double best = tmax;
     float best_f = rt__f_up(best);
@@ -210,19 +217,17 @@ static int traverse(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_
 #ifdef RT_ABLATE_TRI_COPY /* measurement only: triangles through the scene arrays */
                 if (0) {
 #else
-                if ((fl & RT_REC_KIND) == RT_PRIM_TRIANGLE) {
+                if (fl & RT_REC_FAST) {
 #endif
                     double t;
                     int front;
-                    rr_vec3 A = rr_v3(r->v[0][0], r->v[0][1], r->v[0][2]);
-                    rr_vec3 B = rr_v3(r->v[1][0], r->v[1][1], r->v[1][2]);
-                    rr_vec3 C = rr_v3(r->v[2][0], r->v[2][1], r->v[2][2]);
+                    rr_vec3 A = rec_vert(r, 0), B = rec_vert(r, 1), C = rec_vert(r, 2);
                     if (tri_hit(&p, A, B, C, (fl & RT_REC_CULL) != 0, tmin, best, &t, &front)) {
                         if (any)
                             return 1;
                         found = 1;
                         best = t;
-                        tri_best = r->index;
+                        tri_best = r;
                         tri_front = front;
                         best_f = rt__f_up(best);
                         cull = best_f * grow;
@@ -233,7 +238,7 @@ static int traverse(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_
                         if (any)
                             return 1;
                         found = 1;
-                        tri_best = -1;
+                        tri_best = NULL;
                         best_f = rt__f_up(best);
                         cull = best_f * grow;
                     }
@@ -255,8 +260,8 @@ static int traverse(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_
     }
 out:
     if (found && hit) {
-        if (tri_best >= 0)
-            tri_fill(a->scene, (uint32_t)tri_best, tri_front, best, hit);
+        if (tri_best)
+            tri_fill(tri_best, tri_front, best, hit);
         hit->point = rr_ray_at(ray, hit->t);
     }
     return found;

@@ -10,6 +10,7 @@
 #include <string.h>
 
 #include "rt.h"
+#include "rt_wide.h" /* white-box tests of the wide BVH's box tests (private header of raytrace/) */
 #include "test_scenes.h"
 
 #define assert_near(a, b, tol) assert_true(fabs((double)(a) - (double)(b)) <= (tol))
@@ -833,6 +834,273 @@ static void slivers_no_holes_no_nans(void **state)
     scene_destroy(s);
 }
 
+
+/* ---- the wide BVH's box tests (raytrace/rt_wide.h) ---- */
+
+/* Exact slab test in long double: does the ray meet the box with some t in
+ * [tmin, tmax]? *entry gets the entry distance. Origin on a slab plane of a
+ * parallel axis counts as inside (as in the BVH). */
+static int slab_exact(const float lo[3], const float hi[3], rr_ray r, double tmin, double tmax, long double *entry)
+{
+    const double o[3] = {r.o.x, r.o.y, r.o.z}, d[3] = {r.d.x, r.d.y, r.d.z};
+    long double t0 = tmin, t1 = tmax;
+    for (int k = 0; k < 3; k++) {
+        if (!(lo[k] <= hi[k]))
+            return 0;
+        if (d[k] == 0.0) {
+            if (o[k] < lo[k] || o[k] > hi[k])
+                return 0;
+            continue;
+        }
+        long double ta = ((long double)lo[k] - o[k]) / d[k], tb = ((long double)hi[k] - o[k]) / d[k];
+        if (ta > tb) {
+            long double t = ta;
+            ta = tb;
+            tb = t;
+        }
+        if (ta > t0)
+            t0 = ta;
+        if (tb < t1)
+            t1 = tb;
+    }
+    *entry = t0;
+    return t0 <= t1;
+}
+
+static float rand_coord(rr_rng *rng)
+{
+    /* Mostly ordinary values, sometimes small integers (planes a ray can lie in). */
+    return rr_rng_uniform(rng) < 0.2 ? (float)(int)(8 * rr_rng_uniform(rng) - 4) : (float)(8 * rr_rng_uniform(rng) - 4);
+}
+
+/* The scalar, SSE and double versions agree on random nodes and rays, and
+ * none culls a box the ray touches (rays aimed exactly at box corners, edges
+ * and faces, directions with +0 and -0 components, origins on box planes). */
+static void wide_box_tests_agree_and_conservative(void **state)
+{
+    (void)state;
+    rr_rng rng = rr_rng_make(2024, 8);
+    int touched = 0, checked = 0;
+    for (int it = 0; it < 200000; it++) {
+        rt_wnode n;
+        memset(&n, 0, sizeof n);
+        for (int i = 0; i < RT_WIDE; i++) {
+            int empty = rr_rng_uniform(&rng) < 0.1;
+            for (int k = 0; k < 3; k++) {
+                float a = rand_coord(&rng), b = rr_rng_uniform(&rng) < 0.1 ? a : rand_coord(&rng);
+                n.b[2 * k][i] = empty ? INFINITY : fminf(a, b);
+                n.b[2 * k + 1][i] = empty ? -INFINITY : fmaxf(a, b);
+            }
+            n.child[i] = (uint32_t)i;
+        }
+        rr_ray r;
+        r.o = rr_v3(rand_coord(&rng), rand_coord(&rng), rand_coord(&rng));
+        int lane = (int)rr_rng_below(&rng, RT_WIDE), kind = (int)rr_rng_below(&rng, 4);
+        if (kind < 3 && n.b[0][lane] <= n.b[1][lane]) {
+            /* Aim at a corner (kind 0), an edge point (1) or a face point (2) of one box. */
+            double t[3];
+            for (int k = 0; k < 3; k++) {
+                int side = (int)rr_rng_below(&rng, 2);
+                double u = k < kind ? rr_rng_uniform(&rng) : (double)side;
+                t[k] = n.b[2 * k][lane] + u * ((double)n.b[2 * k + 1][lane] - n.b[2 * k][lane]);
+            }
+            r.d = rr_v3_sub(rr_v3(t[0], t[1], t[2]), r.o);
+        } else {
+            r.d = rr_v3(2 * rr_rng_uniform(&rng) - 1, 2 * rr_rng_uniform(&rng) - 1, 2 * rr_rng_uniform(&rng) - 1);
+        }
+        if (rr_rng_uniform(&rng) < 0.2) { /* parallel to an axis, with +0 or -0 */
+            int k = (int)rr_rng_below(&rng, 3);
+            double z = rr_rng_uniform(&rng) < 0.5 ? 0.0 : -0.0;
+            r.d = k == 0 ? rr_v3(z, r.d.y, r.d.z) : (k == 1 ? rr_v3(r.d.x, z, r.d.z) : rr_v3(r.d.x, r.d.y, z));
+            if (rr_rng_uniform(&rng) < 0.5 && n.b[0][lane] <= n.b[1][lane]) /* origin on that axis's plane of a box */
+                r.o = k == 0 ? rr_v3(n.b[0][lane], r.o.y, r.o.z)
+                             : (k == 1 ? rr_v3(r.o.x, n.b[3][lane], r.o.z) : rr_v3(r.o.x, r.o.y, n.b[4][lane]));
+        }
+        if (!(rr_v3_len2(r.d) > 0.0))
+            continue;
+        double tmin = 0.0, tmax = rr_rng_uniform(&rng) < 0.5 ? INFINITY : 0.5 + 3 * rr_rng_uniform(&rng);
+        rt_ray_pre p;
+        rt__ray_prepare(r, &p);
+        assert_false(p.box_double);
+        float ds[RT_WIDE], dd[RT_WIDE];
+        unsigned ms = rt__box4_scalar(&n, &p, rt__f_down(tmin), rt__f_up(tmax), ds);
+        unsigned md = rt__box4_double(&n, &p, tmin, tmax, dd);
+#if defined(RT_SIMD) && RT_SIMD >= 1
+        float dv[RT_WIDE], df[RT_WIDE];
+        unsigned mv = rt__box4_sse(&n, &p, rt__f_down(tmin), rt__f_up(tmax), dv);
+        rt_boxray br;
+        rt__boxray_init(&p, &br);
+        unsigned mf = rt__box4_fast(&n, &br, rt__f_down(tmin), rt__f_up(tmax), df);
+        assert_int_equal(mv, ms);
+        assert_int_equal(mf, ms);
+        for (int i = 0; i < RT_WIDE; i++)
+            if (ms >> i & 1) {
+                assert_memory_equal(&dv[i], &ds[i], sizeof(float));
+                assert_memory_equal(&df[i], &ds[i], sizeof(float));
+            }
+#endif
+        for (int i = 0; i < RT_WIDE; i++) {
+            float lo[3] = {n.b[0][i], n.b[2][i], n.b[4][i]}, hi[3] = {n.b[1][i], n.b[3][i], n.b[5][i]};
+            long double entry;
+            if (!slab_exact(lo, hi, r, tmin, tmax, &entry))
+                continue;
+            checked++;
+            touched += i == lane && kind < 3;
+            assert_true(ms >> i & 1); /* never culled */
+            assert_true(md >> i & 1);
+            assert_true((long double)ds[i] <= entry * (1 + (long double)RT_BOX_GROW) + 1e-30L);
+            assert_true((long double)dd[i] <= entry * (1 + (long double)RT_BOX_GROW) + 1e-30L);
+        }
+    }
+    assert_true(touched > 50000);
+    assert_true(checked > 150000);
+}
+
+/* Regression: a ray parallel to two axes with direction components -0 (as
+ * from negating or scaling a zero) hits. The binary BVH took d < 0 for the
+ * near plane while 1/-0 = -inf, and so missed every box around the ray. */
+static void bvh_negative_zero_direction(void **state)
+{
+    (void)state;
+    const char *json = "{\"format\":\"radray-scene/1\",\"camera\":{\"type\":\"lecture\",\"E\":[0,0,5],"
+                       "\"O\":[0,0,4],\"U\":[0,1,0],\"s\":0.1,\"w\":2,\"h\":2},"
+                       "\"materials\":{\"a\":{\"diffuse\":[0.5,0.5,0.5]}},\"objects\":["
+                       "{\"type\":\"triangles\",\"material\":\"a\",\"vertices\":[[-1,-1,0],[1,-1,0],[0,1,0],"
+                       "[-1,-1,2],[1,-1,2],[0,1,2.5]],\"indices\":[[0,1,2],[3,4,5]]}]}";
+    scene *s = NULL;
+    rr_error err;
+    assert_int_equal(scene_load_string(json, "negzero", "", NULL, &s, &err), RR_OK);
+    rt_accel *a = NULL;
+    assert_int_equal(rt_accel_build(s, &a, &err), RR_OK);
+    const double zs[2] = {0.0, -0.0};
+    /* Inside the boxes' x and y slabs; on the plane x = -1 (outside both
+     * triangles); on the plane y = -1, through the triangles' bottom edges. */
+    const rr_vec3 os[3] = {rr_v3(0.2, 0.3, 5), rr_v3(-1, -0.5, 5), rr_v3(0, -1, 5)};
+    int on_edge = -1;
+    for (int i = 0; i < 2; i++)
+        for (int j = 0; j < 2; j++)
+            for (int k = 0; k < 3; k++) {
+                rr_ray r = {os[k], rr_v3(zs[i], zs[j], -1)};
+                rt_hit h, h2;
+                int f = rt_accel_closest(a, r, 0, INFINITY, &h);
+                assert_int_equal(rt_accel_occluded(a, r, 0, INFINITY), f);
+                if (k == 0) {
+                    assert_true(f);
+                    assert_int_equal(h.tri, 1); /* the near one (z = 2..2.5) */
+                    assert_true(rt_ref_closest(s, r, 0, INFINITY, &h2));
+                    assert_int_equal(h2.tri, 1);
+                    assert_near(h.t, h2.t, 1e-12);
+                } else if (k == 1) {
+                    assert_false(f);
+                } else {
+                    /* Exactly on an edge: the watertight test counts it (the
+                     * lecture's strict test does not); the same for +0 and -0. */
+                    if (on_edge < 0)
+                        on_edge = f;
+                    assert_int_equal(f, on_edge);
+                }
+            }
+    rt_accel_destroy(a);
+    scene_destroy(s);
+}
+
+/* The same scene with every vertex rounded to float, so the BVH takes its fast
+ * path (triangles copied into the leaf records, rt_internal.h); the scene's
+ * other data are not touched (only verts are read by the tests below). */
+static void verts_to_float(scene *s)
+{
+    for (size_t i = 0; i < s->nverts; i++)
+        s->verts[i] = rr_v3((float)s->verts[i].x, (float)s->verts[i].y, (float)s->verts[i].z);
+}
+
+/* bvh_matches_reference_random, on float vertices (the fast path, mixed with
+ * spheres in the same leaves). */
+static void bvh_fast_path_matches_reference_random(void **state)
+{
+    (void)state;
+    rr_rng rng = rr_rng_make(7, 4);
+    char *json = random_scene(&rng, 400, 6);
+    scene *s = NULL;
+    rr_error err;
+    assert_int_equal(scene_load_string(json, "random", "", NULL, &s, &err), RR_OK);
+    free(json);
+    verts_to_float(s);
+    rt_accel *a = NULL;
+    assert_int_equal(rt_accel_build(s, &a, &err), RR_OK);
+    int hits = 0, spheres = 0, n = 20000, edge_cases = 0;
+    for (int i = 0; i < n; i++) {
+        rr_ray r;
+        r.o = random_point(&rng, 2.0);
+        r.d = rr_v3_sub(random_point(&rng, 1.0), r.o);
+        rt_hit h1, h2;
+        int f1 = rt_ref_closest(s, r, 1e-9, INFINITY, &h1);
+        int f2 = rt_accel_closest(a, r, 1e-9, INFINITY, &h2);
+        if (f1 != f2 || (f1 && h1.tri != h2.tri)) {
+            edge_cases++;
+            continue;
+        }
+        assert_int_equal(rt_accel_occluded(a, r, 1e-9, INFINITY), f2);
+        if (f1) {
+            hits++;
+            spheres += h2.tri < 0;
+            assert_int_equal(h1.object, h2.object);
+            assert_int_equal(h1.material, h2.material);
+            assert_int_equal(h1.part, h2.part);
+            assert_near(h1.t, h2.t, 1e-9 * fmax(1.0, h1.t));
+            assert_int_equal(h1.front, h2.front);
+            assert_near(rr_v3_dot(h1.normal, h2.normal), 1.0, 1e-9);
+            assert_near(rr_v3_len(rr_v3_sub(h2.point, rr_ray_at(r, h2.t))), 0.0, 1e-12);
+        }
+    }
+    assert_true(edge_cases <= 2);
+    assert_true(hits > n / 4);
+    assert_true(spheres > 100);
+    rt_accel_destroy(a);
+    scene_destroy(s);
+}
+
+/* bvh_matches_reference_large and bvh_watertight_million_rays on float
+ * vertices (the fast path). */
+static void bvh_fast_path_large_and_watertight(void **state)
+{
+    (void)state;
+    for (int pass = 0; pass < 2; pass++) {
+        char *json = pass == 0 ? uv_sphere_scene(60, 90, "\"auto\"") : uv_sphere_scene(40, 64, "false");
+        scene *s = NULL;
+        assert_int_equal(scene_load_string(json, "uv-sphere", "", NULL, &s, NULL), RR_OK);
+        free(json);
+        verts_to_float(s);
+        rt_accel *a = NULL;
+        assert_int_equal(rt_accel_build(s, &a, NULL), RR_OK);
+        int bad = 0, hits = 0, N = pass == 0 ? 100000 : 1000000;
+#pragma omp parallel for schedule(dynamic, 4096) reduction(+ : bad, hits)
+        for (int i = 0; i < N; i++) {
+            rr_rng rng = rr_rng_make(79 + (uint64_t)pass, (uint64_t)i);
+            rr_ray r;
+            rt_hit h1, h2;
+            if (pass == 0) {
+                r.o = rr_v3_scale(random_unit(&rng), 1.5 + 2 * rr_rng_uniform(&rng));
+                r.d = rr_v3_sub(rr_v3_scale(random_unit(&rng), 1.1 * rr_rng_uniform(&rng)), r.o);
+                int f1 = rt_ref_closest(s, r, 0, INFINITY, &h1), f2 = rt_accel_closest(a, r, 0, INFINITY, &h2);
+                bad += f1 != f2 || (f1 && (h1.tri != h2.tri || fabs(h1.t - h2.t) > 1e-9 * h1.t));
+                hits += f2;
+            } else {
+                r.o = rr_v3_scale(random_unit(&rng), 0.95 * cbrt(rr_rng_uniform(&rng)));
+                if (i % 4 == 0)
+                    r.d = rr_v3_sub(s->verts[rr_rng_below(&rng, (uint32_t)s->nverts)], r.o);
+                else
+                    r.d = random_unit(&rng);
+                bad += !rt_accel_closest(a, r, 0, INFINITY, &h2);
+                hits++;
+            }
+        }
+        assert_true(bad <= (pass == 0 ? 5 : 0));
+        assert_true(hits > N / 2);
+        rt_accel_destroy(a);
+        scene_destroy(s);
+    }
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -854,6 +1122,10 @@ int main(void)
         cmocka_unit_test(bvh_watertight_shared_edges),
         cmocka_unit_test(bvh_matches_reference_large),
         cmocka_unit_test(bvh_watertight_million_rays),
+        cmocka_unit_test(wide_box_tests_agree_and_conservative),
+        cmocka_unit_test(bvh_negative_zero_direction),
+        cmocka_unit_test(bvh_fast_path_matches_reference_random),
+        cmocka_unit_test(bvh_fast_path_large_and_watertight),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
