@@ -6,6 +6,9 @@
  *    stays untinted in Whitted mode (no indirect layer, a grey ambient term);
  *  - scenes/board-to-sphere.json: the underside of the white sphere turns
  *    green over the green board, the same way;
+ *  - scenes/csg.json: the three solids (lens, bitten sphere, drilled mesh)
+ *    load as CSG trees and take part in the radiosity pass: the floor next to
+ *    the red bitten sphere turns red in the hybrid as with secondary rays;
  *  - scenes/room.json: a mirror, a glossy material, lights, inward-facing
  *    walls, and at least 100,000 radiosity patches at its own settings (only
  *    the patches are built here: solving the room takes tens of seconds).
@@ -314,11 +317,68 @@ static void room(void **state)
     scene_destroy(s);
 }
 
+
+/* The floor next to the red bitten sphere of scenes/csg.json: pixels that see
+ * only the floor, within 0.75 of the point under the sphere's centre. Its
+ * indirect light is tinted red in the hybrid (the solid is tessellated for the
+ * radiosity pass) as with secondary rays, by about as much. */
+static void csg_bleeds(void **state)
+{
+    (void)state;
+    renders r;
+    render_all(&r, "csg.json");
+    const scene *s = r.s;
+    int floor_ = find_object(s, "floor"), ball = find_object(s, "bitten sphere");
+    int lens = find_object(s, "lens"), pebble = find_object(s, "drilled pebble");
+    assert_int_equal(s->objects[ball].kind, SCENE_OBJ_CSG);
+    assert_int_equal(s->objects[lens].kind, SCENE_OBJ_CSG);
+    assert_int_equal(s->objects[pebble].kind, SCENE_OBJ_CSG);
+    assert_int_equal(s->csg[s->objects[lens].csg_root].op, SCENE_CSG_INTERSECTION);
+    assert_int_equal(s->csg[s->objects[ball].csg_root].op, SCENE_CSG_DIFFERENCE);
+    assert_int_equal(s->csg[s->objects[pebble].csg_root].op, SCENE_CSG_DIFFERENCE);
+    /* Every solid got patches. */
+    size_t np[3] = {0, 0, 0};
+    for (size_t k = 0; k < r.sol->P->n; k++) {
+        uint32_t o = r.sol->P->p[k].object;
+        np[0] += o == (uint32_t)lens, np[1] += o == (uint32_t)ball, np[2] += o == (uint32_t)pebble;
+    }
+    assert_true(np[0] > 50 && np[1] > 50 && np[2] > 50);
+    rr_vec3 c = s->csg[s->objects[ball].csg_root].bbox_lo;
+    rr_vec3 hi = s->csg[s->objects[ball].csg_root].bbox_hi;
+    rr_vec3 below = rr_v3(0.5 * (c.x + hi.x), 0, 0.5 * (c.z + hi.z));
+    int w = r.v.width, h = r.v.height, n = 0;
+    unsigned char mask[61 * 61];
+    assert_true((size_t)w * (size_t)h <= sizeof mask);
+    memset(mask, 0, sizeof mask);
+    for (int y = 0; y < h; y++)
+        for (int x = 0; x < w; x++) {
+            rt_hit hit, nb;
+            if (pixel_object(&r, x, y, &hit) != floor_ || rr_v3_len(rr_v3_sub(hit.point, below)) >= 0.75)
+                continue;
+            /* Away from the solid's silhouette: the pixel's neighbours see the
+             * floor too (a pixel's samples reach its corners). */
+            int clear = 1;
+            for (int dy = -1; dy <= 1; dy++)
+                for (int dx = -1; dx <= 1; dx++)
+                    clear &= x + dx >= 0 && x + dx < w && y + dy >= 0 && y + dy < h &&
+                             pixel_object(&r, x + dx, y + dy, &nb) == floor_;
+            if (clear) {
+                mask[(size_t)y * (size_t)w + (size_t)x] = 1;
+                n++;
+            }
+        }
+    if (n < 10)
+        fail_msg("only %d floor pixels next to the bitten sphere", n);
+    check_tint(&r, mask, 0, 1, 1.2, "floor next to the red bitten sphere");
+    free_all(&r);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(sphere_to_board),
         cmocka_unit_test(board_to_sphere),
+        cmocka_unit_test(csg_bleeds),
         cmocka_unit_test(room),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
