@@ -34,18 +34,22 @@ typedef struct rt_node {
  * (so a box still contains its primitives exactly): b[2k] = lower bounds on
  * axis k, b[2k+1] = upper bounds, one lane per child. An unused lane has the
  * empty box lo = +inf, hi = -inf, which every ray misses (no NaN arises from
- * it, see rt_wide.h). 128 bytes, two cache lines.
+ * it, see rt_wide.h). 128 bytes (two cache lines) for 4 wide, 256 for 8.
  *
  * child[i]: an inner node's index in wnodes, or RT_LEAF | the index of the
  * leaf's first primitive record; a leaf runs to the record flagged
  * RT_REC_LAST. */
+#if defined(RT_SIMD) && RT_SIMD >= 2
+#define RT_WIDE 8 /* AVX2 build: 8-wide nodes, 256 bytes */
+#else
 #define RT_WIDE 4
+#endif
 #define RT_LEAF 0x80000000u
 #define RT_EMPTY 0xffffffffu
 #define RT_STACK_SIZE ((RT_WIDE - 1) * RT_BVH_STACK + 1)
 
 typedef struct rt_wnode {
-    float b[6][RT_WIDE];
+    _Alignas(64) float b[6][RT_WIDE];
     uint32_t child[RT_WIDE];
     uint32_t pad[RT_WIDE];
 } rt_wnode;

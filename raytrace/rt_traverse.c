@@ -30,7 +30,6 @@ void rt__ray_prepare(rr_ray ray, rt_ray_pre *p)
     p->kz = kz;
     p->Sx = d[kx] / d[kz];
     p->Sy = d[ky] / d[kz];
-    p->Sz = 1.0 / d[kz];
     p->box_double = 0;
     for (int i = 0; i < 3; i++) {
         p->inv[i] = 1.0 / d[i]; /* +-inf for a zero component: the slab tests handle it */
@@ -47,6 +46,7 @@ void rt__ray_prepare(rr_ray ray, rt_ray_pre *p)
         if (!(fabs(o[i]) < 1e30) || (ad != 0.0 && !(ad > 1e-30 && ad < 1e30)))
             p->box_double = 1;
     }
+    p->Sz = p->inv[kz]; /* 1 / d[kz], the same division */
 }
 
 static double comp(rr_vec3 v, int k) { return k == 0 ? v.x : (k == 1 ? v.y : v.z); }
@@ -179,7 +179,7 @@ static int traverse(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_
                     sp++;
                     continue;
                 }
-                /* Three or four: sort by descending distance, push all but the
+                /* Three or more: sort by descending distance, push all but the
                  * nearest (farthest first). */
                 uint32_t ref[RT_WIDE] = {ri, rk};
                 float d[RT_WIDE] = {di, dk};

@@ -4,10 +4,14 @@
  * Three versions with one contract (tests/test_raytrace.c checks that they
  * agree and that none culls a box the ray touches):
  *   rt__box4_scalar  float, plain C (the portable fallback, RADRAY_SIMD=OFF)
- *   rt__box4_sse     float, SSE2 (x86-64 always has it; RADRAY_SIMD=SSE/AUTO)
+ *   rt__box4_sse     float, SSE2, 4 wide (x86-64 always has it; RADRAY_SIMD=SSE/AUTO)
+ *   rt__box4_simd    the SIMD version of the build's width: rt__box4_sse, or
+ *                    8 wide with AVX (RADRAY_SIMD=AVX2, RT_WIDE = 8)
  *   rt__box4_double  double, for the rays the float test cannot take
  *                    (rt_ray_pre.box_double), and as the reference in tests
- * rt__box4 is the one the build selected (RT_SIMD, set by CMake).
+ * rt__box4_fast, on operands prepared once per ray (rt_boxray), is the one
+ * the traversal calls (RT_SIMD, set by CMake, selects it). "box4" is
+ * historical: every version tests RT_WIDE children.
  *
  * Contract: returns a bit mask of the children whose box the ray meets within
  * [tmin, tmax], up to rounding and always erring on the side of "meets" (a box
@@ -44,7 +48,9 @@
 
 #include "rt_internal.h"
 
-#if defined(RT_SIMD) && RT_SIMD >= 1
+#if defined(RT_SIMD) && RT_SIMD >= 2
+#include <immintrin.h>
+#elif defined(RT_SIMD) && RT_SIMD >= 1
 #include <emmintrin.h>
 #endif
 
@@ -96,7 +102,27 @@ static inline unsigned rt__box4_scalar(const rt_wnode *n, const rt_ray_pre *p, f
     return mask;
 }
 
-#if defined(RT_SIMD) && RT_SIMD >= 1
+#if defined(RT_SIMD) && RT_SIMD >= 2
+/* 8 wide, AVX: the SSE code on 256-bit registers (VMINPS/VMAXPS have the same
+ * NaN rule). */
+static inline unsigned rt__box4_simd(const rt_wnode *n, const rt_ray_pre *p, float tmin, float tmax,
+                                     float dist[RT_WIDE])
+{
+    __m256 t0 = _mm256_set1_ps(tmin), t1 = _mm256_set1_ps(INFINITY);
+    for (int k = 0; k < 3; k++) {
+        int row = p->near_row[k];
+        __m256 inv = _mm256_set1_ps(p->inv_f[k]);
+        __m256 ta = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(n->b[row]), _mm256_set1_ps(p->org_near[k])), inv);
+        __m256 tb = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(n->b[row ^ 1]), _mm256_set1_ps(p->org_far[k])), inv);
+        t0 = _mm256_max_ps(ta, t0);
+        t1 = _mm256_min_ps(tb, t1);
+    }
+    t1 = _mm256_min_ps(_mm256_set1_ps(tmax), _mm256_mul_ps(t1, _mm256_set1_ps(1.0f + RT_BOX_GROW)));
+    _mm256_storeu_ps(dist, t0);
+    return (unsigned)_mm256_movemask_ps(_mm256_cmp_ps(t0, t1, _CMP_LE_OQ));
+}
+#elif defined(RT_SIMD) && RT_SIMD >= 1
+#define rt__box4_simd rt__box4_sse
 static inline unsigned rt__box4_sse(const rt_wnode *n, const rt_ray_pre *p, float tmin, float tmax,
                                     float dist[RT_WIDE])
 {
@@ -123,7 +149,10 @@ static inline unsigned rt__box4_sse(const rt_wnode *n, const rt_ray_pre *p, floa
  * wants them (for SSE: broadcast once per ray, kept in registers during the
  * walk, instead of once per node). */
 typedef struct rt_boxray {
-#if defined(RT_SIMD) && RT_SIMD >= 1
+#if defined(RT_SIMD) && RT_SIMD >= 2
+    __m256 on[3], of[3], inv[3];
+    int row[3];
+#elif defined(RT_SIMD) && RT_SIMD >= 1
     __m128 on[3], of[3], inv[3];
     int row[3];
 #else
@@ -133,7 +162,14 @@ typedef struct rt_boxray {
 
 static inline void rt__boxray_init(const rt_ray_pre *p, rt_boxray *br)
 {
-#if defined(RT_SIMD) && RT_SIMD >= 1
+#if defined(RT_SIMD) && RT_SIMD >= 2
+    for (int k = 0; k < 3; k++) {
+        br->on[k] = _mm256_set1_ps(p->org_near[k]);
+        br->of[k] = _mm256_set1_ps(p->org_far[k]);
+        br->inv[k] = _mm256_set1_ps(p->inv_f[k]);
+        br->row[k] = p->near_row[k];
+    }
+#elif defined(RT_SIMD) && RT_SIMD >= 1
     for (int k = 0; k < 3; k++) {
         br->on[k] = _mm_set1_ps(p->org_near[k]);
         br->of[k] = _mm_set1_ps(p->org_far[k]);
@@ -145,11 +181,25 @@ static inline void rt__boxray_init(const rt_ray_pre *p, rt_boxray *br)
 #endif
 }
 
-/* rt__box4 on prepared operands; same results. */
+/* The selected test on prepared operands; same results as rt__box4_simd
+ * (or rt__box4_scalar when there is no SIMD). */
 static inline unsigned rt__box4_fast(const rt_wnode *n, const rt_boxray *br, float tmin, float tmax,
                                      float dist[RT_WIDE])
 {
-#if defined(RT_SIMD) && RT_SIMD >= 1
+#if defined(RT_SIMD) && RT_SIMD >= 2
+    const int nx = br->row[0], ny = br->row[1], nz = br->row[2];
+    __m256 tx0 = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(n->b[nx]), br->on[0]), br->inv[0]);
+    __m256 ty0 = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(n->b[ny]), br->on[1]), br->inv[1]);
+    __m256 tz0 = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(n->b[nz]), br->on[2]), br->inv[2]);
+    __m256 tx1 = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(n->b[nx ^ 1]), br->of[0]), br->inv[0]);
+    __m256 ty1 = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(n->b[ny ^ 1]), br->of[1]), br->inv[1]);
+    __m256 tz1 = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(n->b[nz ^ 1]), br->of[2]), br->inv[2]);
+    __m256 t0 = _mm256_max_ps(tz0, _mm256_max_ps(ty0, _mm256_max_ps(tx0, _mm256_set1_ps(tmin))));
+    __m256 t1 = _mm256_min_ps(tz1, _mm256_min_ps(ty1, _mm256_min_ps(tx1, _mm256_set1_ps(INFINITY))));
+    t1 = _mm256_min_ps(_mm256_set1_ps(tmax), _mm256_mul_ps(t1, _mm256_set1_ps(1.0f + RT_BOX_GROW)));
+    _mm256_storeu_ps(dist, t0);
+    return (unsigned)_mm256_movemask_ps(_mm256_cmp_ps(t0, t1, _CMP_LE_OQ));
+#elif defined(RT_SIMD) && RT_SIMD >= 1
     const int nx = br->row[0], ny = br->row[1], nz = br->row[2];
     __m128 tx0 = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(n->b[nx]), br->on[0]), br->inv[0]);
     __m128 ty0 = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(n->b[ny]), br->on[1]), br->inv[1]);
@@ -196,10 +246,5 @@ static inline unsigned rt__box4_double(const rt_wnode *n, const rt_ray_pre *p, d
     return mask;
 }
 
-#if defined(RT_SIMD) && RT_SIMD >= 1
-#define rt__box4 rt__box4_sse
-#else
-#define rt__box4 rt__box4_scalar
-#endif
 
 #endif

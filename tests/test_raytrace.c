@@ -927,7 +927,7 @@ static void wide_box_tests_agree_and_conservative(void **state)
         unsigned md = rt__box4_double(&n, &p, tmin, tmax, dd);
 #if defined(RT_SIMD) && RT_SIMD >= 1
         float dv[RT_WIDE], df[RT_WIDE];
-        unsigned mv = rt__box4_sse(&n, &p, rt__f_down(tmin), rt__f_up(tmax), dv);
+        unsigned mv = rt__box4_simd(&n, &p, rt__f_down(tmin), rt__f_up(tmax), dv);
         rt_boxray br;
         rt__boxray_init(&p, &br);
         unsigned mf = rt__box4_fast(&n, &br, rt__f_down(tmin), rt__f_up(tmax), df);
