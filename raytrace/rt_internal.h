@@ -89,6 +89,7 @@ typedef struct rt_ray_pre {
     rr_ray ray;
     int kx, ky, kz;
     double Sx, Sy, Sz;
+    double ok[3]; /* the origin's coordinates kx, ky, kz */
     double inv[3];
     int neg[3]; /* the sign bit of d (so -0 counts as negative, like 1/-0 = -inf) */
     /* Float slab test: the origin rounded towards the near planes (org_near)
