@@ -261,9 +261,7 @@ typedef struct csg_ctx {
     rr_ray ray;
 } csg_ctx;
 
-/* Does the ray meet the world box [lo, hi] for some t in [tmin, tmax]? Only a
- * pruning test, so it errs towards yes (the interval is widened a little). */
-static int bbox_hit(rr_ray r, rr_vec3 lo, rr_vec3 hi, double tmin, double tmax)
+int rt__box_overlap(rr_ray r, rr_vec3 lo, rr_vec3 hi, double tmin, double tmax)
 {
     double t0 = tmin, t1 = tmax;
     for (int i = 0; i < 3; i++) {
@@ -365,7 +363,7 @@ static void csg_rec(const csg_ctx *c, uint32_t node, double tmin, double tmax, r
 {
     out->n = 0;
     const scene_csg_node *n = &c->s->csg[node];
-    if (!bbox_hit(c->ray, n->bbox_lo, n->bbox_hi, tmin, tmax))
+    if (!rt__box_overlap(c->ray, n->bbox_lo, n->bbox_hi, tmin, tmax))
         return;
     if (n->op == SCENE_CSG_LEAF) {
         leaf_spans(c->s, c->sa, node, c->ray, tmin, tmax, out);
@@ -377,7 +375,7 @@ static void csg_rec(const csg_ctx *c, uint32_t node, double tmin, double tmax, r
     if (n->op != SCENE_CSG_UNION) {
         /* The right operand only matters where the left one is. */
         const scene_csg_node *r = &c->s->csg[n->right];
-        if (!bbox_hit(c->ray, r->bbox_lo, r->bbox_hi, out->s[0].in.t, out->s[out->n - 1].out.t)) {
+        if (!rt__box_overlap(c->ray, r->bbox_lo, r->bbox_hi, out->s[0].in.t, out->s[out->n - 1].out.t)) {
             if (n->op == SCENE_CSG_INTERSECTION)
                 out->n = 0;
             return;

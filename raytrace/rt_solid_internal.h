@@ -17,6 +17,11 @@
  * RT_SPAN_MAX are kept). */
 void rt__spans_push(rt_spans *l, rt_span_end a, rt_span_end b);
 
+/* Does the ray meet the world box [lo, hi] for some t in [tmin, tmax]? Only a
+ * pruning test (CSG node boxes, mesh-leaf BVH nodes), so it errs towards yes:
+ * the interval is widened a little. An empty box (lo > hi) is never met. */
+int rt__box_overlap(rr_ray r, rr_vec3 lo, rr_vec3 hi, double tmin, double tmax);
+
 /* Spans of mesh leaf `leaf` along the world ray, clipped to [tmin, tmax];
  * sa may be NULL (every triangle is tested). */
 void rt__mesh_spans(const scene *s, const struct rt_solid_accel *sa, uint32_t leaf, rr_ray ray, double tmin,

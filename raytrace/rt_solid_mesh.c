@@ -446,28 +446,7 @@ nomem:
 /* Slab test of a (padded) node box over (tlo, thi), widened for rounding. */
 static int mnode_hit(const mnode *nd, rr_ray r, double tlo, double thi)
 {
-    double t0 = tlo, t1 = thi;
-    for (int i = 0; i < 3; i++) {
-        double o = rr_v3_get(r.o, i), d = rr_v3_get(r.d, i);
-        if (d == 0.0) {
-            if (o < nd->lo[i] || o > nd->hi[i])
-                return 0;
-            continue;
-        }
-        double ta = (nd->lo[i] - o) / d, tb = (nd->hi[i] - o) / d;
-        if (ta > tb) {
-            double t = ta;
-            ta = tb;
-            tb = t;
-        }
-        ta -= fabs(ta) * 1e-12;
-        tb += fabs(tb) * 1e-12;
-        if (ta > t0)
-            t0 = ta;
-        if (tb < t1)
-            t1 = tb;
-    }
-    return t0 <= t1;
+    return rt__box_overlap(r, rr_v3(nd->lo[0], nd->lo[1], nd->lo[2]), rr_v3(nd->hi[0], nd->hi[1], nd->hi[2]), tlo, thi);
 }
 
 static void cross_tri(const scene *s, const mray *m, uint32_t tri, xbuf *b)

@@ -19,6 +19,7 @@
 #include "rr_file.h"
 #include "rt.h"
 #include "rr_rng.h"
+#include "test_scenes.h"
 
 #define assert_near(a, b, tol)                                                                                  \
     do {                                                                                                        \
@@ -1447,24 +1448,8 @@ static void json_mesh_minus_sphere(void **state)
 static void json_documented_example(void **state)
 {
     (void)state;
-    char *doc = NULL;
     rr_error err = {0};
-    if (rr_file_read_all(RR_SOURCE_DIR "/notes/scene-format.md", &doc, NULL, &err) != RR_OK)
-        fail_msg("%s", err.msg);
-    const char *h0 = strstr(doc, "### Solids example");
-    assert_non_null(h0);
-    const char *start = strstr(h0, "```json\n");
-    assert_non_null(start);
-    start += 8;
-    const char *end = strstr(start, "```");
-    assert_non_null(end);
-    size_t len = (size_t)(end - start);
-    char *json = malloc(len + 1);
-    memcpy(json, start, len);
-    json[len] = 0;
-    scene *s = NULL;
-    if (scene_load_string(json, "solids.json", RR_TEST_DATA "/scenes", NULL, &s, &err) != RR_OK)
-        fail_msg("%s", err.msg);
+    scene *s = test_doc_scene("### Solids example", "solids.json");
     rt_accel *acc = NULL;
     assert_int_equal(rt_accel_build(s, &acc, &err), RR_OK);
     rr_rng rng = rr_rng_make(77, 0);
@@ -1506,8 +1491,6 @@ static void json_documented_example(void **state)
     assert_true(solid_hits > 1000);
     rt_accel_destroy(acc);
     scene_destroy(s);
-    free(json);
-    free(doc);
 }
 
 int main(void)

@@ -15,6 +15,7 @@
 
 #include "scene.h"
 #include "test_scene_util.h"
+#include "test_scenes.h"
 
 /* ---- good scenes ---- */
 
@@ -454,22 +455,7 @@ static void cornell_scene(void **state)
 static void documented_example(void **state)
 {
     (void)state;
-    char *doc = NULL;
-    rr_error err = {0};
-    if (rr_file_read_all(RR_SOURCE_DIR "/notes/scene-format.md", &doc, NULL, &err) != RR_OK)
-        fail_msg("%s", err.msg);
-    const char *h = strstr(doc, "## Complete example");
-    assert_non_null(h);
-    const char *start = strstr(h, "```json\n");
-    assert_non_null(start);
-    start += 8;
-    const char *end = strstr(start, "```");
-    assert_non_null(end);
-    char *json = strndup(start, (size_t)(end - start));
-    assert_non_null(json);
-    scene *s = NULL;
-    if (scene_load_string(json, "example.json", RR_TEST_DATA "/scenes", NULL, &s, &err) != RR_OK)
-        fail_msg("the documented example does not load: %s", err.msg);
+    scene *s = test_doc_scene("## Complete example", "example.json");
     assert_int_equal(s->nobjects, 6);
     assert_string_equal(s->name, "example");
     assert_int_equal(s->view.width, 321);
@@ -480,8 +466,6 @@ static void documented_example(void **state)
     assert_int_equal(s->nemissive, 2);
     assert_int_equal(s->nlights, 2);
     scene_destroy(s);
-    free(json);
-    free(doc);
 }
 
 /* The "radiosity" block: defaults, every key, and its bad values. */

@@ -18,6 +18,7 @@
 
 #include "scene.h"
 #include "test_scene_util.h"
+#include "test_scenes.h"
 
 /* x^T Q x with x = (p, 1). */
 static double qform(const double q[4][4], rr_vec3 p)
@@ -536,22 +537,7 @@ static void mesh_leaf(void **state)
 static void documented_example(void **state)
 {
     (void)state;
-    char *doc = NULL;
-    rr_error err = {0};
-    if (rr_file_read_all(RR_SOURCE_DIR "/notes/scene-format.md", &doc, NULL, &err) != RR_OK)
-        fail_msg("%s", err.msg);
-    const char *h = strstr(doc, "### Solids example");
-    assert_non_null(h);
-    const char *start = strstr(h, "```json\n");
-    assert_non_null(start);
-    start += 8;
-    const char *end = strstr(start, "```");
-    assert_non_null(end);
-    char *json = strndup(start, (size_t)(end - start));
-    assert_non_null(json);
-    scene *s = NULL;
-    if (scene_load_string(json, "solids.json", RR_TEST_DATA "/scenes", NULL, &s, &err) != RR_OK)
-        fail_msg("the documented solids example does not load: %s", err.msg);
+    scene *s = test_doc_scene("### Solids example", "solids.json");
     size_t nsolids = 0;
     for (size_t i = 0; i < s->nobjects; i++)
         nsolids += s->objects[i].kind == SCENE_OBJ_CSG;
@@ -563,8 +549,6 @@ static void documented_example(void **state)
             shapes |= 1 << s->csg[i].shape;
     assert_int_equal(shapes, 0x3f); /* every shape, general included */
     scene_destroy(s);
-    free(json);
-    free(doc);
 }
 
 /* ---- bad input ---- */

@@ -3,6 +3,11 @@
 #define TEST_SCENES_H
 
 #include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "rr_file.h"
+#include "scene.h"
 
 /* Appends to json (at len, capacity cap) six quads "{...}" forming the faces of
  * [-1,1]^3 with material mat, wound so that their normals point inwards (the
@@ -29,6 +34,37 @@ static inline size_t test_inward_cube(char *json, size_t cap, size_t len, const 
             len += (size_t)snprintf(json + len, cap - len, "]}");
         }
     return len;
+}
+
+/* Loads the first ```json block after the line `heading` of
+ * notes/scene-format.md (mesh paths relative to tests/data/scenes), so that
+ * the documentation's examples are tested. Fails the test when it does not
+ * load. Include after cmocka.h. */
+static inline scene *test_doc_scene(const char *heading, const char *name)
+{
+    char *doc = NULL;
+    rr_error err;
+    if (rr_file_read_all(RR_SOURCE_DIR "/notes/scene-format.md", &doc, NULL, &err) != RR_OK)
+        fail_msg("%s", err.msg);
+    const char *h = strstr(doc, heading);
+    const char *start = h ? strstr(h, "```json\n") : NULL;
+    const char *end = start ? strstr(start + 8, "```") : NULL;
+    if (!end)
+        fail_msg("notes/scene-format.md: no json block after '%s'", heading);
+    start += 8;
+    size_t len = (size_t)(end - start);
+    char *json = malloc(len + 1);
+    if (!json)
+        fail_msg("out of memory");
+    memcpy(json, start, len);
+    json[len] = 0;
+    scene *s = NULL;
+    rr_status st = scene_load_string(json, name, RR_TEST_DATA "/scenes", NULL, &s, &err);
+    free(json);
+    free(doc);
+    if (st != RR_OK)
+        fail_msg("the example under '%s' does not load: %s", heading, err.msg);
+    return s;
 }
 
 #endif
