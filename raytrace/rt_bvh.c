@@ -1,18 +1,26 @@
-/* rt_bvh.c - bounding volume hierarchy over every primitive of a scene, and the
- * queries all rays go through (closest hit, any hit).
+/* rt_bvh.c - bounding volume hierarchy over every primitive of a scene (the
+ * queries are in rt_traverse.c).
  *
- * Build: binned surface area heuristic (16 bins over the centroid bounds, as in
- * Wald 2007, "On fast construction of SAH-based BVHs"), nodes written straight
- * into one flat array in depth-first order: an inner node's left child is the
- * next node, the right child is at `index`; a leaf's primitives are
- * prims[index .. index+count). Bounds are stored as floats rounded outward, so a
- * node is 32 bytes and still contains its primitives exactly.
+ * Build, in two steps:
+ * 1. A binary tree by binned surface area heuristic (16 bins over the centroid
+ *    bounds, as in Wald 2007, "On fast construction of SAH-based BVHs"),
+ *    leaves of at most 8 primitives, nodes in one flat array in depth-first
+ *    order (left child next, right child at `index`), bounds as floats rounded
+ *    outward so a node still contains its primitives exactly.
+ * 2. Collapsed into the wide tree the queries walk (rt_wnode, RT_WIDE = 4 or
+ *    8 children in SoA float boxes, rt_internal.h): each wide node takes a
+ *    binary node's two children and keeps opening the child of largest surface
+ *    area until it has RT_WIDE (as in Dammertz et al. 2008, "Shallow bounding
+ *    volume hierarchies for fast SIMD ray tracing of incoherent rays").
+ *    The binary tree's leaves stay leaves; their primitives become leaf
+ *    records (rt_rec) in leaf order, triangles with a float copy of their
+ *    vertices where that copy is exact. The binary tree is then freed.
  *
  * Primitives: one small closed interface (bounds + intersect) over the kinds in
  * rt_prim_kind; every query calls the same per-kind intersection function, so
  * closest-hit and shadow rays cannot disagree about an epsilon.
  *
- * Triangles: the watertight test of Woop, Benthin & Wald 2013 ("Watertight
+ * Triangles (rt_traverse.c): the watertight test of Woop, Benthin & Wald 2013 ("Watertight
  * ray/triangle intersection", JCGT 2(1)): the triangle is sheared into a space
  * where the ray is the +z axis, and the three edge functions are evaluated from
  * the shared, identically transformed vertices. A ray through an edge shared by
@@ -290,18 +298,29 @@ static void set_leaf(collapser *c, rt_wnode *wn, int i, uint32_t bi)
     c->recs[c->first[bi] + c->cnt[bi] - 1].flags |= RT_REC_LAST;
 }
 
+/* rt_wnode is 64-byte aligned (whole cache lines, aligned SIMD loads and
+ * stores): malloc/realloc promise only 16, so the array grows by
+ * aligned_alloc and a copy. */
+static int grow_wnodes(collapser *c)
+{
+    size_t cap = c->cap ? 2 * c->cap : 64;
+    rt_wnode *w = aligned_alloc(_Alignof(rt_wnode), cap * sizeof *w);
+    if (!w)
+        return -1;
+    if (c->nw)
+        memcpy(w, c->w, c->nw * sizeof *w);
+    free(c->w);
+    c->w = w;
+    c->cap = cap;
+    return 0;
+}
+
 /* Writes the wide node for binary inner node bi (and, depth first, its
  * subtree); returns its index or -1 when out of memory. */
 static long collapse_rec(collapser *c, uint32_t bi)
 {
-    if (c->nw == c->cap) {
-        size_t cap = c->cap ? 2 * c->cap : 256;
-        rt_wnode *w = realloc(c->w, cap * sizeof *w);
-        if (!w)
-            return -1;
-        c->w = w;
-        c->cap = cap;
-    }
+    if (c->nw == c->cap && grow_wnodes(c))
+        return -1;
     size_t idx = c->nw++;
     uint32_t kids[RT_WIDE];
     int m = gather(c, bi, kids);
@@ -349,8 +368,7 @@ static int collapse(const rt_node *bin, size_t nbin, rt_rec *recs, rt_wnode **ou
     collapser c = {bin, cnt, first, recs, RT_WIDE_LEAF, NULL, 0, 0};
     int ok = 0;
     if (is_leaf(&c, 0)) {
-        c.w = malloc(sizeof *c.w);
-        if (c.w) {
+        if (!grow_wnodes(&c)) {
             wnode_clear(c.w);
             for (int k = 0; k < 3; k++) {
                 c.w->b[2 * k][0] = bin[0].lo[k];
@@ -368,16 +386,17 @@ static int collapse(const rt_node *bin, size_t nbin, rt_rec *recs, rt_wnode **ou
         free(c.w);
         return -1;
     }
-    /* On cache-line boundaries, so a node is exactly two lines (realloc only
-     * promises 16 bytes, and a node straddling three lines costs a miss). */
-    rt_wnode *al = aligned_alloc(64, c.nw * sizeof *al);
-    if (!al) {
+    if (c.cap > c.nw) { /* trim the doubling slack */
+        rt_wnode *w = aligned_alloc(_Alignof(rt_wnode), c.nw * sizeof *w);
+        if (!w) {
+            free(c.w);
+            return -1;
+        }
+        memcpy(w, c.w, c.nw * sizeof *w);
         free(c.w);
-        return -1;
+        c.w = w;
     }
-    memcpy(al, c.w, c.nw * sizeof *al);
-    free(c.w);
-    *out = al;
+    *out = c.w;
     *nout = c.nw;
     return 0;
 }

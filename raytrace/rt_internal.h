@@ -53,6 +53,7 @@ typedef struct rt_wnode {
     uint32_t child[RT_WIDE];
     uint32_t pad[RT_WIDE];
 } rt_wnode;
+_Static_assert(sizeof(rt_wnode) % 64 == 0, "rt_wnode: whole cache lines (aligned_alloc needs a multiple of 64)");
 
 /* A leaf primitive record, in leaf order: the primitive (kind in flags) and,
  * for a triangle whose vertices are all floats exactly (meshes read from PLY,
