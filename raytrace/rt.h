@@ -129,9 +129,10 @@ int rt_csg_contains(const scene *s, const rt_accel *a, uint32_t node, rr_vec3 p)
 /* Outward unit normal of a leaf's surface at world point p (surface as in rt_span_end). */
 rr_vec3 rt_csg_leaf_normal(const scene *s, uint32_t leaf, int32_t surface, rr_vec3 p);
 
-/* The fast path: a BVH over every triangle and sphere of a scene (binned SAH,
- * flat 32-byte nodes, watertight triangle test). The accel keeps a pointer to
- * the scene, which must outlive it. Queries are thread-safe (read-only). */
+/* The fast path: a BVH over every triangle, sphere and solid of a scene
+ * (binned SAH, collapsed into 4- or 8-wide nodes with SIMD box tests,
+ * watertight triangle test; notes/performance.md). The accel keeps a pointer
+ * to the scene, which must outlive it. Queries are thread-safe (read-only). */
 
 rr_status rt_accel_build(const scene *s, rt_accel **out, rr_error *err);
 void rt_accel_destroy(rt_accel *a); /* NULL is a no-op */
