@@ -7,10 +7,11 @@
  *    leaves of at most 8 primitives, nodes in one flat array in depth-first
  *    order (left child next, right child at `index`), bounds as floats rounded
  *    outward so a node still contains its primitives exactly.
- * 2. Collapsed into the wide tree the queries walk (rt_wnode, RT_WIDE = 4 or
- *    8 children in SoA float boxes, rt_internal.h): each wide node takes a
- *    binary node's two children and keeps opening the child of largest surface
- *    area until it has RT_WIDE (as in Dammertz et al. 2008, "Shallow bounding
+ * 2. Collapsed into the wide tree the queries walk (W = 4 or 8 children in
+ *    SoA float boxes, rt_wnode4 / rt_wnode8 in rt_internal.h; W chosen per
+ *    build, rt__bvh_width_default): each wide node takes a binary node's two
+ *    children and keeps opening the child of largest surface area until it
+ *    has W (as in Dammertz et al. 2008, "Shallow bounding
  *    volume hierarchies for fast SIMD ray tracing of incoherent rays").
  *    The binary tree's leaves stay leaves; their primitives become leaf
  *    records (rt_rec) in leaf order, triangles with a float copy of their
@@ -240,9 +241,34 @@ typedef struct collapser {
     const uint32_t *cnt, *first; /* per binary node: primitives below it, the first one */
     rt_rec *recs;
     uint32_t leaf_max;
-    rt_wnode *w;
+    int width;      /* W: 4 or 8 */
+    size_t nbytes;  /* sizeof(rt_wnode4) or sizeof(rt_wnode8) */
+    unsigned char *w; /* the nodes, 64-byte aligned */
     size_t nw, cap;
 } collapser;
+
+/* A wide node being filled, at the widest layout; put_node stores it in the
+ * layout of the build's width. */
+typedef struct wstage {
+    float b[6][RT_WIDE_MAX];
+    uint32_t child[RT_WIDE_MAX];
+} wstage;
+
+static void put_node(collapser *c, size_t idx, const wstage *st)
+{
+    if (c->width == 8) {
+        rt_wnode8 *n = (rt_wnode8 *)c->w + idx;
+        memcpy(n->b, st->b, sizeof n->b);
+        memcpy(n->child, st->child, sizeof n->child);
+        memset(n->pad, 0, sizeof n->pad);
+    } else {
+        rt_wnode4 *n = (rt_wnode4 *)c->w + idx;
+        for (int k = 0; k < 6; k++)
+            memcpy(n->b[k], st->b[k], sizeof n->b[k]);
+        memcpy(n->child, st->child, sizeof n->child);
+        memset(n->pad, 0, sizeof n->pad);
+    }
+}
 
 static double node_area(const rt_node *n)
 {
@@ -254,14 +280,14 @@ static int is_leaf(const collapser *c, uint32_t i) { return c->bin[i].count || c
 
 /* Children of binary inner node `bi` for a wide node: starts from its two
  * children and keeps opening the inner child of largest surface area (the one
- * most rays enter) until RT_WIDE children or only leaves are left. */
-static int gather(const collapser *c, uint32_t bi, uint32_t out[RT_WIDE])
+ * most rays enter) until W children or only leaves are left. */
+static int gather(const collapser *c, uint32_t bi, uint32_t out[RT_WIDE_MAX])
 {
     const rt_node *bin = c->bin;
     int m = 2;
     out[0] = bi + 1;
     out[1] = bin[bi].index;
-    while (m < RT_WIDE) {
+    while (m < c->width) {
         int best = -1;
         double best_area = -1.0;
         for (int i = 0; i < m; i++) {
@@ -279,11 +305,10 @@ static int gather(const collapser *c, uint32_t bi, uint32_t out[RT_WIDE])
     return m;
 }
 
-static void wnode_clear(rt_wnode *wn)
+static void wnode_clear(wstage *wn)
 {
-    for (int i = 0; i < RT_WIDE; i++) {
+    for (int i = 0; i < RT_WIDE_MAX; i++) {
         wn->child[i] = RT_EMPTY;
-        wn->pad[i] = 0;
         for (int k = 0; k < 3; k++) {
             wn->b[2 * k][i] = INFINITY; /* empty box: missed by every ray */
             wn->b[2 * k + 1][i] = -INFINITY;
@@ -292,23 +317,23 @@ static void wnode_clear(rt_wnode *wn)
 }
 
 /* Child slot i of wn := binary node bi as a leaf. */
-static void set_leaf(collapser *c, rt_wnode *wn, int i, uint32_t bi)
+static void set_leaf(collapser *c, wstage *wn, int i, uint32_t bi)
 {
     wn->child[i] = RT_LEAF | c->first[bi];
     c->recs[c->first[bi] + c->cnt[bi] - 1].flags |= RT_REC_LAST;
 }
 
-/* rt_wnode is 64-byte aligned (whole cache lines, aligned SIMD loads and
+/* Wide nodes are 64-byte aligned (whole cache lines, aligned SIMD loads and
  * stores): malloc/realloc promise only 16, so the array grows by
  * aligned_alloc and a copy. */
 static int grow_wnodes(collapser *c)
 {
     size_t cap = c->cap ? 2 * c->cap : 64;
-    rt_wnode *w = aligned_alloc(_Alignof(rt_wnode), cap * sizeof *w);
+    unsigned char *w = aligned_alloc(64, cap * c->nbytes);
     if (!w)
         return -1;
     if (c->nw)
-        memcpy(w, c->w, c->nw * sizeof *w);
+        memcpy(w, c->w, c->nw * c->nbytes);
     free(c->w);
     c->w = w;
     c->cap = cap;
@@ -322,9 +347,9 @@ static long collapse_rec(collapser *c, uint32_t bi)
     if (c->nw == c->cap && grow_wnodes(c))
         return -1;
     size_t idx = c->nw++;
-    uint32_t kids[RT_WIDE];
+    uint32_t kids[RT_WIDE_MAX];
     int m = gather(c, bi, kids);
-    rt_wnode wn;
+    wstage wn;
     wnode_clear(&wn);
     for (int i = 0; i < m; i++) {
         const rt_node *ch = &c->bin[kids[i]];
@@ -341,14 +366,14 @@ static long collapse_rec(collapser *c, uint32_t bi)
             wn.child[i] = (uint32_t)sub;
         }
     }
-    c->w[idx] = wn;
+    put_node(c, idx, &wn);
     return (long)idx;
 }
 
 /* The wide tree over binary tree bin (nbin nodes, bin[0] the root), setting
  * RT_REC_LAST on the records that end a leaf. A root that is a leaf gets a
  * wide node with that one child. */
-static int collapse(const rt_node *bin, size_t nbin, rt_rec *recs, rt_wnode **out, size_t *nout)
+static int collapse(const rt_node *bin, size_t nbin, rt_rec *recs, int width, void **out, size_t *nout)
 {
     uint32_t *cnt = malloc(2 * nbin * sizeof *cnt);
     if (!cnt)
@@ -365,16 +390,19 @@ static int collapse(const rt_node *bin, size_t nbin, rt_rec *recs, rt_wnode **ou
             first[i] = first[i + 1];
         }
     }
-    collapser c = {bin, cnt, first, recs, RT_WIDE_LEAF, NULL, 0, 0};
+    collapser c = {bin, cnt, first, recs, RT_WIDE_LEAF, width, width == 8 ? sizeof(rt_wnode8) : sizeof(rt_wnode4),
+                   NULL, 0, 0};
     int ok = 0;
     if (is_leaf(&c, 0)) {
         if (!grow_wnodes(&c)) {
-            wnode_clear(c.w);
+            wstage wn;
+            wnode_clear(&wn);
             for (int k = 0; k < 3; k++) {
-                c.w->b[2 * k][0] = bin[0].lo[k];
-                c.w->b[2 * k + 1][0] = bin[0].hi[k];
+                wn.b[2 * k][0] = bin[0].lo[k];
+                wn.b[2 * k + 1][0] = bin[0].hi[k];
             }
-            set_leaf(&c, c.w, 0, 0);
+            set_leaf(&c, &wn, 0, 0);
+            put_node(&c, 0, &wn);
             c.nw = 1;
             ok = 1;
         }
@@ -387,12 +415,12 @@ static int collapse(const rt_node *bin, size_t nbin, rt_rec *recs, rt_wnode **ou
         return -1;
     }
     if (c.cap > c.nw) { /* trim the doubling slack */
-        rt_wnode *w = aligned_alloc(_Alignof(rt_wnode), c.nw * sizeof *w);
+        unsigned char *w = aligned_alloc(64, c.nw * c.nbytes);
         if (!w) {
             free(c.w);
             return -1;
         }
-        memcpy(w, c.w, c.nw * sizeof *w);
+        memcpy(w, c.w, c.nw * c.nbytes);
         free(c.w);
         c.w = w;
     }
@@ -432,8 +460,48 @@ static void fill_records(const scene *s, const build_item *items, size_t n, rt_r
     }
 }
 
+/* Why an environment variable and not a parameter: it is for comparing the
+ * two widths in benchmarks and tests of one binary, not a setting of the
+ * renderer (both widths give the same hits). */
+int rt__bvh_width_default(void)
+{
+#if RT_HAVE_W8
+    const char *env = getenv("RADRAY_BVH_WIDTH");
+    if (env && strcmp(env, "4") == 0)
+        return 4;
+    return rt__bvh_width_ok(8) ? 8 : 4;
+#else
+    return 4;
+#endif
+}
+
+int rt__bvh_width_ok(int width)
+{
+    if (width == 4)
+        return 1;
+#if RT_HAVE_W8 && RT_SIMD == 3
+    /* Dispatching build: rt__walk8 is AVX2 code in an SSE2 binary. */
+    __builtin_cpu_init();
+    return width == 8 && __builtin_cpu_supports("avx2");
+#elif RT_HAVE_W8
+    return width == 8; /* the whole binary needs AVX2 anyway */
+#else
+    return 0;
+#endif
+}
+
 rr_status rt_accel_build(const scene *s, rt_accel **out, rr_error *err)
 {
+    return rt__accel_build_width(s, 0, out, err);
+}
+
+rr_status rt__accel_build_width(const scene *s, int width, rt_accel **out, rr_error *err)
+{
+    if (width == 0)
+        width = rt__bvh_width_default();
+    if (!rt__bvh_width_ok(width))
+        return rr_error_set(err, RR_ERR_INVALID, "%s: %d-wide BVH nodes are not available in this build or on this CPU",
+                            s->path, width);
     size_t n = rt__prim_count(s);
     if (n > UINT32_MAX / 2)
         return rr_error_set(err, RR_ERR_LIMIT, "%s: %zu primitives exceed the BVH limit", s->path, n);
@@ -456,12 +524,13 @@ rr_status rt_accel_build(const scene *s, rt_accel **out, rr_error *err)
     if (n && build_rec(&b, 0, n, 0))
         goto nomem;
     a->scene = s;
+    a->width = width;
     if (n) {
         a->recs = malloc(n * sizeof *a->recs);
         if (!a->recs)
             goto nomem;
         fill_records(s, b.items, n, a->recs);
-        if (collapse(b.nodes, b.nnodes, a->recs, &a->wnodes, &a->nwnodes))
+        if (collapse(b.nodes, b.nnodes, a->recs, width, &a->wnodes, &a->nwnodes))
             goto nomem;
         a->nrecs = n;
     }

@@ -30,30 +30,55 @@ typedef struct rt_node {
 
 /* ---- the wide BVH the queries walk ----
  *
- * RT_WIDE children per node, their boxes stored SoA as floats rounded outward
- * (so a box still contains its primitives exactly): b[2k] = lower bounds on
- * axis k, b[2k+1] = upper bounds, one lane per child. An unused lane has the
- * empty box lo = +inf, hi = -inf, which every ray misses (no NaN arises from
- * it, see rt_wide.h). 128 bytes (two cache lines) for 4 wide, 256 for 8.
+ * W children per node (W = 4 or 8, chosen per accel at build time: see
+ * rt_accel.width), their boxes stored SoA as floats rounded outward (so a box
+ * still contains its primitives exactly): b[2k] = lower bounds on axis k,
+ * b[2k+1] = upper bounds, one lane per child. An unused lane has the empty box
+ * lo = +inf, hi = -inf, which every ray misses (no NaN arises from it, see
+ * rt_wide.h). 128 bytes (two cache lines) for 4 wide, 256 for 8.
  *
  * child[i]: an inner node's index in wnodes, or RT_LEAF | the index of the
  * leaf's first primitive record; a leaf runs to the record flagged
- * RT_REC_LAST. */
+ * RT_REC_LAST.
+ *
+ * Widths by RT_SIMD (set by CMake from RADRAY_SIMD):
+ *   0 (OFF) / 1 (SSE)  4 wide only (scalar / SSE2 box test)
+ *   2 (AVX2, or AUTO when the compiler targets AVX2)  8 wide, AVX2 everywhere
+ *   3 (AUTO otherwise: runtime dispatch)  4 wide SSE2, plus 8 wide AVX2 in
+ *     rt_bvh_avx2.c (the only file compiled for AVX2), used when the CPU has
+ *     AVX2 (__builtin_cpu_supports at rt_accel_build)
+ * In builds with the 8-wide path, RADRAY_BVH_WIDTH=4 in the environment makes
+ * rt_accel_build use 4-wide nodes (tests and benchmarks). */
 #if defined(RT_SIMD) && RT_SIMD >= 2
-#define RT_WIDE 8 /* AVX2 build: 8-wide nodes, 256 bytes */
+#define RT_HAVE_W8 1
+#define RT_WIDE 8 /* the widest node of this build (bench/bench_rays.c prints it) */
 #else
+#define RT_HAVE_W8 0
 #define RT_WIDE 4
 #endif
+#define RT_WIDE_MAX 8
 #define RT_LEAF 0x80000000u
 #define RT_EMPTY 0xffffffffu
-#define RT_STACK_SIZE ((RT_WIDE - 1) * RT_BVH_STACK + 1)
+#define RT_STACK_SIZE ((RT_WIDE_MAX - 1) * RT_BVH_STACK + 1)
 
-typedef struct rt_wnode {
-    _Alignas(64) float b[6][RT_WIDE];
-    uint32_t child[RT_WIDE];
-    uint32_t pad[RT_WIDE];
-} rt_wnode;
-_Static_assert(sizeof(rt_wnode) % 64 == 0, "rt_wnode: whole cache lines (aligned_alloc needs a multiple of 64)");
+typedef struct rt_wnode4 {
+    _Alignas(64) float b[6][4];
+    uint32_t child[4];
+    uint32_t pad[4];
+} rt_wnode4;
+typedef struct rt_wnode8 {
+    _Alignas(64) float b[6][8];
+    uint32_t child[8];
+    uint32_t pad[8];
+} rt_wnode8;
+_Static_assert(sizeof(rt_wnode4) == 128 && sizeof(rt_wnode8) == 256,
+               "wide nodes: whole cache lines (aligned_alloc needs a multiple of 64)");
+/* The widest node of this build (sizes printed by the benchmark). */
+#if RT_HAVE_W8
+typedef rt_wnode8 rt_wnode;
+#else
+typedef rt_wnode4 rt_wnode;
+#endif
 
 /* A leaf primitive record, in leaf order: the primitive (kind in flags) and,
  * for a triangle whose vertices are all floats exactly (meshes read from PLY,
@@ -77,8 +102,10 @@ typedef struct rt_rec {
 
 struct rt_accel {
     const scene *scene;
-    rt_wnode *wnodes; /* wnodes[0] is the root; NULL when the scene has no primitives */
+    void *wnodes; /* rt_wnode4 or rt_wnode8 by width, 64-byte aligned; wnodes[0] is the root;
+                     NULL when the scene has no primitives */
     size_t nwnodes;
+    int width; /* 4 or 8: the node layout and the walk (rt__walk4 / rt__walk8) */
     rt_rec *recs;
     size_t nrecs;
     struct rt_solid_accel *solids; /* per-mesh-leaf BVHs of the scene's solids (rt_solid.c); NULL if none */
@@ -111,6 +138,23 @@ void rt__ray_prepare(rr_ray ray, rt_ray_pre *p);
  * back faces. */
 int rt__tri_hit(const rt_ray_pre *p, rr_vec3 A, rr_vec3 B, rr_vec3 C, int cull, double tmin, double tmax, double *t,
                 int *front);
+
+/* ---- the BVH by width (rt_bvh.c, rt_traverse.c, rt_bvh_avx2.c) ---- */
+
+/* The width rt_accel_build uses: 8 when this build has the 8-wide path and
+ * (dispatching builds) the CPU has AVX2, unless RADRAY_BVH_WIDTH=4 is set;
+ * else 4. */
+int rt__bvh_width_default(void);
+/* 1 when width (4 or 8) can be built and walked on this build and CPU. */
+int rt__bvh_width_ok(int width);
+/* rt_accel_build with a given width (0 = rt__bvh_width_default()); a width
+ * that rt__bvh_width_ok rejects is RR_ERR_INVALID. For tests. */
+rr_status rt__accel_build_width(const scene *s, int width, rt_accel **out, rr_error *err);
+/* The walks of one width; any != 0 returns at the first hit (hit unused). */
+int rt__walk4(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_hit *hit, int any);
+#if RT_HAVE_W8
+int rt__walk8(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_hit *hit, int any);
+#endif
 
 /* ---- rt_solid.c: acceleration for the solids' mesh leaves ---- */
 rr_status rt__solids_build(const scene *s, struct rt_solid_accel **out, rr_error *err);
