@@ -12,6 +12,7 @@
 #if RT_HAVE_W8
 #define RT_W 8
 #define RT_WALK rt__walk8
+#define RT_OCCL rt__occl8
 #include "rt_wide.h"
 #else
 typedef int rt__bvh_avx2_unused; /* ISO C wants a declaration in every file */

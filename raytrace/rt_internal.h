@@ -152,8 +152,12 @@ int rt__bvh_width_ok(int width);
 rr_status rt__accel_build_width(const scene *s, int width, rt_accel **out, rr_error *err);
 /* The walks of one width; any != 0 returns at the first hit (hit unused). */
 int rt__walk4(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_hit *hit, int any);
+/* The any-hit walks of one width (rt_accel_occluded): the same answer as
+ * rt__walkN with any != 0, without ordering the children (rt_wide.h). */
+int rt__occl4(const rt_accel *a, rr_ray ray, double tmin, double tmax);
 #if RT_HAVE_W8
 int rt__walk8(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_hit *hit, int any);
+int rt__occl8(const rt_accel *a, rr_ray ray, double tmin, double tmax);
 #endif
 
 /* ---- rt_solid.c: acceleration for the solids' mesh leaves ---- */

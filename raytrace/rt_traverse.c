@@ -9,6 +9,7 @@
 
 #define RT_W 4
 #define RT_WALK rt__walk4
+#define RT_OCCL rt__occl4
 #include "rt_wide.h"
 
 void rt__ray_prepare(rr_ray ray, rt_ray_pre *p)
@@ -73,5 +74,9 @@ int rt_accel_closest(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt
 
 int rt_accel_occluded(const rt_accel *a, rr_ray ray, double tmin, double tmax)
 {
-    return walk(a, ray, tmin, tmax, NULL, 1);
+#if RT_HAVE_W8
+    if (a->width == 8)
+        return rt__occl8(a, ray, tmin, tmax);
+#endif
+    return rt__occl4(a, ray, tmin, tmax);
 }

@@ -61,26 +61,26 @@
 
 /* Float nearest to x rounded up / down (x a double; NaN stays NaN). One ulp
  * step by the bit pattern (floats of one sign are ordered as integers), which
- * is nextafterf without the library call. */
-static inline float rt__f_step(float f, int up)
+ * is nextafterf without the library call, and without a branch: whether
+ * the rounding to float went up or down is a coin toss, and a branch on it
+ * was mispredicted about half the time (the per-ray setup, rt__ray_prepare,
+ * rounds six of them). */
+static inline float rt__f_up(double x)
 {
-    if (f == 0.0f)
-        return up ? FLT_TRUE_MIN : -FLT_TRUE_MIN;
+    /* f < x steps f up: u + 1 for f >= +0 (+0 becomes FLT_TRUE_MIN), u - 1
+     * below (-inf becomes -FLT_MAX). f is never -0 then (a positive x does
+     * not round to -0), so the sign bit picks the direction. */
+    float f = (float)x;
     uint32_t u;
     memcpy(&u, &f, sizeof u);
-    u = (up == (f > 0.0f)) ? u + 1 : u - 1;
+    uint32_t step = 1u - ((u >> 31) << 1);
+    u += step & (0u - (uint32_t)((double)f < x));
     memcpy(&f, &u, sizeof f);
     return f;
 }
-static inline float rt__f_up(double x)
-{
-    float f = (float)x;
-    return (double)f < x ? rt__f_step(f, 1) : f;
-}
 static inline float rt__f_down(double x)
 {
-    float f = (float)x;
-    return (double)f > x ? rt__f_step(f, 0) : f;
+    return -rt__f_up(-x); /* rounding to nearest is symmetric */
 }
 
 /* ---- the triangle kernel of the walks (rt__tri_hit is the same function) ---- */
@@ -533,5 +533,104 @@ out:
     return found;
 }
 #endif /* RT_WALK */
+
+#ifdef RT_OCCL
+/* ---- the any-hit walk (rt_accel_occluded) ----
+ *
+ * Visits the same leaves as RT_WALK with any != 0 (below), only in another
+ * order, so it returns the same answer: with any != 0 the best t never falls
+ * below tmax (the walk returns at the first hit), so, for tmax >= 0, no entry
+ * taken from RT_WALK's stack is ever dropped (an entered child's dist is at
+ * most cull: the float test bounds the exit by cull itself, the double test
+ * by tmax (1 + 1e-15), which f_up(tmax) (1 + RT_BOX_GROW) rounded exceeds):
+ * both walks test every primitive of every leaf whose boxes down from the
+ * root the ray enters, and answer whether one of them is hit. Other tmax
+ * (negative, NaN) go to RT_WALK.
+ *
+ * What the order-free walk saves: no sort of the entered children and no
+ * distances on the stack (refs only, no compare on pop), and the leaves among
+ * the entered children are tested at once, before any inner child is
+ * descended into (a shadow ray leaving a surface often ends on a nearby
+ * occluder), so only inner nodes ever go on the stack. */
+
+/* Bit i set: child i is a leaf (RT_LEAF is the sign bit of the reference;
+ * empty lanes, RT_EMPTY, also read as leaves, but the ray never enters them). */
+static inline unsigned rt__leaf_mask(const rt_wn *n)
+{
+#if RT_BOX_SIMD == 2
+    return (unsigned)_mm256_movemask_ps(_mm256_castsi256_ps(_mm256_load_si256((const __m256i *)n->child)));
+#elif RT_BOX_SIMD == 1
+    return (unsigned)_mm_movemask_ps(_mm_castsi128_ps(_mm_load_si128((const __m128i *)n->child)));
+#else
+    unsigned m = 0;
+    for (int i = 0; i < RT_W; i++)
+        m |= (n->child[i] >> 31) << i;
+    return m;
+#endif
+}
+
+/* The any-hit walk of this width (rt_internal.h). */
+int RT_OCCL(const rt_accel *a, rr_ray ray, double tmin, double tmax)
+{
+    if (a->nwnodes == 0)
+        return 0;
+    if (!(tmax >= 0.0))
+        return RT_WALK(a, ray, tmin, tmax, NULL, 1);
+    RR_CHECK(a->width == RT_W);
+    const rt_wn *wnodes = a->wnodes;
+    rt_ray_pre p;
+    rt__ray_prepare(ray, &p);
+    if (!(tmin >= 0.0))
+        p.box_double = 1;
+    rt_boxray br;
+    rt__boxray_init(&p, &br);
+    const float tmin_f = rt__f_down(tmin);
+    const float cull = rt__f_up(tmax) * (1.0f + RT_BOX_GROW);
+    const double tmax_d = tmax + fabs(tmax) * 1e-15;
+    uint32_t stack[RT_STACK_SIZE];
+    int sp = 0;
+    uint32_t cur = 0; /* the root, an inner node */
+    for (;;) {
+        const rt_wn *n = &wnodes[cur];
+        float dist[RT_W];
+        unsigned mask = p.box_double ? rt__box4_double(n, &p, tmin, tmax_d, dist)
+                                     : rt__box4_fast(n, &br, tmin_f, cull, dist);
+        unsigned lm = rt__leaf_mask(n);
+        for (unsigned leaves = mask & lm; leaves; leaves &= leaves - 1) {
+            const rt_rec *r = &a->recs[n->child[__builtin_ctz(leaves)] & ~RT_LEAF];
+            for (;; r++) {
+                uint32_t fl = r->flags;
+                if (fl & RT_REC_FAST) {
+                    double t;
+                    int front;
+                    if (rt__tri_hit_rec(&p, r, tmin, tmax, 0, &t, &front))
+                        return 1;
+                } else {
+                    rt_prim pr = {fl & RT_REC_KIND, r->index};
+                    double best = tmax;
+                    if (rt__prim_hit(a, pr, &p, tmin, &best, NULL))
+                        return 1;
+                }
+                if (fl & RT_REC_LAST)
+                    break;
+            }
+        }
+        unsigned inner = mask & ~lm;
+        if (inner) {
+            cur = n->child[__builtin_ctz(inner)];
+            inner &= inner - 1;
+            RR_CHECK(sp + RT_W <= RT_STACK_SIZE);
+            for (; inner; inner &= inner - 1)
+                stack[sp++] = n->child[__builtin_ctz(inner)];
+            continue;
+        }
+        if (sp == 0)
+            return 0;
+        cur = stack[--sp];
+    }
+}
+#endif /* RT_OCCL */
+
+
 
 #endif /* RT_WIDE_W_DONE */

@@ -1195,6 +1195,96 @@ static void bvh_widths_agree(void **state)
     }
 }
 
+/* The any-hit walk (rt__occlN, rt_accel_occluded) answers as the ordered walk
+ * with any = 1 (rt__walkN) for both widths, on random rays and segments,
+ * tmin < 0 (the double box test), tmax 0, negative and NaN included; and it
+ * answers whether a closest hit exists. */
+static void bvh_occluded_matches_walk(void **state)
+{
+    (void)state;
+    rr_error err;
+    const int w2 = rt__bvh_width_ok(8) ? 8 : 4;
+    for (int pass = 0; pass < 2; pass++) {
+        rr_rng rng = rr_rng_make(77, (uint64_t)pass);
+        char *json = random_scene(&rng, 400, 6);
+        scene *s = NULL;
+        assert_int_equal(scene_load_string(json, "occl", "", NULL, &s, &err), RR_OK);
+        free(json);
+        if (pass == 1)
+            verts_to_float(s);
+        for (int wi = 0; wi < 2; wi++) {
+            const int w = wi ? w2 : 4;
+            rt_accel *a = NULL;
+            assert_int_equal(rt__accel_build_width(s, w, &a, &err), RR_OK);
+            int occl = 0, n = 40000;
+            for (int i = 0; i < n; i++) {
+                rr_ray r;
+                r.o = random_point(&rng, 2.0);
+                r.d = rr_v3_sub(random_point(&rng, 1.0), r.o);
+                double tmin = i % 7 == 0 ? -0.5 * rr_rng_uniform(&rng) : (i % 2 ? 1e-9 : 0.0);
+                double tmax;
+                switch (i % 8) {
+                case 0: tmax = INFINITY; break;
+                case 1: tmax = 0.0; break;
+                case 2: tmax = -0.25 * rr_rng_uniform(&rng); break;
+                case 3: tmax = i % 3 ? NAN : 1e-30; break;
+                default: tmax = 2.0 * rr_rng_uniform(&rng); break;
+                }
+                int f = rt_accel_occluded(a, r, tmin, tmax);
+                int g = w == 8 ?
+#if RT_HAVE_W8
+                               rt__walk8(a, r, tmin, tmax, NULL, 1)
+#else
+                               -1
+#endif
+                               : rt__walk4(a, r, tmin, tmax, NULL, 1);
+                if (f != g)
+                    fprintf(stderr, "width %d ray %d: occluded %d walk %d (tmin %g tmax %g)\n", w, i, f, g, tmin,
+                            tmax);
+                assert_int_equal(f, g);
+                if (tmin >= 0.0 && tmax >= 0.0) {
+                    rt_hit h;
+                    assert_int_equal(rt_accel_closest(a, r, tmin, tmax, &h), f);
+                }
+                occl += f;
+            }
+            assert_true(occl > n / 10 && occl < n - n / 10);
+            rt_accel_destroy(a);
+        }
+        scene_destroy(s);
+    }
+}
+
+/* rt__f_up / rt__f_down (branch-free) against nextafterf. */
+static void f_round_matches_nextafter(void **state)
+{
+    (void)state;
+    rr_rng rng = rr_rng_make(5, 0);
+    const double special[] = {0.0, -0.0, 1e-46, -1e-46, 1e-40, -1e-40, 1.0, -1.0, 0.1, -0.1, (double)FLT_MAX,
+                              -(double)FLT_MAX, 3.5e38, -3.5e38, 1e300, -1e300, INFINITY, -INFINITY,
+                              (double)FLT_TRUE_MIN, -(double)FLT_TRUE_MIN, 1.0 + 1e-12, -1.0 - 1e-12};
+    const int ns = (int)(sizeof special / sizeof special[0]);
+    for (int i = 0; i < ns + 200000; i++) {
+        double x;
+        if (i < ns) {
+            x = special[i];
+        } else {
+            double m = rr_rng_uniform(&rng) * 2.0 - 1.0;
+            x = ldexp(m, (int)rr_rng_below(&rng, 300) - 150);
+            if (i % 5 == 0)
+                x = (double)(float)x; /* exactly a float */
+        }
+        float f = (float)x;
+        float up = (double)f < x ? nextafterf(f, INFINITY) : f;
+        float down = (double)f > x ? nextafterf(f, -INFINITY) : f;
+        float u = rt__f_up(x), d = rt__f_down(x);
+        assert_true(memcmp(&u, &up, sizeof u) == 0 || (u == 0.0f && up == 0.0f));
+        assert_true(memcmp(&d, &down, sizeof d) == 0 || (d == 0.0f && down == 0.0f));
+        assert_true((double)u >= x && (double)d <= x);
+    }
+    assert_true(rt__f_up(NAN) != rt__f_up(NAN) && rt__f_down(NAN) != rt__f_down(NAN));
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -1221,6 +1311,8 @@ int main(void)
         cmocka_unit_test(bvh_fast_path_matches_reference_random),
         cmocka_unit_test(bvh_fast_path_large_and_watertight),
         cmocka_unit_test(bvh_widths_agree),
+        cmocka_unit_test(bvh_occluded_matches_walk),
+        cmocka_unit_test(f_round_matches_nextafter),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
