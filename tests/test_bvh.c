@@ -1,0 +1,484 @@
+/* test_bvh.c - white-box tests of the wide BVH (raytrace/rt_wide.h, the
+ * private header): SIMD, scalar and exact box tests agree and never cull a
+ * box the ray touches; the fast triangle records against the reference; both
+ * node widths give the same hits; the any-hit walk against the ordered one;
+ * the float rounding helpers. (The BVH against the lecture's reference and
+ * its watertightness: test_raytrace.c.) */
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <cmocka.h>
+
+#include <stdlib.h>
+#include <string.h>
+
+#include "rt.h"
+#include "rt_wide.h" /* private header of raytrace/ */
+#include "test_scenes.h"
+
+#define assert_near(a, b, tol) assert_true(fabs((double)(a) - (double)(b)) <= (tol))
+
+/* ---- the wide BVH's box tests (raytrace/rt_wide.h) ---- */
+
+/* Exact slab test in long double: does the ray meet the box with some t in
+ * [tmin, tmax]? *entry gets the entry distance. Origin on a slab plane of a
+ * parallel axis counts as inside (as in the BVH). */
+static int slab_exact(const float lo[3], const float hi[3], rr_ray r, double tmin, double tmax, long double *entry)
+{
+    const double o[3] = {r.o.x, r.o.y, r.o.z}, d[3] = {r.d.x, r.d.y, r.d.z};
+    long double t0 = tmin, t1 = tmax;
+    for (int k = 0; k < 3; k++) {
+        if (!(lo[k] <= hi[k]))
+            return 0;
+        if (d[k] == 0.0) {
+            if (o[k] < lo[k] || o[k] > hi[k])
+                return 0;
+            continue;
+        }
+        long double ta = ((long double)lo[k] - o[k]) / d[k], tb = ((long double)hi[k] - o[k]) / d[k];
+        if (ta > tb) {
+            long double t = ta;
+            ta = tb;
+            tb = t;
+        }
+        if (ta > t0)
+            t0 = ta;
+        if (tb < t1)
+            t1 = tb;
+    }
+    *entry = t0;
+    return t0 <= t1;
+}
+
+static float rand_coord(rr_rng *rng)
+{
+    /* Mostly ordinary values, sometimes small integers (planes a ray can lie in). */
+    return rr_rng_uniform(rng) < 0.2 ? (float)(int)(8 * rr_rng_uniform(rng) - 4) : (float)(8 * rr_rng_uniform(rng) - 4);
+}
+
+/* The scalar, SSE and double versions (4 wide; the 8-wide AVX2 test is
+ * checked through whole queries, bvh_widths_agree) agree on random nodes and rays, and
+ * none culls a box the ray touches (rays aimed exactly at box corners, edges
+ * and faces, directions with +0 and -0 components, origins on box planes). */
+static void wide_box_tests_agree_and_conservative(void **state)
+{
+    (void)state;
+    rr_rng rng = rr_rng_make(2024, 8);
+    int touched = 0, checked = 0;
+    for (int it = 0; it < 200000; it++) {
+        rt_wn n;
+        memset(&n, 0, sizeof n);
+        for (int i = 0; i < RT_W; i++) {
+            int empty = rr_rng_uniform(&rng) < 0.1;
+            for (int k = 0; k < 3; k++) {
+                float a = rand_coord(&rng), b = rr_rng_uniform(&rng) < 0.1 ? a : rand_coord(&rng);
+                n.b[2 * k][i] = empty ? INFINITY : fminf(a, b);
+                n.b[2 * k + 1][i] = empty ? -INFINITY : fmaxf(a, b);
+            }
+            n.child[i] = (uint32_t)i;
+        }
+        rr_ray r;
+        r.o = rr_v3(rand_coord(&rng), rand_coord(&rng), rand_coord(&rng));
+        int lane = (int)rr_rng_below(&rng, RT_W), kind = (int)rr_rng_below(&rng, 4);
+        if (kind < 3 && n.b[0][lane] <= n.b[1][lane]) {
+            /* Aim at a corner (kind 0), an edge point (1) or a face point (2) of one box. */
+            double t[3];
+            for (int k = 0; k < 3; k++) {
+                int side = (int)rr_rng_below(&rng, 2);
+                double u = k < kind ? rr_rng_uniform(&rng) : (double)side;
+                t[k] = n.b[2 * k][lane] + u * ((double)n.b[2 * k + 1][lane] - n.b[2 * k][lane]);
+            }
+            r.d = rr_v3_sub(rr_v3(t[0], t[1], t[2]), r.o);
+        } else {
+            r.d = rr_v3(2 * rr_rng_uniform(&rng) - 1, 2 * rr_rng_uniform(&rng) - 1, 2 * rr_rng_uniform(&rng) - 1);
+        }
+        if (rr_rng_uniform(&rng) < 0.2) { /* parallel to an axis, with +0 or -0 */
+            int k = (int)rr_rng_below(&rng, 3);
+            double z = rr_rng_uniform(&rng) < 0.5 ? 0.0 : -0.0;
+            r.d = k == 0 ? rr_v3(z, r.d.y, r.d.z) : (k == 1 ? rr_v3(r.d.x, z, r.d.z) : rr_v3(r.d.x, r.d.y, z));
+            if (rr_rng_uniform(&rng) < 0.5 && n.b[0][lane] <= n.b[1][lane]) /* origin on that axis's plane of a box */
+                r.o = k == 0 ? rr_v3(n.b[0][lane], r.o.y, r.o.z)
+                             : (k == 1 ? rr_v3(r.o.x, n.b[3][lane], r.o.z) : rr_v3(r.o.x, r.o.y, n.b[4][lane]));
+        }
+        if (!(rr_v3_len2(r.d) > 0.0))
+            continue;
+        double tmin = 0.0, tmax = rr_rng_uniform(&rng) < 0.5 ? INFINITY : 0.5 + 3 * rr_rng_uniform(&rng);
+        rt_ray_pre p;
+        rt__ray_prepare(r, &p);
+        assert_false(p.box_double);
+        float ds[RT_W], dd[RT_W];
+        unsigned ms = rt__box4_scalar(&n, &p, rt__f_down(tmin), rt__f_up(tmax), ds);
+        unsigned md = rt__box4_double(&n, &p, tmin, tmax, dd);
+#if RT_BOX_SIMD
+        float dv[RT_W], df[RT_W];
+        unsigned mv = rt__box4_simd(&n, &p, rt__f_down(tmin), rt__f_up(tmax), dv);
+        rt_boxray br;
+        rt__boxray_init(&p, &br);
+        unsigned mf = rt__box4_fast(&n, &br, rt__f_down(tmin), rt__f_up(tmax), df);
+        assert_int_equal(mv, ms);
+        assert_int_equal(mf, ms);
+        for (int i = 0; i < RT_W; i++)
+            if (ms >> i & 1) {
+                assert_memory_equal(&dv[i], &ds[i], sizeof(float));
+                assert_memory_equal(&df[i], &ds[i], sizeof(float));
+            }
+#endif
+        for (int i = 0; i < RT_W; i++) {
+            float lo[3] = {n.b[0][i], n.b[2][i], n.b[4][i]}, hi[3] = {n.b[1][i], n.b[3][i], n.b[5][i]};
+            long double entry;
+            if (!slab_exact(lo, hi, r, tmin, tmax, &entry))
+                continue;
+            checked++;
+            touched += i == lane && kind < 3;
+            assert_true(ms >> i & 1); /* never culled */
+            assert_true(md >> i & 1);
+            assert_true((long double)ds[i] <= entry * (1 + (long double)RT_BOX_GROW) + 1e-30L);
+            assert_true((long double)dd[i] <= entry * (1 + (long double)RT_BOX_GROW) + 1e-30L);
+        }
+    }
+    assert_true(touched > 50000);
+    assert_true(checked > 150000);
+}
+
+/* Regression: a ray parallel to two axes with direction components -0 (as
+ * from negating or scaling a zero) hits. The binary BVH took d < 0 for the
+ * near plane while 1/-0 = -inf, and so missed every box around the ray. */
+static void bvh_negative_zero_direction(void **state)
+{
+    (void)state;
+    const char *json = "{\"format\":\"radray-scene/1\",\"camera\":{\"type\":\"lecture\",\"E\":[0,0,5],"
+                       "\"O\":[0,0,4],\"U\":[0,1,0],\"s\":0.1,\"w\":2,\"h\":2},"
+                       "\"materials\":{\"a\":{\"diffuse\":[0.5,0.5,0.5]}},\"objects\":["
+                       "{\"type\":\"triangles\",\"material\":\"a\",\"vertices\":[[-1,-1,0],[1,-1,0],[0,1,0],"
+                       "[-1,-1,2],[1,-1,2],[0,1,2.5]],\"indices\":[[0,1,2],[3,4,5]]}]}";
+    scene *s = NULL;
+    rr_error err;
+    assert_int_equal(scene_load_string(json, "negzero", "", NULL, &s, &err), RR_OK);
+    rt_accel *a = NULL;
+    assert_int_equal(rt_accel_build(s, &a, &err), RR_OK);
+    const double zs[2] = {0.0, -0.0};
+    /* Inside the boxes' x and y slabs; on the plane x = -1 (outside both
+     * triangles); on the plane y = -1, through the triangles' bottom edges. */
+    const rr_vec3 os[3] = {rr_v3(0.2, 0.3, 5), rr_v3(-1, -0.5, 5), rr_v3(0, -1, 5)};
+    int on_edge = -1;
+    for (int i = 0; i < 2; i++)
+        for (int j = 0; j < 2; j++)
+            for (int k = 0; k < 3; k++) {
+                rr_ray r = {os[k], rr_v3(zs[i], zs[j], -1)};
+                rt_hit h, h2;
+                int f = rt_accel_closest(a, r, 0, INFINITY, &h);
+                assert_int_equal(rt_accel_occluded(a, r, 0, INFINITY), f);
+                if (k == 0) {
+                    assert_true(f);
+                    assert_int_equal(h.tri, 1); /* the near one (z = 2..2.5) */
+                    assert_true(rt_ref_closest(s, r, 0, INFINITY, &h2));
+                    assert_int_equal(h2.tri, 1);
+                    assert_near(h.t, h2.t, 1e-12);
+                } else if (k == 1) {
+                    assert_false(f);
+                } else {
+                    /* Exactly on an edge: the watertight test counts it (the
+                     * lecture's strict test does not); the same for +0 and -0. */
+                    if (on_edge < 0)
+                        on_edge = f;
+                    assert_int_equal(f, on_edge);
+                }
+            }
+    rt_accel_destroy(a);
+    scene_destroy(s);
+}
+
+/* The same scene with every vertex rounded to float, so the BVH takes its fast
+ * path (triangles copied into the leaf records, rt_internal.h); the scene's
+ * other data are not touched (only verts are read by the tests below). */
+static void verts_to_float(scene *s)
+{
+    /* Through volatile: GCC 12.2 at -O2 (SLP vectorizer) compiles the plain
+     * s->verts[i] = rr_v3((float)x, (float)y, (float)z) loop to round z
+     * alone, so these tests ran on double vertices (the slow path) unnoticed;
+     * bvh_widths_agree now checks that the records are fast. */
+    for (size_t i = 0; i < s->nverts; i++) {
+        volatile float x = (float)s->verts[i].x, y = (float)s->verts[i].y, z = (float)s->verts[i].z;
+        s->verts[i] = rr_v3(x, y, z);
+    }
+}
+
+/* bvh_matches_reference_random, on float vertices (the fast path, mixed with
+ * spheres in the same leaves). */
+static void bvh_fast_path_matches_reference_random(void **state)
+{
+    (void)state;
+    rr_rng rng = rr_rng_make(7, 4);
+    char *json = random_scene(&rng, 400, 6);
+    scene *s = NULL;
+    rr_error err;
+    assert_int_equal(scene_load_string(json, "random", "", NULL, &s, &err), RR_OK);
+    free(json);
+    verts_to_float(s);
+    rt_accel *a = NULL;
+    assert_int_equal(rt_accel_build(s, &a, &err), RR_OK);
+    int hits = 0, spheres = 0, n = 20000, edge_cases = 0;
+    for (int i = 0; i < n; i++) {
+        rr_ray r;
+        r.o = random_point(&rng, 2.0);
+        r.d = rr_v3_sub(random_point(&rng, 1.0), r.o);
+        rt_hit h1, h2;
+        int f1 = rt_ref_closest(s, r, 1e-9, INFINITY, &h1);
+        int f2 = rt_accel_closest(a, r, 1e-9, INFINITY, &h2);
+        if (f1 != f2 || (f1 && h1.tri != h2.tri)) {
+            edge_cases++;
+            continue;
+        }
+        assert_int_equal(rt_accel_occluded(a, r, 1e-9, INFINITY), f2);
+        if (f1) {
+            hits++;
+            spheres += h2.tri < 0;
+            assert_int_equal(h1.object, h2.object);
+            assert_int_equal(h1.material, h2.material);
+            assert_int_equal(h1.part, h2.part);
+            assert_near(h1.t, h2.t, 1e-9 * fmax(1.0, h1.t));
+            assert_int_equal(h1.front, h2.front);
+            assert_near(rr_v3_dot(h1.normal, h2.normal), 1.0, 1e-9);
+            assert_near(rr_v3_len(rr_v3_sub(h2.point, rr_ray_at(r, h2.t))), 0.0, 1e-12);
+        }
+    }
+    assert_true(edge_cases <= 2);
+    assert_true(hits > n / 4);
+    assert_true(spheres > 100);
+    rt_accel_destroy(a);
+    scene_destroy(s);
+}
+
+/* bvh_matches_reference_large and bvh_watertight_million_rays on float
+ * vertices (the fast path). */
+static void bvh_fast_path_large_and_watertight(void **state)
+{
+    (void)state;
+    for (int pass = 0; pass < 2; pass++) {
+        char *json = pass == 0 ? uv_sphere_scene(60, 90, "\"auto\"") : uv_sphere_scene(40, 64, "false");
+        scene *s = NULL;
+        assert_int_equal(scene_load_string(json, "uv-sphere", "", NULL, &s, NULL), RR_OK);
+        free(json);
+        verts_to_float(s);
+        rt_accel *a = NULL;
+        assert_int_equal(rt_accel_build(s, &a, NULL), RR_OK);
+        int bad = 0, hits = 0, N = pass == 0 ? 100000 : 1000000;
+#pragma omp parallel for schedule(dynamic, 4096) reduction(+ : bad, hits)
+        for (int i = 0; i < N; i++) {
+            rr_rng rng = rr_rng_make(79 + (uint64_t)pass, (uint64_t)i);
+            rr_ray r;
+            rt_hit h1, h2;
+            if (pass == 0) {
+                r.o = rr_v3_scale(random_unit(&rng), 1.5 + 2 * rr_rng_uniform(&rng));
+                r.d = rr_v3_sub(rr_v3_scale(random_unit(&rng), 1.1 * rr_rng_uniform(&rng)), r.o);
+                int f1 = rt_ref_closest(s, r, 0, INFINITY, &h1), f2 = rt_accel_closest(a, r, 0, INFINITY, &h2);
+                bad += f1 != f2 || (f1 && (h1.tri != h2.tri || fabs(h1.t - h2.t) > 1e-9 * h1.t));
+                hits += f2;
+            } else {
+                r.o = rr_v3_scale(random_unit(&rng), 0.95 * cbrt(rr_rng_uniform(&rng)));
+                if (i % 4 == 0)
+                    r.d = rr_v3_sub(s->verts[rr_rng_below(&rng, (uint32_t)s->nverts)], r.o);
+                else
+                    r.d = random_unit(&rng);
+                bad += !rt_accel_closest(a, r, 0, INFINITY, &h2);
+                hits++;
+            }
+        }
+        assert_true(bad <= (pass == 0 ? 5 : 0));
+        assert_true(hits > N / 2);
+        rt_accel_destroy(a);
+        scene_destroy(s);
+    }
+}
+
+/* Both node widths of this build (4 wide, and 8 wide where the build and the
+ * CPU have the AVX2 walk) give the same hits bit for bit: same triangle or
+ * sphere, t, normal, point and occlusion, on random scenes with double and
+ * with float vertices (the leaf-record fast path) and on a UV sphere with
+ * rays aimed at its vertices. The nodes are 64-byte aligned (aligned SIMD
+ * loads). RADRAY_BVH_WIDTH=4 selects 4-wide nodes. */
+static int same_hit(int f1, const rt_hit *h1, int f2, const rt_hit *h2)
+{
+    if (f1 != f2)
+        return 0;
+    if (!f1)
+        return 1;
+    return h1->tri == h2->tri && h1->object == h2->object && h1->material == h2->material && h1->part == h2->part &&
+           h1->front == h2->front && memcmp(&h1->t, &h2->t, sizeof h1->t) == 0 &&
+           memcmp(&h1->normal, &h2->normal, sizeof h1->normal) == 0 &&
+           memcmp(&h1->point, &h2->point, sizeof h1->point) == 0;
+}
+
+static void bvh_widths_agree(void **state)
+{
+    (void)state;
+    rr_error err;
+    assert_int_equal(rt__bvh_width_ok(4), 1);
+    assert_int_equal(rt__bvh_width_ok(3), 0);
+    assert_int_equal(rt__bvh_width_ok(16), 0);
+    int w = rt__bvh_width_default();
+    assert_true(w == 4 || (w == 8 && rt__bvh_width_ok(8)));
+    const char *env = getenv("RADRAY_BVH_WIDTH");
+    if (!env || strcmp(env, "4") != 0)
+        assert_int_equal(w, rt__bvh_width_ok(8) ? 8 : 4); /* the widest available by default */
+    else
+        assert_int_equal(w, 4);
+    const int w2 = rt__bvh_width_ok(8) ? 8 : 4; /* on a CPU without AVX2: 4 against 4 */
+    for (int pass = 0; pass < 3; pass++) {
+        rr_rng rng = rr_rng_make(31, (uint64_t)pass);
+        char *json = pass < 2 ? random_scene(&rng, 600, 8) : uv_sphere_scene(50, 80, "\"auto\"");
+        scene *s = NULL;
+        assert_int_equal(scene_load_string(json, "widths", "", NULL, &s, &err), RR_OK);
+        free(json);
+        if (pass >= 1)
+            verts_to_float(s);
+        rt_accel *a4 = NULL, *a8 = NULL, *bad = NULL;
+        assert_int_equal(rt__accel_build_width(s, 4, &a4, &err), RR_OK);
+        assert_int_equal(rt__accel_build_width(s, w2, &a8, &err), RR_OK);
+        assert_int_equal(rt__accel_build_width(s, 5, &bad, &err), RR_ERR_INVALID);
+        assert_null(bad);
+        assert_int_equal(a4->width, 4);
+        assert_int_equal(a8->width, w2);
+        if (pass >= 1) { /* the fast path is taken */
+            size_t nfast = 0;
+            for (size_t q = 0; q < a4->nrecs; q++)
+                nfast += (a4->recs[q].flags & RT_REC_FAST) != 0;
+            assert_true(nfast >= s->ntris);
+        }
+        assert_int_equal((uintptr_t)a4->wnodes % 64, 0);
+        assert_int_equal((uintptr_t)a8->wnodes % 64, 0);
+        int hits = 0, n = 200000;
+        for (int i = 0; i < n; i++) {
+            rr_ray r;
+            if (pass < 2) {
+                r.o = random_point(&rng, 2.0);
+                r.d = rr_v3_sub(random_point(&rng, 1.0), r.o);
+            } else {
+                r.o = rr_v3_scale(random_unit(&rng), i % 2 ? 0.9 : 1.5 + 2 * rr_rng_uniform(&rng));
+                r.d = i % 3 == 0 ? rr_v3_sub(s->verts[rr_rng_below(&rng, (uint32_t)s->nverts)], r.o)
+                                 : rr_v3_sub(rr_v3_scale(random_unit(&rng), 1.1 * rr_rng_uniform(&rng)), r.o);
+            }
+            double tmax = i % 4 == 0 ? 0.5 + rr_rng_uniform(&rng) : INFINITY;
+            rt_hit h1, h2;
+            memset(&h1, 0, sizeof h1);
+            memset(&h2, 0, sizeof h2);
+            int f1 = rt_accel_closest(a4, r, 1e-9, tmax, &h1), f2 = rt_accel_closest(a8, r, 1e-9, tmax, &h2);
+            if (!same_hit(f1, &h1, f2, &h2))
+                fprintf(stderr, "pass %d ray %d: %d %d tri %lld %lld t %.17g %.17g\n", pass, i, f1, f2,
+                        (long long)h1.tri, (long long)h2.tri, h1.t, h2.t);
+            assert_true(same_hit(f1, &h1, f2, &h2));
+            assert_int_equal(rt_accel_occluded(a4, r, 1e-9, tmax), f1);
+            assert_int_equal(rt_accel_occluded(a8, r, 1e-9, tmax), f2);
+            hits += f1;
+        }
+        assert_true(hits > n / 5);
+        rt_accel_destroy(a4);
+        rt_accel_destroy(a8);
+        scene_destroy(s);
+    }
+}
+
+/* The any-hit walk (rt__occlN, rt_accel_occluded) answers as the ordered walk
+ * with any = 1 (rt__walkN) for both widths, on random rays and segments,
+ * tmin < 0 (the double box test), tmax 0, negative and NaN included; and it
+ * answers whether a closest hit exists. */
+static void bvh_occluded_matches_walk(void **state)
+{
+    (void)state;
+    rr_error err;
+    const int w2 = rt__bvh_width_ok(8) ? 8 : 4;
+    for (int pass = 0; pass < 2; pass++) {
+        rr_rng rng = rr_rng_make(77, (uint64_t)pass);
+        char *json = random_scene(&rng, 400, 6);
+        scene *s = NULL;
+        assert_int_equal(scene_load_string(json, "occl", "", NULL, &s, &err), RR_OK);
+        free(json);
+        if (pass == 1)
+            verts_to_float(s);
+        for (int wi = 0; wi < 2; wi++) {
+            const int w = wi ? w2 : 4;
+            rt_accel *a = NULL;
+            assert_int_equal(rt__accel_build_width(s, w, &a, &err), RR_OK);
+            int occl = 0, n = 40000;
+            for (int i = 0; i < n; i++) {
+                rr_ray r;
+                r.o = random_point(&rng, 2.0);
+                r.d = rr_v3_sub(random_point(&rng, 1.0), r.o);
+                double tmin = i % 7 == 0 ? -0.5 * rr_rng_uniform(&rng) : (i % 2 ? 1e-9 : 0.0);
+                double tmax;
+                switch (i % 8) {
+                case 0: tmax = INFINITY; break;
+                case 1: tmax = 0.0; break;
+                case 2: tmax = -0.25 * rr_rng_uniform(&rng); break;
+                case 3: tmax = i % 3 ? NAN : 1e-30; break;
+                default: tmax = 2.0 * rr_rng_uniform(&rng); break;
+                }
+                int f = rt_accel_occluded(a, r, tmin, tmax);
+                int g = w == 8 ?
+#if RT_HAVE_W8
+                               rt__walk8(a, r, tmin, tmax, NULL, 1)
+#else
+                               -1
+#endif
+                               : rt__walk4(a, r, tmin, tmax, NULL, 1);
+                if (f != g)
+                    fprintf(stderr, "width %d ray %d: occluded %d walk %d (tmin %g tmax %g)\n", w, i, f, g, tmin,
+                            tmax);
+                assert_int_equal(f, g);
+                if (tmin >= 0.0 && tmax >= 0.0) {
+                    rt_hit h;
+                    assert_int_equal(rt_accel_closest(a, r, tmin, tmax, &h), f);
+                }
+                occl += f;
+            }
+            assert_true(occl > n / 10 && occl < n - n / 10);
+            rt_accel_destroy(a);
+        }
+        scene_destroy(s);
+    }
+}
+
+/* rt__f_up / rt__f_down (branch-free) against nextafterf. */
+static void f_round_matches_nextafter(void **state)
+{
+    (void)state;
+    rr_rng rng = rr_rng_make(5, 0);
+    const double special[] = {0.0, -0.0, 1e-46, -1e-46, 1e-40, -1e-40, 1.0, -1.0, 0.1, -0.1, (double)FLT_MAX,
+                              -(double)FLT_MAX, 3.5e38, -3.5e38, 1e300, -1e300, INFINITY, -INFINITY,
+                              (double)FLT_TRUE_MIN, -(double)FLT_TRUE_MIN, 1.0 + 1e-12, -1.0 - 1e-12};
+    const int ns = (int)(sizeof special / sizeof special[0]);
+    for (int i = 0; i < ns + 200000; i++) {
+        double x;
+        if (i < ns) {
+            x = special[i];
+        } else {
+            double m = rr_rng_uniform(&rng) * 2.0 - 1.0;
+            x = ldexp(m, (int)rr_rng_below(&rng, 300) - 150);
+            if (i % 5 == 0)
+                x = (double)(float)x; /* exactly a float */
+        }
+        float f = (float)x;
+        float up = (double)f < x ? nextafterf(f, INFINITY) : f;
+        float down = (double)f > x ? nextafterf(f, -INFINITY) : f;
+        float u = rt__f_up(x), d = rt__f_down(x);
+        assert_true(memcmp(&u, &up, sizeof u) == 0 || (u == 0.0f && up == 0.0f));
+        assert_true(memcmp(&d, &down, sizeof d) == 0 || (d == 0.0f && down == 0.0f));
+        assert_true((double)u >= x && (double)d <= x);
+    }
+    assert_true(rt__f_up(NAN) != rt__f_up(NAN) && rt__f_down(NAN) != rt__f_down(NAN));
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(wide_box_tests_agree_and_conservative),
+        cmocka_unit_test(bvh_negative_zero_direction),
+        cmocka_unit_test(bvh_fast_path_matches_reference_random),
+        cmocka_unit_test(bvh_fast_path_large_and_watertight),
+        cmocka_unit_test(bvh_widths_agree),
+        cmocka_unit_test(bvh_occluded_matches_walk),
+        cmocka_unit_test(f_round_matches_nextafter),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
