@@ -42,6 +42,25 @@ static int convex_span(const scene *s, uint32_t leaf, rr_ray r, double *t0, doub
     return lo < hi;
 }
 
+/* The spans of closed convex mesh leaf m along ray, with and without its BVH,
+ * against the convex reference: one span where the line crosses, nothing (or
+ * a zero-length touch) where it does not. Returns 1 when it crosses. */
+static int convex_ray_agrees(const scene *s, const rt_accel *acc, uint32_t m, rr_ray ray)
+{
+    rt_spans sp, sp2;
+    rt_csg_spans(s, NULL, m, ray, -INFINITY, INFINITY, &sp);
+    rt_csg_spans(s, acc, m, ray, -INFINITY, INFINITY, &sp2);
+    spans_well_formed(&sp);
+    assert_int_equal(sp.n, sp2.n);
+    double t0, t1;
+    if (convex_span(s, m, ray, &t0, &t1) && t1 - t0 > 1e-6) {
+        expect_spans(&sp, 1, (double[]){t0, t1}, 1e-9);
+        return 1;
+    }
+    assert_true(sp.n == 0 || (sp.n == 1 && sp.s[0].out.t - sp.s[0].in.t < 1e-6));
+    return 0;
+}
+
 static void mesh_cube_vertices_and_edges(void **state)
 {
     (void)state;
@@ -180,17 +199,7 @@ static void mesh_sphere_vertices(void **state)
         rr_vec3 v = s->csg_verts[rr_rng_u32(&rng) % s->ncsg_verts];
         rr_vec3 o = rr_v3(6 * rr_rng_uniform(&rng) - 3, 6 * rr_rng_uniform(&rng) - 3, 6 * rr_rng_uniform(&rng) - 3);
         rr_ray ray = ray_make(o, rr_v3_sub(v, o));
-        rt_csg_spans(s, NULL, m, ray, -INFINITY, INFINITY, &sp);
-        rt_csg_spans(s, acc, m, ray, -INFINITY, INFINITY, &sp2);
-        spans_well_formed(&sp);
-        assert_int_equal(sp.n, sp2.n);
-        double t0, t1;
-        if (convex_span(s, m, ray, &t0, &t1) && t1 - t0 > 1e-6) {
-            crossing++;
-            expect_spans(&sp, 1, (double[]){t0, t1}, 1e-9);
-        } else {
-            assert_true(sp.n == 0 || (sp.n == 1 && sp.s[0].out.t - sp.s[0].in.t < 1e-6));
-        }
+        crossing += convex_ray_agrees(s, acc, m, ray);
     }
     assert_true(crossing > 5000);
     /* Rays starting on an edge (up to the rounding of the point): the edge
@@ -205,17 +214,7 @@ static void mesh_sphere_vertices(void **state)
         rr_vec3 o = rr_v3_madd(A, rr_v3_sub(B, A), rr_rng_uniform(&rng));
         rr_vec3 d = rr_v3(rr_rng_uniform(&rng) - 0.5, rr_rng_uniform(&rng) - 0.5, rr_rng_uniform(&rng) - 0.5);
         rr_ray ray = ray_make(o, d);
-        rt_csg_spans(s, NULL, m, ray, -INFINITY, INFINITY, &sp);
-        rt_csg_spans(s, acc, m, ray, -INFINITY, INFINITY, &sp2);
-        spans_well_formed(&sp);
-        assert_int_equal(sp.n, sp2.n);
-        double t0, t1;
-        if (convex_span(s, m, ray, &t0, &t1) && t1 - t0 > 1e-6) {
-            crossing++;
-            expect_spans(&sp, 1, (double[]){t0, t1}, 1e-9);
-        } else {
-            assert_true(sp.n == 0 || (sp.n == 1 && sp.s[0].out.t - sp.s[0].in.t < 1e-6));
-        }
+        crossing += convex_ray_agrees(s, acc, m, ray);
     }
     assert_true(crossing > 5000);
     /* Through both poles exactly (vertices shared by 24 triangles). */
