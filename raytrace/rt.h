@@ -142,6 +142,83 @@ int rt_accel_closest(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt
 /* Any hit with t in (tmin, tmax): for shadow rays; stops at the first occluder. */
 int rt_accel_occluded(const rt_accel *a, rr_ray ray, double tmin, double tmax);
 
+/* ---- the shadow-ray rule (rt_light.c) ----
+ *
+ * The one rule for every visibility query between a surface point x (unit
+ * normal n, on the side the query leaves to) and a target: the origin is
+ * offset by rt_offset_origin, and a segment to a point target y ends at
+ * RT_SHADOW_END of the way there, so that the surface y lies on (an emitter,
+ * a patch, a mirror) never occludes itself. */
+#define RT_SHADOW_END (1.0 - 1e-7)
+int rt_visible(const rt_accel *a, double scale, rr_vec3 x, rr_vec3 n, rr_vec3 y);
+/* The same towards direction dir, to infinity (directional lights). */
+int rt_visible_dir(const rt_accel *a, double scale, rr_vec3 x, rr_vec3 n, rr_vec3 dir);
+
+/* ---- lights (rt_light.c): the one light interface ----
+ *
+ * Every emitter of a scene, for every pass that needs direct light (the ray
+ * tracer's shading, the radiosity pass's first shot):
+ *  - delta lights: point and directional lights, evaluated one by one;
+ *  - area lights: emissive triangles, emissive spheres and solids (a CSG tree
+ *    or quadric any of whose leaves emits), sampled with probability
+ *    proportional to power and with a solid-angle pdf (for multiple
+ *    importance sampling against BSDF sampling);
+ *  - virtual images of both kinds in planar mirrors: chains of up to
+ *    max_mirror_depth mirror planes (coplanar mirror triangles of one object),
+ *    clipped to the finite mirrors and shadowed on every leg, each leg times
+ *    the mirror's reflectance. Curved mirrors (spheres, solids) have no
+ *    images: light through them is found by BSDF rays only.
+ * Read-only once built: thread-safe. a must be built over s; both must
+ * outlive the table. */
+#define RT_CHAIN_MAX 8 /* mirrors in one image's chain */
+typedef struct rt_lights rt_lights;
+
+rr_status rt_lights_build(const scene *s, const rt_accel *a, int max_mirror_depth, rt_lights **out, rr_error *err);
+void rt_lights_destroy(rt_lights *L); /* NULL is a no-op */
+size_t rt_lights_delta_count(const rt_lights *L);   /* point and directional lights and their images */
+size_t rt_lights_area_count(const rt_lights *L);    /* area lights and their images */
+size_t rt_lights_image_count(const rt_lights *L);   /* of all of them, the images */
+size_t rt_lights_mirror_planes(const rt_lights *L);
+/* 1 when the scene has any emitter (a light, an emissive triangle, sphere or
+ * solid leaf): the one rule for "is there light to interreflect". */
+int rt_scene_emits(const scene *s);
+
+/* What one light (sample) sends to a surface point. */
+typedef struct rt_light_sample {
+    rr_vec3 L;   /* unit direction from the point towards the light, or its image */
+    rr_rgb E;    /* irradiance on a surface facing L (mirror reflectances and, for a
+                    sampled area light, 1/pdf included); the shading multiplies by N.L */
+    double pdf;  /* area lights: solid-angle pdf of the sample (light choice included); delta: 0 */
+    double dist; /* distance to the (image of the) light point; NAN for curved lights */
+    int image;   /* 1 when it arrived by way of mirrors */
+} rt_light_sample;
+
+/* Delta light k (0 <= k < rt_lights_delta_count) at point x with unit normal
+ * n: 1 and *out when its light (or its image's, through its mirrors)
+ * reaches x from the side n points to, unshadowed; else 0. */
+int rt_lights_delta(const rt_lights *L, size_t k, rr_vec3 x, rr_vec3 n, rt_light_sample *out);
+/* One area-light sample at x from uniforms u0 (light choice), u1, u2 (point):
+ * 1 and *out when it is unshadowed and arrives on n's side; else 0 (a sample
+ * that counts 0: the estimator stays unbiased). */
+int rt_lights_sample(const rt_lights *L, rr_vec3 x, rr_vec3 n, double u0, double u1, double u2, rt_light_sample *out);
+
+/* A BSDF ray's way from a surface point to an emitter, for the pdf that
+ * rt_lights_sample would have given the same path. */
+typedef struct rt_mirror_path {
+    rr_vec3 origin;                  /* the surface point the ray left */
+    int n;                           /* planar mirrors met, in order from the origin */
+    uint32_t plane[RT_CHAIN_MAX];
+    int curved;                      /* met a mirror that has no images (or more than RT_CHAIN_MAX) */
+    double dist;                     /* length of the whole way, origin to the emitter's hit */
+} rt_mirror_path;
+
+/* The mirror plane of a hit, or -1 (not a planar mirror). */
+int rt_lights_mirror_plane(const rt_lights *L, const rt_hit *h);
+/* Solid-angle pdf with which rt_lights_sample picks the emitter point hit by
+ * path's ray (h: the hit on the emitter, last_dir: the last leg's unit
+ * direction); 0 when no light (image) of the table covers that path. */
+double rt_lights_pdf(const rt_lights *L, const rt_mirror_path *path, const rt_hit *h, rr_vec3 last_dir);
+
 /* What supplies the diffuse interreflection. */
 typedef enum rt_indirect {
     RT_INDIRECT_NONE = 0,      /* direct light only */

@@ -12,11 +12,15 @@
  * what it receives, which is what the radiosity pass (B = pi L) and the
  * secondary rays assume: without it the modes could not be compared.
  *
- * Who counts emission (so nothing is counted twice): a triangle emitter is
- * sampled explicitly (next-event estimation) from every diffuse hit, so a
- * diffuse bounce ray that happens to hit it adds nothing; camera rays and mirror
- * rays do add what they see. Emissive spheres are not sampled explicitly; any
- * ray that meets one adds its emission.
+ * Who counts emission (so nothing is counted twice): every emitter, and its
+ * images in planar mirrors, is sampled explicitly through the light interface
+ * (rt_light.c) from every diffuse hit; BSDF rays (the secondary mode's bounce
+ * rays, and in the other modes the direct term's own BSDF rays) that meet an
+ * emitter, directly or through mirrors, keep the balance-heuristic share of
+ * the BSDF strategy, so the two strategies together count each path once
+ * (pb / (pb + nl pl), with pl the light table's pdf of the same path: 0 for a
+ * path through a curved mirror, which only BSDF rays find). Camera rays and
+ * the mirror rays they spawn add all the emission they see.
  */
 #include <float.h>
 #include <stdlib.h>
@@ -56,87 +60,13 @@ void rt_film_free(rt_film *f)
         rr_image_free(&f->layer[i]);
 }
 
-/* Area-light table: emissive triangles chosen with probability proportional to
- * area times mean emitted radiance (their power up to pi). */
-typedef struct light_table {
-    const uint32_t *tris;
-    double *cdf; /* cdf[i] = sum of weights of tris[0..i] / total */
-    double *area;
-    int64_t *index_of; /* scene triangle -> entry, or -1 (for MIS weights of bounce hits) */
-    size_t n;
-} light_table;
-
 typedef struct render_ctx {
     const scene *s;
     const rt_accel *a;
     const rt_render_opts *o;
-    light_table lights;
+    rt_lights *lights;
     double eps_scale; /* length scale for ray offsets */
 } render_ctx;
-
-static rr_status light_table_build(const scene *s, light_table *lt, rr_error *err)
-{
-    memset(lt, 0, sizeof *lt);
-    if (s->nemissive == 0)
-        return RR_OK;
-    lt->cdf = malloc(s->nemissive * sizeof *lt->cdf);
-    lt->area = malloc(s->nemissive * sizeof *lt->area);
-    lt->index_of = malloc(s->ntris * sizeof *lt->index_of);
-    if (!lt->cdf || !lt->area || !lt->index_of) {
-        free(lt->cdf);
-        free(lt->area);
-        free(lt->index_of);
-        return rr_error_set(err, RR_ERR_NOMEM, "out of memory for the area-light table");
-    }
-    for (size_t t = 0; t < s->ntris; t++)
-        lt->index_of[t] = -1;
-    for (size_t i = 0; i < s->nemissive; i++)
-        lt->index_of[s->emissive_tris[i]] = (int64_t)i;
-    double total = 0;
-    for (size_t i = 0; i < s->nemissive; i++) {
-        uint32_t t = s->emissive_tris[i];
-        lt->area[i] = scene_tri_area(s, t);
-        total += lt->area[i] * rr_rgb_mean(s->materials[s->tris[t].material].emission);
-        lt->cdf[i] = total;
-    }
-    for (size_t i = 0; i < s->nemissive; i++)
-        lt->cdf[i] = total > 0 ? lt->cdf[i] / total : (double)(i + 1) / (double)s->nemissive;
-    lt->tris = s->emissive_tris;
-    lt->n = s->nemissive;
-    return RR_OK;
-}
-
-static void light_table_free(light_table *lt)
-{
-    free(lt->cdf);
-    free(lt->area);
-    free(lt->index_of);
-}
-
-/* Probability (per unit solid angle, seen from the shading point) that one
- * light sample picks the point at distance d on entry li whose cosine towards
- * the shading point is cos_y. */
-static double light_pdf_solid_angle(const light_table *lt, size_t li, double d2, double cos_y)
-{
-    double pick = lt->cdf[li] - (li ? lt->cdf[li - 1] : 0.0);
-    return pick / lt->area[li] * d2 / cos_y;
-}
-
-/* Index of the first cdf entry > u; *u_out re-used as a fresh uniform inside
- * the chosen interval (keeps the stratification of u for the point sample). */
-static size_t light_pick(const light_table *lt, double u, double *pdf)
-{
-    size_t lo = 0, hi = lt->n - 1;
-    while (lo < hi) {
-        size_t mid = (lo + hi) / 2;
-        if (lt->cdf[mid] > u)
-            hi = mid;
-        else
-            lo = mid + 1;
-    }
-    *pdf = lt->cdf[lo] - (lo ? lt->cdf[lo - 1] : 0.0);
-    return lo;
-}
 
 double rt_scene_scale(const scene *s)
 {
@@ -152,111 +82,125 @@ rr_vec3 rt_offset_origin(double scale, rr_vec3 p, rr_vec3 n, rr_vec3 dir)
     return rr_v3_madd(p, n, rr_v3_dot(n, dir) >= 0.0 ? eps : -eps);
 }
 
-static rr_vec3 offset_origin(const render_ctx *c, rr_vec3 p, rr_vec3 n, rr_vec3 dir)
-{
-    return rt_offset_origin(c->eps_scale, p, n, dir);
-}
-
-/* Lit(H, L): nothing between the offset origin and the light. */
-static int lit(const render_ctx *c, rr_vec3 from, rr_vec3 to_dir, double tmax)
-{
-    rr_ray r = {from, to_dir};
-    return !rt_accel_occluded(c->a, r, 0.0, tmax);
-}
-
 typedef struct shade_out {
     rr_rgb c[RT_LAYER_COUNT];
 } shade_out;
 
-/* mis_pdf < 0: the ray counts all the triangle emission it meets (camera and
- * mirror rays); >= 0: a diffuse bounce ray, whose triangle emission is weighted
- * against the mis_n light samples taken at its origin (see radiance). */
-static rr_rgb radiance(const render_ctx *c, rr_ray ray, int depth, int bounce, double mis_pdf, int mis_n, rr_rng *rng,
+/* A BSDF ray's bookkeeping for multiple importance sampling (balance
+ * heuristic): it left a diffuse point where nl light samples were taken,
+ * with bsdf pdf pb (cos / pi), and has met the mirrors in path since. NULL
+ * for rays that count all the emission they meet (camera and mirror rays
+ * from them). */
+typedef struct mis_state {
+    double pb;
+    int nl;
+    rt_mirror_path path;
+} mis_state;
+
+static rr_rgb radiance(const render_ctx *c, rr_ray ray, int depth, int bounce, const mis_state *mis, rr_rng *rng,
                        shade_out *out);
 
-/* Uniform point on triangle t: (u1, u2) -> barycentrics (square-root warp). */
-static rr_vec3 tri_point(const scene *s, uint32_t t, double u1, double u2)
+/* The share of emission found by a BSDF ray at emitter hit h (ray direction
+ * d) that the BSDF strategy keeps: pb / (pb + nl pl). */
+static double bsdf_weight(const render_ctx *c, const mis_state *mis, const rt_hit *h, rr_vec3 d)
 {
-    const scene_tri *tr = &s->tris[t];
-    double su = sqrt(u1);
-    double b0 = 1.0 - su, b1 = u2 * su;
-    rr_vec3 A = s->verts[tr->v[0]], B = s->verts[tr->v[1]], C = s->verts[tr->v[2]];
-    return rr_v3_add(rr_v3_add(rr_v3_scale(A, b0), rr_v3_scale(B, b1)), rr_v3_scale(C, 1.0 - b0 - b1));
+    if (!mis)
+        return 1.0;
+    mis_state m = *mis;
+    m.path.dist += h->t;
+    double pl = mis->nl * rt_lights_pdf(c->lights, &m.path, h, d);
+    return mis->pb / (mis->pb + pl);
 }
 
-/* Direct light at H: diffuse and specular, every light, shadow rays. */
-static void direct_light(const render_ctx *c, rr_vec3 H, rr_vec3 N, rr_vec3 V, const scene_material *m, int nsamples,
-                         int mis, rr_rng *rng, rr_rgb *diffuse, rr_rgb *specular)
+/* The mirror path of a BSDF ray one more reflection on (at hit h). */
+static void mis_reflect(const render_ctx *c, mis_state *m, const rt_hit *h)
 {
-    const scene *s = c->s;
-    for (size_t i = 0; i < s->nlights; i++) {
-        const scene_light *l = &s->lights[i];
-        rr_vec3 L;
-        double tmax, falloff = 1.0;
-        if (l->type == SCENE_LIGHT_DIRECTIONAL) {
-            L = l->direction;
-            tmax = INFINITY;
-        } else {
-            rr_vec3 d = rr_v3_sub(l->position, H);
-            double r2 = rr_v3_len2(d);
-            if (!(r2 > 0.0))
-                continue;
-            L = rr_v3_scale(d, 1.0 / sqrt(r2));
-            falloff = 1.0 / r2;
-            tmax = sqrt(r2);
-        }
-        double ndotl = rr_v3_dot(N, L);
-        if (ndotl <= 0.0)
-            continue;
-        rr_vec3 o = offset_origin(c, H, N, L);
-        if (!lit(c, o, L, tmax == INFINITY ? INFINITY : tmax * (1.0 - 1e-9)))
-            continue;
-        rt_phong(N, L, V, m, rr_rgb_scale(l->intensity, falloff), diffuse, specular);
+    m->path.dist += h->t;
+    int q = rt_lights_mirror_plane(c->lights, h);
+    if (q < 0 || m->path.n >= RT_CHAIN_MAX)
+        m->path.curved = 1;
+    else
+        m->path.plane[m->path.n++] = (uint32_t)q;
+}
+
+/* Cosine-weighted direction about N (Malley's method). */
+static rr_vec3 cosine_dir(rr_vec3 N, rr_rng *rng);
+
+/* Emission that a BSDF ray from H along unit dir meets directly or through
+ * mirrors (up to the mirror depth left), weighted against light sampling. */
+static rr_rgb bsdf_emission(const render_ctx *c, rr_vec3 H, rr_vec3 N, rr_vec3 dir, int depth, mis_state *mis)
+{
+    rr_rgb thru = rr_rgb_make(1, 1, 1);
+    rr_ray r = {rt_offset_origin(c->eps_scale, H, N, dir), dir};
+    for (;;) {
+        rt_hit h;
+        if (!rt_accel_closest(c->a, r, 0.0, INFINITY, &h))
+            return rr_rgb_make(0, 0, 0);
+        const scene_material *m = &c->s->materials[h.material];
+        if (h.front && rr_rgb_max(m->emission) > 0.0)
+            return rr_rgb_scale(rr_rgb_mul(thru, m->emission), bsdf_weight(c, mis, &h, r.d));
+        if (!(rr_rgb_max(m->mirror) > 0.0) || depth >= c->o->max_depth)
+            return rr_rgb_make(0, 0, 0);
+        mis_reflect(c, mis, &h);
+        thru = rr_rgb_mul(thru, m->mirror);
+        rr_vec3 R = rr_v3_madd(r.d, h.normal, -2.0 * rr_v3_dot(r.d, h.normal));
+        r.o = rt_offset_origin(c->eps_scale, h.point, h.normal, R);
+        r.d = R;
+        depth++;
     }
-    /* Area lights: n stratified samples over (emitter choice, point on it). */
-    if (c->lights.n == 0)
+}
+
+/* Direct light at H: every delta light (and its mirror images) with its
+ * shadow rays, nl samples of the area lights (and their images), and, when
+ * nb > 0, nb BSDF rays for the diffuse part, combined with the light samples
+ * by the balance heuristic. weigh: the light samples' diffuse part is
+ * weighted against BSDF sampling (nb BSDF rays here, or one bounce ray taken
+ * by the caller when nb = 0). */
+static void direct_light(const render_ctx *c, rr_vec3 H, rr_vec3 N, rr_vec3 V, const scene_material *m, int nl, int nb,
+                         int weigh, int depth, rr_rng *rng, rr_rgb *diffuse, rr_rgb *specular)
+{
+    const rt_lights *L = c->lights;
+    size_t nd = rt_lights_delta_count(L);
+    for (size_t k = 0; k < nd; k++) {
+        rt_light_sample ls;
+        if (rt_lights_delta(L, k, H, N, &ls))
+            rt_phong(N, ls.L, V, m, ls.E, diffuse, specular);
+    }
+    if (rt_lights_area_count(L) == 0)
         return;
-    int n = nsamples > 0 ? nsamples : 1;
+    int n = nl > 0 ? nl : 1;
+    double nbw = nb > 0 ? nb : 1; /* BSDF rays the light samples are weighed against */
     for (int k = 0; k < n; k++) {
-        double pick_pdf;
         double u0 = ((double)k + rr_rng_uniform(rng)) / n;
-        size_t li = light_pick(&c->lights, u0, &pick_pdf);
-        if (!(pick_pdf > 0.0))
+        double u1 = rr_rng_uniform(rng), u2 = rr_rng_uniform(rng);
+        rt_light_sample ls;
+        if (!rt_lights_sample(L, H, N, u0, u1, u2, &ls))
             continue;
-        uint32_t t = c->lights.tris[li];
-        rr_vec3 y = tri_point(s, t, rr_rng_uniform(rng), rr_rng_uniform(rng));
-        rr_vec3 ny = scene_tri_normal(s, t);
-        rr_vec3 w = rr_v3_sub(y, H);
-        double d2 = rr_v3_len2(w);
-        if (!(d2 > 0.0))
-            continue;
-        double d = sqrt(d2);
-        rr_vec3 L = rr_v3_scale(w, 1.0 / d);
-        double cos_x = rr_v3_dot(N, L), cos_y = -rr_v3_dot(ny, L); /* emitters radiate from their front */
-        if (cos_x <= 0.0 || cos_y <= 0.0)
-            continue;
-        rr_vec3 o = offset_origin(c, H, N, L);
-        rr_vec3 to = rr_v3_sub(y, o);
-        if (!lit(c, o, to, 1.0 - 1e-7))
-            continue;
-        double pdf_area = pick_pdf / c->lights.area[li];
-        rr_rgb Le = s->materials[s->tris[t].material].emission;
-        /* Irradiance estimate of this sample: Le cos_y / d^2 / pdf, then N.L = cos_x in rt_phong. */
         rr_rgb dd = rr_rgb_make(0, 0, 0);
-        rt_phong(N, L, V, m, rr_rgb_scale(Le, cos_y / (d2 * pdf_area * n)), &dd, specular);
-        if (mis) {
-            /* Balance heuristic against the cosine-weighted bounce ray that
-             * could have found the same point (it estimates the diffuse part
-             * only): near an emitter the bounce ray wins, which is what keeps
-             * the 1/d^2 of light sampling from making fireflies. */
-            double pl = n * light_pdf_solid_angle(&c->lights, li, d2, cos_y), pb = cos_x / RR_PI;
+        rt_phong(N, ls.L, V, m, rr_rgb_scale(ls.E, 1.0 / n), &dd, specular);
+        if (weigh) {
+            /* Near an emitter the BSDF strategy wins, which is what keeps the
+             * 1/d^2 of light sampling from making fireflies. */
+            double pl = n * ls.pdf, pb = nbw * rr_v3_dot(N, ls.L) / RR_PI;
             dd = rr_rgb_scale(dd, pl / (pl + pb));
         }
         *diffuse = rr_rgb_add(*diffuse, dd);
     }
+    if (nb <= 0 || !(rr_rgb_max(m->diffuse) > 0.0))
+        return;
+    for (int k = 0; k < nb; k++) {
+        rr_vec3 dir = cosine_dir(N, rng);
+        mis_state ms;
+        memset(&ms, 0, sizeof ms);
+        ms.pb = nb * rr_v3_dot(N, dir) / RR_PI;
+        ms.nl = n;
+        ms.path.origin = H;
+        rr_rgb Le = bsdf_emission(c, H, N, dir, depth, &ms);
+        /* rho/pi Le cos / (cos/pi) / nb = rho Le / nb */
+        *diffuse = rr_rgb_add(*diffuse, rr_rgb_scale(rr_rgb_mul(m->diffuse, Le), 1.0 / nb));
+    }
 }
 
-/* Cosine-weighted direction about N (Malley's method). */
 static rr_vec3 cosine_dir(rr_vec3 N, rr_rng *rng)
 {
     double r = sqrt(rr_rng_uniform(rng)), phi = 2.0 * RR_PI * rr_rng_uniform(rng);
@@ -269,7 +213,7 @@ static rr_vec3 cosine_dir(rr_vec3 N, rr_rng *rng)
     return rr_v3_add(rr_v3_add(rr_v3_scale(T, x), rr_v3_scale(B, y)), rr_v3_scale(N, z));
 }
 
-static rr_rgb radiance(const render_ctx *c, rr_ray ray, int depth, int bounce, double mis_pdf, int mis_n, rr_rng *rng,
+static rr_rgb radiance(const render_ctx *c, rr_ray ray, int depth, int bounce, const mis_state *mis, rr_rng *rng,
                        shade_out *out)
 {
     const scene *s = c->s;
@@ -293,17 +237,8 @@ static rr_rgb radiance(const render_ctx *c, rr_ray ray, int depth, int bounce, d
             *out = local;
         return local.c[RT_LAYER_RADIOSITY];
     }
-    if (h.front && rr_rgb_max(m->emission) > 0.0) {
-        double w = 1.0;
-        if (mis_pdf >= 0.0 && h.tri >= 0 && c->lights.n > 0 && c->lights.index_of[h.tri] >= 0) {
-            /* A bounce ray met a sampled emitter: the balance-heuristic share
-             * of the bounce strategy (ray.d is unit, so h.t is the distance). */
-            double cos_y = -rr_v3_dot(scene_tri_normal(s, (size_t)h.tri), ray.d);
-            double pl = mis_n * light_pdf_solid_angle(&c->lights, (size_t)c->lights.index_of[h.tri], h.t * h.t, cos_y);
-            w = mis_pdf / (mis_pdf + pl);
-        }
-        local.c[RT_LAYER_EMISSION] = rr_rgb_scale(m->emission, w);
-    }
+    if (h.front && rr_rgb_max(m->emission) > 0.0)
+        local.c[RT_LAYER_EMISSION] = rr_rgb_scale(m->emission, bsdf_weight(c, mis, &h, ray.d));
     int diffuse = rr_rgb_max(m->diffuse) > 0.0;
     int bounces = diffuse && c->o->indirect == RT_INDIRECT_SECONDARY && bounce < RT_MAX_BOUNCES;
     /* Soft shadows get light_samples at the points the eye sees (and mirrors
@@ -312,16 +247,24 @@ static rr_rgb radiance(const render_ctx *c, rr_ray ray, int depth, int bounce, d
     int nlight = bounce == 0 ? c->o->light_samples : 1;
     if (nlight < 1)
         nlight = 1;
+    /* BSDF rays for the direct term where no bounce ray is taken (multiple
+     * importance sampling in every mode, not only with secondary rays). */
+    int nbsdf = bounces ? 0 : (nlight + 3) / 4;
     if (diffuse || rr_rgb_max(m->specular) > 0.0)
-        direct_light(c, h.point, N, V, m, nlight, bounces, rng, &local.c[RT_LAYER_DIFFUSE],
+        direct_light(c, h.point, N, V, m, nlight, nbsdf, 1, depth, rng, &local.c[RT_LAYER_DIFFUSE],
                      &local.c[RT_LAYER_SPECULAR]);
     if (diffuse && c->o->indirect == RT_INDIRECT_AMBIENT)
         local.c[RT_LAYER_AMBIENT] = rr_rgb_scale(rr_rgb_mul(m->diffuse, s->settings.ambient), m->ambient);
     if (rr_rgb_max(m->mirror) > 0.0 && depth < c->o->max_depth) {
         /* R = 2(N.V)N - V */
         rr_vec3 R = rr_v3_sub(rr_v3_scale(N, 2.0 * rr_v3_dot(N, V)), V);
-        rr_ray mr = {offset_origin(c, h.point, N, R), R};
-        rr_rgb Lm = radiance(c, mr, depth + 1, bounce, -1.0, 0, rng, NULL);
+        rr_ray mr = {rt_offset_origin(c->eps_scale, h.point, N, R), R};
+        mis_state mm;
+        if (mis) {
+            mm = *mis;
+            mis_reflect(c, &mm, &h);
+        }
+        rr_rgb Lm = radiance(c, mr, depth + 1, bounce, mis ? &mm : NULL, rng, NULL);
         local.c[RT_LAYER_MIRROR] = rr_rgb_mul(m->mirror, Lm);
     }
     if (diffuse && c->o->indirect == RT_INDIRECT_RADIOSITY && c->o->radiosity_indirect)
@@ -339,8 +282,13 @@ static rr_rgb radiance(const render_ctx *c, rr_ray ray, int depth, int bounce, d
         }
         if (go) {
             rr_vec3 dir = cosine_dir(N, rng);
-            rr_ray br = {offset_origin(c, h.point, N, dir), dir};
-            rr_rgb Li = radiance(c, br, depth, bounce + 1, rr_v3_dot(N, dir) / RR_PI, nlight, rng, NULL);
+            rr_ray br = {rt_offset_origin(c->eps_scale, h.point, N, dir), dir};
+            mis_state bm;
+            memset(&bm, 0, sizeof bm);
+            bm.pb = rr_v3_dot(N, dir) / RR_PI;
+            bm.nl = nlight;
+            bm.path.origin = h.point;
+            rr_rgb Li = radiance(c, br, depth, bounce + 1, &bm, rng, NULL);
             local.c[RT_LAYER_INDIRECT] = rr_rgb_mul(weight, Li);
         }
     }
@@ -390,7 +338,7 @@ rr_status rt_render(const scene *s, const rt_accel *a, const rt_render_opts *o, 
     c.a = a;
     c.o = o;
     c.eps_scale = rt_scene_scale(s);
-    rr_status st = light_table_build(s, &c.lights, err);
+    rr_status st = rt_lights_build(s, a, o->max_depth, &c.lights, err);
     if (st != RR_OK)
         return st;
     int spp = o->spp > 0 ? o->spp : 1;
@@ -418,7 +366,7 @@ rr_status rt_render(const scene *s, const rt_accel *a, const rt_render_opts *o, 
                     double dx, dy;
                     pixel_offset(k, spp, o->filter, &rng, &dx, &dy);
                     shade_out so;
-                    radiance(&c, rr_view_ray(v, col, row, dx, dy), 0, 0, -1.0, 0, &rng, &so);
+                    radiance(&c, rr_view_ray(v, col, row, dx, dy), 0, 0, NULL, &rng, &so);
                     for (int i = 0; i < RT_LAYER_COUNT; i++)
                         acc.c[i] = rr_rgb_add(acc.c[i], so.c[i]);
                 }
@@ -448,7 +396,7 @@ rr_status rt_render(const scene *s, const rt_accel *a, const rt_render_opts *o, 
             o->progress(o->progress_user, now, ntiles);
         }
     }
-    light_table_free(&c.lights);
+    rt_lights_destroy(c.lights);
     if (o->interrupt && *o->interrupt)
         return rr_error_set(err, RR_ERR_INTERRUPTED, "interrupted: %d of %d tiles finished", done, ntiles);
     return RR_OK;
@@ -512,7 +460,7 @@ int rt_follow_mirrors(const rt_accel *a, rr_ray ray, int max_bounces, rr_ray *la
         if (n >= max_bounces || rr_rgb_max(s->materials[h.material].mirror) <= 0.0)
             break;
         rr_vec3 R = rr_v3_madd(ray.d, h.normal, -2.0 * rr_v3_dot(ray.d, h.normal));
-        ray.o = offset_origin(&c, h.point, h.normal, R);
+        ray.o = rt_offset_origin(c.eps_scale, h.point, h.normal, R);
         ray.d = R;
         n++;
     }
