@@ -103,20 +103,6 @@ static int parse_list(const char *arg, const char *opt, const char *what, const 
 /* Whether mode will run the radiosity pass: the same rule as app_render_mode
  * (the hybrid skips it when nothing emits), so that the pass can be run and
  * timed on its own before the first mode that needs it. */
-static int needs_pass(const scene *sc, int mode)
-{
-    if (mode == APP_MODE_RADIOSITY)
-        return 1;
-    if (mode != APP_MODE_HYBRID)
-        return 0;
-    if (sc->nlights > 0 || sc->nemissive > 0)
-        return 1;
-    for (size_t i = 0; i < sc->nobjects; i++)
-        if (rr_rgb_max(sc->materials[sc->objects[i].material].emission) > 0)
-            return 1;
-    return 0;
-}
-
 static int object_hit(const scene *sc, const rt_accel *a, int col, int row, double dx, double dy)
 {
     rt_hit hit;
@@ -343,7 +329,7 @@ static int render_panels(job *j)
     rr_error err;
     for (int r = 0; r < nrender; r++) {
         int m = order[r];
-        if (needs_pass(sc, m)) {
+        if (app_needs_radiosity(sc, m, -1)) {
             snprintf(j->pass_users + strlen(j->pass_users), sizeof j->pass_users - strlen(j->pass_users), "%s%s",
                      j->pass_users[0] ? " and " : "", app_mode_names[m]);
             if (!j->pl.sol) {

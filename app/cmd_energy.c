@@ -12,7 +12,8 @@ static const char energy_usage[] =
     "usage: radray energy SCENE [options]\n"
     "\n"
     "Runs the radiosity pass on SCENE and prints, per object and in total, the\n"
-    "power emitted, incident, reflected, absorbed and escaped (through openings),\n"
+    "power emitted, incident, reflected (diffusely), mirrored (reflected on by mirrors),\n"
+    "absorbed and escaped (through openings),\n"
     "and checks the balance: emitted = absorbed + escaped.\n"
     "Power is radiosity x area: scene emission Le (radiance) emits pi Le per unit area.\n"
     "\n"
@@ -139,6 +140,7 @@ int app_cmd_energy(int argc, char **argv)
     rad_pass_opts po;
     memset(&po, 0, sizeof po);
     po.use_scene_choices = 1;
+    po.warn = app_warn_sink();
     po.ff.seed = s->settings.seed;
     po.ff.threads = s->settings.threads;
     rr_status st = rad_pass_run(s, a, &po, &sol, &err);
@@ -174,6 +176,7 @@ int app_cmd_energy(int argc, char **argv)
             json_rgb("emitted", rows[i].emitted, 0);
             json_rgb("incident", rows[i].incident, 0);
             json_rgb("reflected", rows[i].reflected, 0);
+            json_rgb("mirrored", rows[i].mirrored, 0);
             json_rgb("absorbed", rows[i].absorbed, 0);
             json_rgb("escaped", rows[i].escaped, 1);
             printf("}");
@@ -183,16 +186,16 @@ int app_cmd_energy(int argc, char **argv)
         printf("energy ledger of %s: %zu patches, %zu form factors, %s solver, residual %.2g\n", s->path, sol->P->n,
                sol->nnz, sol->stats.used == RAD_SOLVER_DIRECT ? "direct" : "iterative", sol->stats.residual);
         printf("power = radiosity x area (scene units), mean of R, G, B\n\n");
-        printf("%-18s %12s %12s %12s %12s %12s %12s\n", "surface", "area", "emitted", "incident", "reflected",
-               "absorbed", "escaped");
+        printf("%-18s %12s %12s %12s %12s %12s %12s %12s\n", "surface", "area", "emitted", "incident", "reflected",
+               "mirrored", "absorbed", "escaped");
         for (size_t i = 0; i < nrows; i++) {
             const rad_energy_row *r = &rows[i];
             if (i == nrows - 1)
                 printf("%s\n", "------------------------------------------------------------------------------------"
-                               "-------------");
-            printf("%-18s %12.5g %12.5g %12.5g %12.5g %12.5g %12.5g\n", r->name, r->area, rr_rgb_mean(r->emitted),
-                   rr_rgb_mean(r->incident), rr_rgb_mean(r->reflected), rr_rgb_mean(r->absorbed),
-                   rr_rgb_mean(r->escaped));
+                               "--------------------------------------------");
+            printf("%-18s %12.5g %12.5g %12.5g %12.5g %12.5g %12.5g %12.5g\n", r->name, r->area,
+                   rr_rgb_mean(r->emitted), rr_rgb_mean(r->incident), rr_rgb_mean(r->reflected),
+                   rr_rgb_mean(r->mirrored), rr_rgb_mean(r->absorbed), rr_rgb_mean(r->escaped));
         }
         printf("\nbalance: emitted = absorbed + escaped to %.2g (relative, worst channel): %s\n", worst,
                worst <= tol ? "holds" : "BROKEN");

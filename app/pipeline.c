@@ -68,16 +68,6 @@ rt_indirect app_mode_indirect(int mode, int indirect_override)
     return indirect_override >= 0 ? (rt_indirect)indirect_override : preset[mode];
 }
 
-static int scene_emits(const scene *sc)
-{
-    if (sc->nlights > 0 || sc->nemissive > 0)
-        return 1;
-    for (size_t i = 0; i < sc->nobjects; i++)
-        if (rr_rgb_max(sc->materials[sc->objects[i].material].emission) > 0)
-            return 1;
-    return 0;
-}
-
 rr_status app_pipeline_radiosity(app_pipeline *p, rr_error *err)
 {
     if (p->sol)
@@ -85,6 +75,7 @@ rr_status app_pipeline_radiosity(app_pipeline *p, rr_error *err)
     rad_pass_opts po;
     memset(&po, 0, sizeof po);
     po.use_scene_choices = 1;
+    po.warn = app_warn_sink();
     po.ff.seed = p->sc->settings.seed;
     po.ff.threads = p->sc->settings.threads;
     int cached = 0;
@@ -106,7 +97,7 @@ int app_needs_radiosity(const scene *sc, int mode, int indirect_override)
 {
     if (mode == APP_MODE_RADIOSITY)
         return 1;
-    return app_mode_indirect(mode, indirect_override) == RT_INDIRECT_RADIOSITY && scene_emits(sc);
+    return app_mode_indirect(mode, indirect_override) == RT_INDIRECT_RADIOSITY && rt_scene_emits(sc);
 }
 
 /* ---- resource limits ---- */

@@ -33,6 +33,8 @@ typedef struct rad_patch {
     rr_vec3 centroid;
     double area;
     rr_rgb rho;        /* diffuse reflectance of the material */
+    double mirror;     /* mean mirror reflectance of the material: Monte Carlo form-factor
+                          rays go on through it (extended form factors, rad_ff.c) */
     rr_rgb emission;   /* emitted radiosity E = pi * Le */
     uint32_t object;   /* scene object */
     int64_t tri;       /* source scene triangle, or -1 for a tessellated sphere or solid */
@@ -132,6 +134,8 @@ typedef struct rad_ff_opts {
     int raw;           /* 1: keep the estimates as computed (for tests of reciprocity);
                           0 (default): make them reciprocal, F_ij := (A_i F_ij + A_j F_ji) / (2 A_i),
                           so the solved system conserves energy exactly */
+    int mirror_depth;  /* Monte Carlo: reflections a form-factor ray follows off mirrors
+                          (extended form factors; 0 = mirrors end rays like any surface) */
 } rad_ff_opts;
 
 /* Form factors between all patches, visibility by the BVH a (built over s).
@@ -180,9 +184,10 @@ typedef struct rad_energy_row {
     double area;
     rr_rgb emitted;    /* sum E_i A_i */
     rr_rgb incident;   /* sum A_i H_i, H_i = sum_j F_ij B_j  (power arriving) */
-    rr_rgb reflected;  /* rho * incident */
-    rr_rgb absorbed;   /* (1 - rho) * incident */
-    rr_rgb escaped;    /* sum B_i A_i (1 - sum_j F_ij): leaves through openings */
+    rr_rgb reflected;  /* rho * incident (diffusely) */
+    rr_rgb mirrored;   /* rho_mirror * incident (reflected on by mirrors: it arrives again elsewhere) */
+    rr_rgb absorbed;   /* (1 - rho - rho_mirror) * incident */
+    rr_rgb escaped;    /* sum B_i A_i (1 - sum_j F_ij (1 - rho_mirror_j)): leaves through openings */
 } rad_energy_row;
 
 /* One row per object that has patches, then a "total" row (rows[*nrows-1]).
@@ -197,6 +202,7 @@ typedef struct rad_pass_opts {
     rad_ff_opts ff;         /* samples <= 0: from the scene */
     rad_solve_opts solve;   /* tolerance <= 0: from the scene */
     int use_scene_choices;  /* 1: ff.method and solve.solver come from the scene */
+    rr_warn_sink warn;      /* what the pass cannot carry (mirrors with quadrature form factors) */
 } rad_pass_opts;
 
 typedef struct rad_solution {
@@ -216,9 +222,12 @@ typedef struct rad_solution {
  * the hybrid need. a must be built over s.
  *
  * Point and directional lights enter as a first shot: each patch's direct
- * irradiance H0 from them (shadow rays from 4 points of the patch) is reflected
- * once, rho * H0, and that is added to the patch's emission before solving
- * (so the ledger counts it as emitted by the patch). */
+ * irradiance H0 from them and from their images in planar mirrors (the light
+ * interface, rt.h; shadow rays from 4 points of the patch) is reflected once,
+ * rho * H0, and that is added to the patch's emission before solving (so the
+ * ledger counts it as emitted by the patch). Mirrors: Monte Carlo form
+ * factors are extended through them (ff.mirror_depth, default
+ * render.max_depth). */
 rr_status rad_pass_run(const scene *s, const rt_accel *a, const rad_pass_opts *o, rad_solution **out, rr_error *err);
 void rad_solution_destroy(rad_solution *sol);
 

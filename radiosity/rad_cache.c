@@ -7,7 +7,8 @@
  *
  * The file starts with a key: a 64-bit FNV-1a hash of everything the solution
  * depends on: geometry, materials, lights, the resolved patch limits, the
- * form-factor method, samples and seed, and the solver settings. A cache whose
+ * form-factor method, samples and seed, the solver settings, and the mirrors
+ * (reflectances, render.max_depth: extended form factors and light images). A cache whose
  * key differs was made for another scene or other settings and is refused. */
 #include <stdlib.h>
 #include <string.h>
@@ -16,7 +17,7 @@
 #include "rad.h"
 
 #define CACHE_MAGIC "RADRAYRC"
-#define CACHE_VERSION 1u
+#define CACHE_VERSION 2u /* 2: mirrors in the key (extended form factors, images of lights) */
 
 typedef struct hasher {
     uint64_t h;
@@ -56,6 +57,7 @@ static uint64_t cache_key(const scene *s, const rad_pass_opts *o)
     for (size_t i = 0; i < s->nmaterials; i++) {
         hash_rgb(&x, s->materials[i].diffuse);
         hash_rgb(&x, s->materials[i].emission);
+        hash_rgb(&x, s->materials[i].mirror);
     }
     for (size_t i = 0; i < s->nobjects; i++) {
         const scene_object *ob = &s->objects[i];
@@ -108,6 +110,8 @@ static uint64_t cache_key(const scene *s, const rad_pass_opts *o)
     hash_bytes(&x, &o->ff.raw, sizeof o->ff.raw);
     hash_bytes(&x, &solver, sizeof solver);
     hash_double(&x, tol);
+    int depth = o->ff.mirror_depth > 0 ? o->ff.mirror_depth : s->settings.max_depth;
+    hash_bytes(&x, &depth, sizeof depth);
     return x.h;
 }
 

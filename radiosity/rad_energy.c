@@ -15,6 +15,15 @@
  * into (1):
  *     emitted = sum_i A_i B_i - sum_i rho_i A_i H_i
  *             = escaped + sum_i (1 - rho_i) A_i H_i = escaped + absorbed.
+ *
+ * Mirrors (extended form factors, rad_ff.c): a form-factor ray goes on from
+ * a mirror patch j with weight rho_mirror_j, and lands again; F_ij counts
+ * every landing, so the power that ends at j (absorbed there, or re-emitted
+ * diffusely in B_j) is (1 - rho_mirror_j) of what arrives, and the rest is
+ * the "mirrored" column. (2) becomes
+ *     sum_i (1 - m_i) A_i H_i = sum_j A_j B_j - escaped,
+ * escaped = sum_j A_j B_j (1 - sum_i F_ji (1 - m_i)), and so
+ *     emitted = escaped + sum_i (1 - m_i - rho_i) A_i H_i = escaped + absorbed.
  * A solver residual r_i = E_i + rho_i H_i - B_i leaves an imbalance of
  * sum_i A_i r_i, and non-reciprocal form factors one of the size of their
  * non-reciprocity; rad_ff makes them reciprocal by default. Escaped power is
@@ -33,6 +42,7 @@ static void row_add(rad_energy_row *t, const rad_energy_row *r)
     t->emitted = rr_rgb_add(t->emitted, r->emitted);
     t->incident = rr_rgb_add(t->incident, r->incident);
     t->reflected = rr_rgb_add(t->reflected, r->reflected);
+    t->mirrored = rr_rgb_add(t->mirrored, r->mirrored);
     t->absorbed = rr_rgb_add(t->absorbed, r->absorbed);
     t->escaped = rr_rgb_add(t->escaped, r->escaped);
 }
@@ -70,15 +80,17 @@ rr_status rad_energy(const scene *s, const rad_patches *P, const rad_ff *F, cons
         double fsum = 0.0;
         for (size_t k = F->rowptr[i]; k < F->rowptr[i + 1]; k++) {
             h = rr_rgb_add(h, rr_rgb_scale(B[F->col[k]], F->val[k]));
-            fsum += F->val[k];
+            fsum += F->val[k] * (1.0 - P->p[F->col[k]].mirror);
         }
         rr_rgb incident = rr_rgb_scale(h, p->area);
-        rr_rgb absorb = rr_rgb_make(1.0 - p->rho.r, 1.0 - p->rho.g, 1.0 - p->rho.b);
+        double m = p->mirror;
+        rr_rgb absorb = rr_rgb_make(1.0 - p->rho.r - m, 1.0 - p->rho.g - m, 1.0 - p->rho.b - m);
         rad_energy_row r = {
             .area = p->area,
             .emitted = rr_rgb_scale(p->emission, p->area),
             .incident = incident,
             .reflected = rr_rgb_mul(p->rho, incident),
+            .mirrored = rr_rgb_scale(incident, m),
             .absorbed = rr_rgb_mul(absorb, incident),
             .escaped = rr_rgb_scale(B[i], p->area * (1.0 - fsum)),
         };

@@ -23,7 +23,15 @@
  *  - Monte Carlo (RAD_FF_MONTE_CARLO): `samples` rays per patch, origins
  *    uniform over the patch and directions cosine-weighted, stratified jointly
  *    in 4-D (see mc_row), F_ij = (rays whose first hit is the front of j) /
- *    samples. Hits on the BACK side of a surface are dropped: patches are
+ *    samples. Extended form factors (Wallace, Cohen & Greenberg 1987): a ray
+ *    that meets a mirror (mirror reflectance > 0, either side) lands there
+ *    AND goes on, reflected, with its weight times the mirror's mean
+ *    reflectance, up to mirror_depth reflections; F_ij then sums the weights
+ *    of the landings on j, so light that leaves i and reaches j by way of
+ *    mirrors is in F_ij (and the system stays reciprocal: mirror paths are
+ *    reversible). Quadrature does not do this: it has no rays to reflect
+ *    (the pass warns when a scene with mirrors asks for it).
+ *    Hits on the BACK side of a surface are dropped: patches are
  *    one-sided (they emit and receive on their normal side), the back of an
  *    open quad has no patch, so such a ray's share counts as escaped
  *    (1 - sum_j F_ij, the energy ledger's "escaped" column).
@@ -64,6 +72,7 @@ typedef struct ff_ctx {
     int samples;
     uint32_t near_samples; /* quadrature points for near pairs (>= samples) */
     uint64_t seed;
+    int mirror_depth; /* Monte Carlo: reflections followed off mirrors */
     double ext;       /* scene extent: the length scale of ray offsets */
     double plane_tol; /* distances to a plane below this count as "on it" */
 } ff_ctx;
@@ -75,13 +84,21 @@ typedef struct ff_row {
     size_t n;
 } ff_row;
 
+/* A weighted hit: patch j, weight w. */
+typedef struct wh {
+    uint32_t j;
+    double w;
+} wh;
+
 /* Per-thread scratch, sized once per thread. */
 typedef struct ff_scratch {
     rr_vec3 *x;     /* quadrature points of the current row (base, then near) */
     rr_vec3 *xo;    /* and the shadow rays' origins for them */
     uint32_t *perm; /* stratum pairing (quadrature: base, then near) */
     double *tuv;    /* quadrature: shadow-ray targets (base, then near) */
-    uint32_t *hits; /* Monte Carlo: patch hit by each ray */
+    uint32_t *hits; /* Monte Carlo: patch hit by each ray (and by its reflections off mirrors) */
+    double *hw;     /* and the weight of each hit (1, or the product of the mirrors' reflectances) */
+    wh *pairs;      /* for sorting weighted hits (scenes with mirrors) */
     uint32_t *col;  /* the row being built */
     double *val;
 } ff_scratch;
@@ -348,31 +365,70 @@ static size_t mc_row(const ff_ctx *c, uint32_t i, ff_scratch *w)
         rr_vec3 xs, xn;
         surface_at(c, pi, patch_point(P, pi, u1, u2), &xs, &xn);
         rr_ray r = {offset_front(c, xs, xn), rad_ff_cosine_dir(xn, v1, v2)};
-        rt_hit h;
-        if (!rt_accel_closest(c->a, r, 0.0, INFINITY, &h))
-            continue; /* escaped */
-        /* Back side: no patch receives there (one-sided patches); counted as
-         * escaped. A planar patch cannot see itself; a hit on i is rounding. */
-        if (!h.front)
-            continue;
-        uint32_t j = rad_patch_locate(P, c->s, h.tri, h.object, h.point);
-        if (j < P->n && j != i)
-            w->hits[m++] = j;
+        double weight = 1.0;
+        for (int bounce = 0;; bounce++) {
+            rt_hit h;
+            if (!rt_accel_closest(c->a, r, 0.0, INFINITY, &h))
+                break; /* escaped */
+            /* Back side: no patch receives there (one-sided patches); counted
+             * as escaped. A planar patch cannot see itself; a hit on i is
+             * rounding (or, after a mirror, a patch seeing itself in it). */
+            const scene_material *mat = &c->s->materials[h.material];
+            uint32_t j = h.front ? rad_patch_locate(P, c->s, h.tri, h.object, h.point) : UINT32_MAX;
+            if (j < P->n && (j != i || bounce > 0)) {
+                w->hits[m] = j;
+                w->hw[m++] = weight;
+            }
+            /* Extended form factors: the ray goes on off a mirror (either
+             * side), carrying the mirror's reflectance. */
+            double rm = rr_rgb_mean(mat->mirror);
+            if (!(rm > 0.0) || bounce >= c->mirror_depth)
+                break;
+            weight *= rm;
+            rr_vec3 R = rr_v3_madd(r.d, h.normal, -2.0 * rr_v3_dot(r.d, h.normal));
+            r.o = rt_offset_origin(c->ext, h.point, h.normal, R);
+            r.d = R;
+        }
     }
     return m;
 }
 
-/* Sorted hits -> (col, count / samples), in place into w->col / w->val. */
+/* Hits -> (col, summed weight / samples), sorted by column, into w->col /
+ * w->val. Hits and weights are sorted together (by column, then weight, so
+ * the sums are the same whatever order the rays came in). */
+static int cmp_wh(const void *a, const void *b)
+{
+    const wh *x = a, *y = b;
+    if (x->j != y->j)
+        return (x->j > y->j) - (x->j < y->j);
+    return (x->w > y->w) - (x->w < y->w);
+}
+
 static size_t mc_compress(const ff_ctx *c, ff_scratch *w, size_t nh)
 {
-    qsort(w->hits, nh, sizeof *w->hits, cmp_u32);
+    int weighted = 0;
+    for (size_t k = 0; k < nh && !weighted; k++)
+        weighted = w->hw[k] != 1.0;
+    if (!weighted) {
+        qsort(w->hits, nh, sizeof *w->hits, cmp_u32);
+    } else {
+        /* Scenes with mirrors: hits and weights sorted as pairs. */
+        for (size_t k = 0; k < nh; k++)
+            w->pairs[k] = (wh){w->hits[k], w->hw[k]};
+        qsort(w->pairs, nh, sizeof *w->pairs, cmp_wh);
+        for (size_t k = 0; k < nh; k++) {
+            w->hits[k] = w->pairs[k].j;
+            w->hw[k] = w->pairs[k].w;
+        }
+    }
     size_t m = 0;
     for (size_t a = 0; a < nh;) {
         size_t b = a;
+        double sum = 0.0;
         while (b < nh && w->hits[b] == w->hits[a])
-            b++;
+            sum += w->hw[b++];
         w->col[m] = w->hits[a];
-        w->val[m] = (double)(b - a) / c->samples;
+        w->val[m] = sum / c->samples;
         m++;
         a = b;
     }
@@ -487,6 +543,7 @@ rr_status rad_ff_compute(const scene *s, const rt_accel *a, const rad_patches *P
     c.P = P;
     c.samples = o->samples;
     c.seed = o->seed;
+    c.mirror_depth = o->method == RAD_FF_MONTE_CARLO && o->mirror_depth > 0 ? o->mirror_depth : 0;
     /* Near pairs: RAD_FF_NEAR_REFINE times the points, but no more than
      * RAD_FF_NEAR_MAX (nor fewer than the base set): past a few hundred
      * points the near-field error is already below the far-field one. */
@@ -523,11 +580,14 @@ rr_status rad_ff_compute(const scene *s, const rt_accel *a, const rad_patches *P
             w.val = malloc((n ? n : 1) * sizeof *w.val);
             ok = w.perm && w.x && w.xo && w.tuv && w.col && w.val;
         } else {
+            size_t nh = ns * (size_t)(1 + c.mirror_depth);
             w.perm = malloc(ns * sizeof *w.perm);
-            w.hits = malloc(ns * sizeof *w.hits);
-            w.col = malloc(ns * sizeof *w.col);
-            w.val = malloc(ns * sizeof *w.val);
-            ok = w.perm && w.hits && w.col && w.val;
+            w.hits = malloc(nh * sizeof *w.hits);
+            w.hw = malloc(nh * sizeof *w.hw);
+            w.col = malloc(nh * sizeof *w.col);
+            w.val = malloc(nh * sizeof *w.val);
+            w.pairs = c.mirror_depth > 0 ? malloc(nh * sizeof *w.pairs) : NULL;
+            ok = w.perm && w.hits && w.hw && w.col && w.val && (c.mirror_depth == 0 || w.pairs);
         }
         if (!ok) {
 #pragma omp atomic write
@@ -561,6 +621,8 @@ rr_status rad_ff_compute(const scene *s, const rt_accel *a, const rad_patches *P
         free(w.xo);
         free(w.tuv);
         free(w.hits);
+        free(w.hw);
+        free(w.pairs);
         free(w.col);
         free(w.val);
     }

@@ -58,47 +58,50 @@ void rad_solution_destroy(rad_solution *sol)
     free(sol);
 }
 
-/* H0: irradiance at patch k from every point and directional light, averaged
- * over 4 points of the patch (centroid and the three points halfway to the
- * corners), each with a shadow ray. */
-static rr_rgb first_shot(const scene *s, const rt_accel *a, const rad_patches *P, size_t k, double scale)
+/* H0: irradiance at patch k from every point and directional light and
+ * their images in planar mirrors (the light interface, rt_light.c),
+ * averaged over 4 points of the patch (centroid and the three points
+ * halfway to the corners), each with its shadow rays. */
+static rr_rgb first_shot(const scene *s, const rt_accel *a, const rt_lights *L, const rad_patches *P, size_t k)
 {
     static const double w[4][3] = {{1. / 3, 1. / 3, 1. / 3}, {2. / 3, 1. / 6, 1. / 6}, {1. / 6, 2. / 3, 1. / 6},
                                    {1. / 6, 1. / 6, 2. / 3}};
     const rad_patch *p = &P->p[k];
     rr_rgb H = rr_rgb_make(0, 0, 0);
+    size_t nd = rt_lights_delta_count(L);
     for (int q = 0; q < 4; q++) {
         rr_vec3 xf = rr_v3_add(rr_v3_add(rr_v3_scale(P->verts[p->v[0]], w[q][0]), rr_v3_scale(P->verts[p->v[1]], w[q][1])),
                                rr_v3_scale(P->verts[p->v[2]], w[q][2]));
         rr_vec3 x, N;
         rad_patch_surface(P, s, a, (uint32_t)k, xf, &x, &N);
-        for (size_t i = 0; i < s->nlights; i++) {
-            const scene_light *l = &s->lights[i];
-            rr_vec3 L;
-            double tmax, fall = 1.0;
-            if (l->type == SCENE_LIGHT_DIRECTIONAL) {
-                L = l->direction;
-                tmax = INFINITY;
-            } else {
-                rr_vec3 d = rr_v3_sub(l->position, x);
-                double r2 = rr_v3_len2(d);
-                if (!(r2 > 0))
-                    continue;
-                tmax = sqrt(r2);
-                L = rr_v3_scale(d, 1.0 / tmax);
-                fall = 1.0 / r2;
-                tmax *= 1.0 - 1e-9;
-            }
-            double c = rr_v3_dot(N, L);
-            if (c <= 0)
-                continue;
-            rr_ray r = {rt_offset_origin(scale, x, N, L), L};
-            if (rt_accel_occluded(a, r, 0.0, tmax))
-                continue;
-            H = rr_rgb_add(H, rr_rgb_scale(l->intensity, 0.25 * c * fall));
+        for (size_t i = 0; i < nd; i++) {
+            rt_light_sample ls;
+            if (rt_lights_delta(L, i, x, N, &ls))
+                H = rr_rgb_add(H, rr_rgb_scale(ls.E, 0.25 * rr_v3_dot(N, ls.L)));
         }
     }
     return H;
+}
+
+/* Says what the pass does not carry of this scene's mirrors. */
+static void mirror_warnings(const scene *s, const rad_ff_opts *fo, const rr_warn_sink *warn)
+{
+    int any = 0, coloured = 0;
+    for (size_t i = 0; i < s->nmaterials; i++) {
+        rr_rgb m = s->materials[i].mirror;
+        if (rr_rgb_max(m) > 0) {
+            any = 1;
+            coloured |= m.r != m.g || m.g != m.b;
+        }
+    }
+    if (any && fo->method == RAD_FF_QUADRATURE)
+        rr_warn(warn, "%s: radiosity: quadrature form factors do not reflect off mirrors: light by way of mirrors "
+                      "is missing from the radiosity pass (use \"form_factors\": \"montecarlo\")",
+                s->path);
+    else if (coloured)
+        rr_warn(warn, "%s: radiosity: a coloured mirror reflects the mean of its three channels in the radiosity "
+                      "pass (the ray tracer uses all three)",
+                s->path);
 }
 
 /* Area-weighted mean of per-patch values at the shared vertices. */
@@ -144,6 +147,9 @@ rr_status rad_pass_run(const scene *s, const rt_accel *a, const rad_pass_opts *o
         fo.method = s->radiosity.form_factors == SCENE_FF_QUADRATURE ? RAD_FF_QUADRATURE : RAD_FF_MONTE_CARLO;
     if (fo.samples <= 0)
         fo.samples = s->radiosity.ff_samples;
+    if (fo.mirror_depth <= 0)
+        fo.mirror_depth = s->settings.max_depth;
+    mirror_warnings(s, &fo, &o->warn);
     if ((st = rad_ff_compute(s, a, sol->P, &fo, &sol->F, err)) != RR_OK)
         goto fail;
     sol->nnz = sol->F->rowptr[sol->F->n];
@@ -165,16 +171,19 @@ rr_status rad_pass_run(const scene *s, const rt_accel *a, const rad_pass_opts *o
         st = rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory for %zu patches", s->path, n);
         goto fail;
     }
-    double scale = rt_scene_scale(s);
-    int nthreads = o->ff.threads > 0 ? o->ff.threads : 0;
-    (void)nthreads;
+    rt_lights *L = NULL;
+    if ((st = rt_lights_build(s, a, s->settings.max_depth, &L, err)) != RR_OK) {
+        free(Hind);
+        goto fail;
+    }
 #pragma omp parallel for schedule(dynamic, 64) if (s->nlights > 0)
     for (long k = 0; k < (long)n; k++) {
         rad_patch *p = &sol->P->p[k];
         sol->emitted[k] = p->emission;
-        sol->first_shot[k] = s->nlights ? first_shot(s, a, sol->P, (size_t)k, scale) : rr_rgb_make(0, 0, 0);
+        sol->first_shot[k] = s->nlights ? first_shot(s, a, L, sol->P, (size_t)k) : rr_rgb_make(0, 0, 0);
         p->emission = rr_rgb_add(p->emission, rr_rgb_mul(p->rho, sol->first_shot[k]));
     }
+    rt_lights_destroy(L);
     if ((st = rad_solve(sol->P, sol->F, &so, sol->B, &sol->stats, err)) != RR_OK) {
         free(Hind);
         rr_error_prefix(err, "%s: radiosity", s->path);

@@ -107,6 +107,7 @@ static void fill_patch(rad_patches *P, size_t k, uint32_t a, uint32_t b, uint32_
     p->normal = rr_v3_norm(n);
     p->centroid = rr_v3_scale(rr_v3_add(rr_v3_add(A, B), C), 1.0 / 3.0);
     p->rho = m->diffuse;
+    p->mirror = rr_rgb_mean(m->mirror);
     p->emission = rr_rgb_scale(m->emission, RR_PI);
     p->object = obj;
     p->tri = tri;
@@ -342,6 +343,7 @@ rr_status rad_patches_build(const scene *s, const rad_patch_opts *o, rad_patches
             if (rad__solid_surface(P, s, o->accel, (uint32_t)oi, P->p[np].centroid, P->p[np].normal, &xs, &ns, &leaf)) {
                 const scene_material *lm = &s->materials[s->csg[leaf].material];
                 P->p[np].rho = lm->diffuse;
+                P->p[np].mirror = rr_rgb_mean(lm->mirror);
                 P->p[np].emission = rr_rgb_scale(lm->emission, RR_PI);
             }
             np++;

@@ -85,7 +85,7 @@ static void fx_close(fx *f)
 
 static rad_ff *ff_run(const fx *f, rad_ff_method m, int samples, int raw, int threads, uint64_t seed)
 {
-    rad_ff_opts o = {m, samples, seed, threads, raw};
+    rad_ff_opts o = {m, samples, seed, threads, raw, 0};
     rad_ff *F = NULL;
     rr_error err;
     if (rad_ff_compute(f->s, f->a, f->P, &o, &F, &err) != RR_OK)
@@ -613,7 +613,7 @@ static void bad_options(void **state)
     fx_open(&f, k_parallel, 1.0);
     rad_ff *F = (rad_ff *)(uintptr_t)1; /* must stay untouched */
     rr_error err;
-    rad_ff_opts o = {RAD_FF_QUADRATURE, 0, 0, 0, 0};
+    rad_ff_opts o = {RAD_FF_QUADRATURE, 0, 0, 0, 0, 0};
     assert_int_equal(rad_ff_compute(f.s, f.a, f.P, &o, &F, &err), RR_ERR_INVALID);
     o.samples = 4;
     o.method = (rad_ff_method)7;
