@@ -49,18 +49,6 @@ int app_check_writable(const char *path)
     return 0;
 }
 
-static rr_rgb radiosity_hook(void *user, const rt_hit *hit)
-{
-    const app_pipeline *p = user;
-    return rad_radiance_at(p->sol, p->sc, hit);
-}
-
-static rr_rgb indirect_hook(void *user, const rt_hit *hit, rr_rgb rho)
-{
-    const app_pipeline *p = user;
-    return rad_indirect_at(p->sol, p->sc, hit, rho);
-}
-
 rt_indirect app_mode_indirect(int mode, int indirect_override)
 {
     static const rt_indirect preset[APP_MODE_COUNT] = {RT_INDIRECT_AMBIENT, RT_INDIRECT_SECONDARY, RT_INDIRECT_NONE,
@@ -304,10 +292,7 @@ rr_status app_render_mode(app_pipeline *p, int mode, int indirect_override, int 
         rr_status st = app_pipeline_radiosity(p, err);
         if (st != RR_OK)
             return st;
-        if (mode == APP_MODE_RADIOSITY)
-            ro.radiosity = radiosity_hook;
-        ro.radiosity_indirect = indirect_hook;
-        ro.radiosity_user = p;
+        rad_bind_render(p->sol, mode == APP_MODE_RADIOSITY, &ro);
     }
     rr_status st = rt_render(sc, p->accel, &ro, film, err);
     if (seconds)

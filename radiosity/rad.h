@@ -206,6 +206,7 @@ typedef struct rad_pass_opts {
 } rad_pass_opts;
 
 typedef struct rad_solution {
+    const scene *scene;  /* the scene it was computed for (not owned) */
     rad_patches *P;
     rad_ff *F;
     rr_rgb *B;           /* per patch radiosity */
@@ -250,5 +251,11 @@ rr_rgb rad_radiance_at(const rad_solution *sol, const scene *s, const rt_hit *h)
  * Indirect = everything that arrives after at least one diffuse reflection, so
  * the ray tracer's direct light (all lights, shadow rays) is not counted twice. */
 rr_rgb rad_indirect_at(const rad_solution *sol, const scene *s, const rt_hit *h, rr_rgb rho);
+
+/* The one way the solution reaches the ray tracer: sets ro's hooks so that
+ * rt_render shows the radiosity display (display = 1) or takes its indirect
+ * term from sol (ro->indirect = RT_INDIRECT_RADIOSITY, the hybrid). sol (and
+ * its scene) must outlive the render. */
+void rad_bind_render(const rad_solution *sol, int display, rt_render_opts *ro);
 
 #endif

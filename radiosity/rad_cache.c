@@ -210,6 +210,8 @@ rr_status rad_pass_run_cached(const scene *s, const rt_accel *a, const rad_pass_
         return st;
     }
     rad_solution *sol = calloc(1, sizeof *sol);
+    if (sol)
+        sol->scene = s;
     if (!sol)
         return rr_error_set(err, RR_ERR_NOMEM, "out of memory");
     rad_patch_opts po = rad_pass_patch_limits(s, o);

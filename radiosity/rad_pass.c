@@ -135,6 +135,7 @@ rr_status rad_pass_run(const scene *s, const rt_accel *a, const rad_pass_opts *o
     rad_solution *sol = calloc(1, sizeof *sol);
     if (!sol)
         return rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory", s->path);
+    sol->scene = s;
     rr_status st;
     double t0 = now_seconds();
     rad_patch_opts po = rad_pass_patch_limits(s, o);
@@ -255,4 +256,23 @@ rr_rgb rad_indirect_at(const rad_solution *sol, const scene *s, const rt_hit *h,
     if (!h->front)
         return rr_rgb_make(0, 0, 0);
     return rr_rgb_scale(rr_rgb_mul(rho, interpolate(sol, s, h, sol->vertex_Hind)), 1.0 / RR_PI);
+}
+
+static rr_rgb display_hook(void *user, const rt_hit *hit)
+{
+    const rad_solution *sol = user;
+    return rad_radiance_at(sol, sol->scene, hit);
+}
+
+static rr_rgb indirect_hook(void *user, const rt_hit *hit, rr_rgb rho)
+{
+    const rad_solution *sol = user;
+    return rad_indirect_at(sol, sol->scene, hit, rho);
+}
+
+void rad_bind_render(const rad_solution *sol, int display, rt_render_opts *ro)
+{
+    ro->radiosity = display ? display_hook : NULL;
+    ro->radiosity_indirect = indirect_hook;
+    ro->radiosity_user = (void *)sol;
 }

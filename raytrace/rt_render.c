@@ -231,11 +231,17 @@ static rr_rgb radiance(const render_ctx *c, rr_ray ray, int depth, int bounce, c
     shade_out local;
     memset(&local, 0, sizeof local);
     if (c->o->radiosity) {
-        /* Radiosity display: the view-independent solution, emitters included. */
+        /* Radiosity display: the view-independent solution, emitters
+         * included, and what mirrors show of it. */
         local.c[RT_LAYER_RADIOSITY] = c->o->radiosity(c->o->radiosity_user, &h);
+        if (rr_rgb_max(m->mirror) > 0.0 && depth < c->o->max_depth) {
+            rr_vec3 R = rr_v3_sub(rr_v3_scale(N, 2.0 * rr_v3_dot(N, V)), V);
+            rr_ray mr = {rt_offset_origin(c->eps_scale, h.point, N, R), R};
+            local.c[RT_LAYER_MIRROR] = rr_rgb_mul(m->mirror, radiance(c, mr, depth + 1, bounce, NULL, rng, NULL));
+        }
         if (out)
             *out = local;
-        return local.c[RT_LAYER_RADIOSITY];
+        return rr_rgb_add(local.c[RT_LAYER_RADIOSITY], local.c[RT_LAYER_MIRROR]);
     }
     if (h.front && rr_rgb_max(m->emission) > 0.0)
         local.c[RT_LAYER_EMISSION] = rr_rgb_scale(m->emission, bsdf_weight(c, mis, &h, ray.d));
