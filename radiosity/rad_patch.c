@@ -318,6 +318,16 @@ rr_status rad_patches_build(const scene *s, const rad_patch_opts *o, rad_patches
                     fill_patch(P, np++, a, c, d, m, (uint32_t)oi, -1);
             }
 #undef RV
+        /* The facets are chords of the sphere the ray tracer (and the
+         * form-factor rays) meet, and have less area in all than it: each
+         * patch stands for its share of the true sphere's area, so that its
+         * emitted power and what it receives agree with the rays. */
+        double facets = 0.0;
+        for (size_t k = P->sphere_first[oi]; k < np; k++)
+            facets += P->p[k].area;
+        double scale = facets > 0 ? 4.0 * RR_PI * ob->radius * ob->radius / facets : 1.0;
+        for (size_t k = P->sphere_first[oi]; k < np; k++)
+            P->p[k].area *= scale;
     }
     for (size_t oi = 0; oi < s->nobjects; oi++) {
         if (s->objects[oi].kind != SCENE_OBJ_CSG)
