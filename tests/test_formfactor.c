@@ -542,10 +542,17 @@ static void sphere_in_box(void **state)
      * the area: F(ball -> walls) = 1 and reciprocity give F(walls -> ball) =
      * A_ball / A_walls. For quadrature A_ball is the facets' area (the
      * patches); Monte Carlo rays meet the analytic sphere, so its area. */
-    double sphere_area = 4 * RR_PI * 0.25 * 0.25, facet_area = 0, fq = 0, fm = 0;
+    double sphere_area = 4 * RR_PI * 0.25 * 0.25, facet_area = 0, patch_area = 0, fq = 0, fm = 0;
     for (size_t i = 0; i < f.P->n; i++)
-        if (f.P->p[i].object == 6)
-            facet_area += f.P->p[i].area;
+        if (f.P->p[i].object == 6) {
+            /* The facets' own area (from their corners); the patches carry
+             * the true sphere's (rad_patch.c), which Monte Carlo rays see. */
+            const rad_patch *p = &f.P->p[i];
+            rr_vec3 A = f.P->verts[p->v[0]], B = f.P->verts[p->v[1]], C = f.P->verts[p->v[2]];
+            facet_area += 0.5 * rr_v3_len(rr_v3_cross(rr_v3_sub(B, A), rr_v3_sub(C, A)));
+            patch_area += p->area;
+        }
+    assert_near(patch_area, sphere_area, 1e-9 * sphere_area);
     for (uint32_t a = 0; a < 6; a++) {
         fq += obj_ff(&f, Q, a, 6) / 6;
         fm += obj_ff(&f, M, a, 6) / 6;
