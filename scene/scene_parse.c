@@ -279,6 +279,20 @@ static rr_status parse_material(const sp_ctx *c, const cJSON *v, const char *pat
         (st = sp_color(c, v, path, "mirror", SP_OPTIONAL, 0, 1, &m->mirror)) != RR_OK ||
         (st = sp_color(c, v, path, "emission", SP_OPTIONAL, 0, INFINITY, &m->emission)) != RR_OK)
         return st;
+    /* A mirror written without a diffuse part is a pure mirror (the grey
+     * default would make it reflect more than it receives). */
+    if (!sp_get(v, "diffuse") && rr_rgb_max(m->mirror) > 0.0)
+        m->diffuse = rr_rgb_make(0, 0, 0);
+    /* What a surface reflects, diffusely and as a mirror, cannot be more than
+     * it receives (the passes would create light). */
+    static const char ch[3] = {'R', 'G', 'B'};
+    double d[3] = {m->diffuse.r, m->diffuse.g, m->diffuse.b}, r[3] = {m->mirror.r, m->mirror.g, m->mirror.b};
+    for (int k = 0; k < 3; k++)
+        if (d[k] + r[k] > 1.0 + 1e-12)
+            return sp_fail(c, RR_ERR_INVALID, path,
+                           "diffuse + mirror reflectance is %g in channel %c: a surface cannot reflect more than it "
+                           "receives (at most 1)",
+                           d[k] + r[k], ch[k]);
     return RR_OK;
 }
 
