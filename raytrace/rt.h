@@ -212,6 +212,17 @@ typedef struct rt_mirror_path {
     double dist;                     /* length of the whole way, origin to the emitter's hit */
 } rt_mirror_path;
 
+/* For BSDF rays that only look for emitters (the direct term's own BSDF
+ * rays): in a scene without mirrors and with at most RT_FIND_EMITTER_MAX area
+ * lights, tests the ray against the emissive triangles alone and then one
+ * shadow ray to the nearest: 1 and *h (t, point, tri, object, material,
+ * front) when it reaches an emitter's front unoccluded, 0 when it reaches
+ * none; -1 when the table cannot tell (mirrors, many or curved emitters
+ * near the ray): trace the ray instead. Same answers as a closest-hit walk
+ * up to rounding at emitter edges. */
+#define RT_FIND_EMITTER_MAX 64
+int rt_lights_find_emitter(const rt_lights *L, rr_ray r, rt_hit *h);
+
 /* The mirror plane of a hit, or -1 (not a planar mirror). */
 int rt_lights_mirror_plane(const rt_lights *L, const rt_hit *h);
 /* Solid-angle pdf with which rt_lights_sample picks the emitter point hit by

@@ -701,3 +701,70 @@ double rt_lights_pdf(const rt_lights *L, const rt_mirror_path *path, const rt_hi
     }
     return pk * cone_pdf(l->p, l->r, path->origin);
 }
+
+/* ---- BSDF rays that only look for emitters ---- */
+
+/* Möller-Trumbore against a real triangle light's front side: t or 0. */
+static double tri_hit(const light *l, rr_ray r)
+{
+    rr_vec3 e1 = rr_v3_sub(l->tv[1], l->tv[0]), e2 = rr_v3_sub(l->tv[2], l->tv[0]);
+    rr_vec3 p = rr_v3_cross(r.d, e2);
+    double det = rr_v3_dot(e1, p);
+    if (!(rr_v3_dot(r.d, l->tn) < 0.0) || det == 0.0)
+        return 0.0;
+    double inv = 1.0 / det;
+    rr_vec3 s = rr_v3_sub(r.o, l->tv[0]);
+    double u = rr_v3_dot(s, p) * inv;
+    if (u < 0.0 || u > 1.0)
+        return 0.0;
+    rr_vec3 q = rr_v3_cross(s, e1);
+    double v = rr_v3_dot(r.d, q) * inv;
+    if (v < 0.0 || u + v > 1.0)
+        return 0.0;
+    double t = rr_v3_dot(e2, q) * inv;
+    return t > 0.0 ? t : 0.0;
+}
+
+int rt_lights_find_emitter(const rt_lights *L, rr_ray r, rt_hit *h)
+{
+    if (!L || L->nplanes > 0 || L->nreal > RT_FIND_EMITTER_MAX)
+        return -1;
+    /* Mirror materials elsewhere (curved mirrors) would need the full walk. */
+    for (size_t i = 0; i < L->s->nmaterials; i++)
+        if (rr_rgb_max(L->s->materials[i].mirror) > 0.0)
+            return -1;
+    double best = INFINITY;
+    int found = -1;
+    for (size_t i = 0; i < L->nreal; i++) {
+        const light *l = &L->area[i];
+        if (l->kind == LK_TRIANGLE) {
+            double t = tri_hit(l, r);
+            if (t > 0.0 && t < best) {
+                best = t;
+                found = (int)i;
+            }
+        } else {
+            /* A curved emitter's bounding sphere: the exact walk decides. */
+            rr_vec3 oc = rr_v3_sub(r.o, l->p);
+            double b = rr_v3_dot(oc, r.d), c = rr_v3_len2(oc) - l->r * l->r;
+            if (c <= 0.0 || (b < 0.0 && b * b - rr_v3_len2(r.d) * c >= 0.0))
+                return -1;
+        }
+    }
+    if (found < 0)
+        return 0;
+    /* The nearest emitter along the ray; is anything in front of it? */
+    if (rt_accel_occluded(L->a, r, 0.0, best * RT_SHADOW_END))
+        return 0;
+    const light *l = &L->area[found];
+    memset(h, 0, sizeof *h);
+    h->t = best;
+    h->point = rr_v3_madd(r.o, r.d, best);
+    h->normal = l->tn;
+    h->tri = l->index;
+    h->object = L->s->tris[l->index].object;
+    h->material = L->s->tris[l->index].material;
+    h->part = -1;
+    h->front = 1;
+    return 1;
+}

@@ -132,6 +132,12 @@ static rr_rgb bsdf_emission(const render_ctx *c, rr_vec3 H, rr_vec3 N, rr_vec3 d
 {
     rr_rgb thru = rr_rgb_make(1, 1, 1);
     rr_ray r = {rt_offset_origin(c->eps_scale, H, N, dir), dir};
+    rt_hit eh;
+    int found = rt_lights_find_emitter(c->lights, r, &eh);
+    if (found == 0)
+        return rr_rgb_make(0, 0, 0);
+    if (found == 1)
+        return rr_rgb_scale(c->s->materials[eh.material].emission, bsdf_weight(c, mis, &eh, r.d));
     for (;;) {
         rt_hit h;
         if (!rt_accel_closest(c->a, r, 0.0, INFINITY, &h))
