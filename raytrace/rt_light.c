@@ -78,6 +78,7 @@ struct rt_lights {
     double *cdf;          /* over area */
     int32_t *tri_light;   /* scene triangle -> real area light, -1 */
     int32_t *obj_light;   /* scene object -> real area light (spheres, solids), -1 */
+    int has_mirror;       /* any material with a mirror reflectance */
 };
 
 /* ---- the shadow-ray rule ---- */
@@ -316,6 +317,8 @@ rr_status rt_lights_build(const scene *s, const rt_accel *a, int max_mirror_dept
     L->s = s;
     L->a = a;
     L->scale = rt_scene_scale(s);
+    for (size_t i = 0; i < s->nmaterials; i++)
+        L->has_mirror |= rr_rgb_max(s->materials[i].mirror) > 0.0;
     rr_status st = build_planes(L, err);
     int depth = max_mirror_depth < 0 ? 0 : max_mirror_depth;
     if (L->nplanes == 0)
@@ -727,12 +730,9 @@ static double tri_hit(const light *l, rr_ray r)
 
 int rt_lights_find_emitter(const rt_lights *L, rr_ray r, rt_hit *h)
 {
-    if (!L || L->nplanes > 0 || L->nreal > RT_FIND_EMITTER_MAX)
+    /* Mirrors (planar or curved) need the full walk. */
+    if (!L || L->has_mirror || L->nreal > RT_FIND_EMITTER_MAX)
         return -1;
-    /* Mirror materials elsewhere (curved mirrors) would need the full walk. */
-    for (size_t i = 0; i < L->s->nmaterials; i++)
-        if (rr_rgb_max(L->s->materials[i].mirror) > 0.0)
-            return -1;
     double best = INFINITY;
     int found = -1;
     for (size_t i = 0; i < L->nreal; i++) {
