@@ -45,6 +45,7 @@ typedef struct mplane {
     rr_vec3 n;          /* unit normal */
     double d;           /* n . x = d on the plane */
     uint32_t object;
+    double reflectance; /* mean mirror reflectance of its (first) triangle's material */
     rr_vec3 *verts;     /* corners of its triangles (for the pruning side tests) */
     size_t nverts;
 } mplane;
@@ -181,6 +182,7 @@ static rr_status build_planes(rt_lights *L, rr_error *err)
             q->n = n;
             q->d = d;
             q->object = tr->object;
+            q->reflectance = rr_rgb_mean(s->materials[tr->material].mirror);
         }
         mplane *q = &L->planes[k];
         rr_vec3 *nv = realloc(q->verts, (q->nverts + 3) * sizeof *nv);
@@ -192,16 +194,6 @@ static rr_status build_planes(rt_lights *L, rr_error *err)
         L->tri_plane[t] = (int32_t)k;
     }
     return RR_OK;
-}
-
-/* Mean reflectance of plane q's mirror (its object's material, or its first triangle's). */
-static double plane_reflectance(const rt_lights *L, uint32_t q)
-{
-    const scene *s = L->s;
-    for (size_t t = 0; t < s->ntris; t++)
-        if (L->tri_plane[t] == (int32_t)q)
-            return rr_rgb_mean(s->materials[s->tris[t].material].mirror);
-    return 0.0;
 }
 
 /* Which sides of plane q the light l (a real one or an image) can send light
@@ -238,7 +230,7 @@ static light image_of(const rt_lights *L, const light *l, uint32_t qi)
     for (int e = 0; e < 3; e++)
         v.tv[e] = reflect_point(q, l->tv[e]);
     v.tn = reflect_dir(q, l->tn);
-    v.weight = l->weight * plane_reflectance(L, qi);
+    v.weight = l->weight * q->reflectance;
     return v;
 }
 
@@ -476,13 +468,16 @@ int rt_lights_mirror_plane(const rt_lights *L, const rt_hit *h)
 /* ---- evaluation ---- */
 
 /* Folds the straight segment from x (normal n) along unit dir into the legs
- * of image l: each leg must meet the triangles of its mirror plane first.
+ * of image l: dir must leave on n's side, and each leg must meet the
+ * triangles of its mirror plane first.
  * On success *o is a point on the last mirror (or x itself) with *on its
  * plane normal, *d the direction of the last leg, *thru the product of the
  * mirrors' reflectances. */
 static int fold_legs(const rt_lights *L, const light *l, rr_vec3 x, rr_vec3 n, rr_vec3 dir, rr_vec3 *o, rr_vec3 *on,
                      rr_vec3 *d, rr_rgb *thru)
 {
+    if (!(rr_v3_dot(n, dir) > 0.0))
+        return 0;
     *o = x;
     *on = n;
     *d = dir;
@@ -531,8 +526,6 @@ int rt_lights_delta(const rt_lights *L, size_t k, rr_vec3 x, rr_vec3 n, rt_light
             return 0;
         dir = rr_v3_scale(w, 1.0 / sqrt(r2));
     }
-    if (!(rr_v3_dot(n, dir) > 0.0))
-        return 0;
     rr_vec3 o, on, d;
     rr_rgb thru;
     if (!fold_legs(L, l, x, n, dir, &o, &on, &d, &thru))
@@ -632,16 +625,9 @@ int rt_lights_sample(const rt_lights *L, rr_vec3 x, rr_vec3 n, double u0, double
     } else {
         dir = cone_sample(l->p, l->r, x, u1, u2);
         pdf = pk * cone_pdf(l->p, l->r, x);
-        if (l->nchain > 0) {
-            /* The first mirror's plane lies between x and the image's bounding sphere. */
-            const mplane *q = &L->planes[l->chain[l->nchain - 1]];
-            double a = plane_dist(q, x), b = rr_v3_dot(q->n, dir);
-            if (!((a > 0 && b < 0) || (a < 0 && b > 0)))
-                return 0;
-        }
+        if (!crosses_first_plane(L, l, x, dir, 1)) /* towards the image's sphere through its first mirror */
+            return 0;
     }
-    if (!(rr_v3_dot(n, dir) > 0.0))
-        return 0;
     rr_vec3 o, on, d;
     rr_rgb thru;
     if (!fold_legs(L, l, x, n, dir, &o, &on, &d, &thru))
@@ -707,24 +693,14 @@ double rt_lights_pdf(const rt_lights *L, const rt_mirror_path *path, const rt_hi
 
 /* ---- BSDF rays that only look for emitters ---- */
 
-/* Möller-Trumbore against a real triangle light's front side: t or 0. */
+/* A real triangle light met from its front: t along r, or 0 (the lecture's
+ * tests, rt_ref.c: facing, inside, distance). */
 static double tri_hit(const light *l, rr_ray r)
 {
-    rr_vec3 e1 = rr_v3_sub(l->tv[1], l->tv[0]), e2 = rr_v3_sub(l->tv[2], l->tv[0]);
-    rr_vec3 p = rr_v3_cross(r.d, e2);
-    double det = rr_v3_dot(e1, p);
-    if (!(rr_v3_dot(r.d, l->tn) < 0.0) || det == 0.0)
+    rr_vec3 P = rr_v3_add(r.o, r.d);
+    if (!rt_front_facing(l->tv[0], l->tv[1], l->tv[2], r.o) || !rt_ray_hits_tri(r.o, P, l->tv[0], l->tv[1], l->tv[2]))
         return 0.0;
-    double inv = 1.0 / det;
-    rr_vec3 s = rr_v3_sub(r.o, l->tv[0]);
-    double u = rr_v3_dot(s, p) * inv;
-    if (u < 0.0 || u > 1.0)
-        return 0.0;
-    rr_vec3 q = rr_v3_cross(s, e1);
-    double v = rr_v3_dot(r.d, q) * inv;
-    if (v < 0.0 || u + v > 1.0)
-        return 0.0;
-    double t = rr_v3_dot(e2, q) * inv;
+    double t = rt_dist_along_ray(r.o, P, l->tv[0], l->tv[1], l->tv[2]);
     return t > 0.0 ? t : 0.0;
 }
 

@@ -159,11 +159,10 @@ static rr_rgb bsdf_emission(const render_ctx *c, rr_vec3 H, rr_vec3 N, rr_vec3 d
 /* Direct light at H: every delta light (and its mirror images) with its
  * shadow rays, nl samples of the area lights (and their images), and, when
  * nb > 0, nb BSDF rays for the diffuse part, combined with the light samples
- * by the balance heuristic. weigh: the light samples' diffuse part is
- * weighted against BSDF sampling (nb BSDF rays here, or one bounce ray taken
- * by the caller when nb = 0). */
+ * by the balance heuristic (nb = 0: the light samples are weighted against
+ * the one bounce ray the caller takes). */
 static void direct_light(const render_ctx *c, rr_vec3 H, rr_vec3 N, rr_vec3 V, const scene_material *m, int nl, int nb,
-                         int weigh, int depth, rr_rng *rng, rr_rgb *diffuse, rr_rgb *specular)
+                         int depth, rr_rng *rng, rr_rgb *diffuse, rr_rgb *specular)
 {
     const rt_lights *L = c->lights;
     size_t nd = rt_lights_delta_count(L);
@@ -184,12 +183,10 @@ static void direct_light(const render_ctx *c, rr_vec3 H, rr_vec3 N, rr_vec3 V, c
             continue;
         rr_rgb dd = rr_rgb_make(0, 0, 0);
         rt_phong(N, ls.L, V, m, rr_rgb_scale(ls.E, 1.0 / n), &dd, specular);
-        if (weigh) {
-            /* Near an emitter the BSDF strategy wins, which is what keeps the
-             * 1/d^2 of light sampling from making fireflies. */
-            double pl = n * ls.pdf, pb = nbw * rr_v3_dot(N, ls.L) / RR_PI;
-            dd = rr_rgb_scale(dd, pl / (pl + pb));
-        }
+        /* Near an emitter the BSDF strategy wins, which is what keeps the
+         * 1/d^2 of light sampling from making fireflies. */
+        double pl = n * ls.pdf, pb = nbw * rr_v3_dot(N, ls.L) / RR_PI;
+        dd = rr_rgb_scale(dd, pl / (pl + pb));
         *diffuse = rr_rgb_add(*diffuse, dd);
     }
     if (nb <= 0 || !(rr_rgb_max(m->diffuse) > 0.0))
@@ -219,6 +216,24 @@ static rr_vec3 cosine_dir(rr_vec3 N, rr_rng *rng)
     return rr_v3_add(rr_v3_add(rr_v3_scale(T, x), rr_v3_scale(B, y)), rr_v3_scale(N, z));
 }
 
+/* The mirror layer at hit h seen along -V: the mirror reflectance times
+ * what the reflected ray R = 2(N.V)N - V sees, while mirror depth is left. */
+static rr_rgb mirror_term(const render_ctx *c, const rt_hit *h, rr_vec3 V, const scene_material *m, int depth,
+                          int bounce, const mis_state *mis, rr_rng *rng)
+{
+    if (!(rr_rgb_max(m->mirror) > 0.0) || depth >= c->o->max_depth)
+        return rr_rgb_make(0, 0, 0);
+    rr_vec3 N = h->normal;
+    rr_vec3 R = rr_v3_sub(rr_v3_scale(N, 2.0 * rr_v3_dot(N, V)), V);
+    rr_ray mr = {rt_offset_origin(c->eps_scale, h->point, N, R), R};
+    mis_state mm;
+    if (mis) {
+        mm = *mis;
+        mis_reflect(c, &mm, h);
+    }
+    return rr_rgb_mul(m->mirror, radiance(c, mr, depth + 1, bounce, mis ? &mm : NULL, rng, NULL));
+}
+
 static rr_rgb radiance(const render_ctx *c, rr_ray ray, int depth, int bounce, const mis_state *mis, rr_rng *rng,
                        shade_out *out)
 {
@@ -240,11 +255,7 @@ static rr_rgb radiance(const render_ctx *c, rr_ray ray, int depth, int bounce, c
         /* Radiosity display: the view-independent solution, emitters
          * included, and what mirrors show of it. */
         local.c[RT_LAYER_RADIOSITY] = c->o->radiosity(c->o->radiosity_user, &h);
-        if (rr_rgb_max(m->mirror) > 0.0 && depth < c->o->max_depth) {
-            rr_vec3 R = rr_v3_sub(rr_v3_scale(N, 2.0 * rr_v3_dot(N, V)), V);
-            rr_ray mr = {rt_offset_origin(c->eps_scale, h.point, N, R), R};
-            local.c[RT_LAYER_MIRROR] = rr_rgb_mul(m->mirror, radiance(c, mr, depth + 1, bounce, NULL, rng, NULL));
-        }
+        local.c[RT_LAYER_MIRROR] = mirror_term(c, &h, V, m, depth, bounce, NULL, rng);
         if (out)
             *out = local;
         return rr_rgb_add(local.c[RT_LAYER_RADIOSITY], local.c[RT_LAYER_MIRROR]);
@@ -263,22 +274,11 @@ static rr_rgb radiance(const render_ctx *c, rr_ray ray, int depth, int bounce, c
      * importance sampling in every mode, not only with secondary rays). */
     int nbsdf = bounces ? 0 : (nlight + 3) / 4;
     if (diffuse || rr_rgb_max(m->specular) > 0.0)
-        direct_light(c, h.point, N, V, m, nlight, nbsdf, 1, depth, rng, &local.c[RT_LAYER_DIFFUSE],
+        direct_light(c, h.point, N, V, m, nlight, nbsdf, depth, rng, &local.c[RT_LAYER_DIFFUSE],
                      &local.c[RT_LAYER_SPECULAR]);
     if (diffuse && c->o->indirect == RT_INDIRECT_AMBIENT)
         local.c[RT_LAYER_AMBIENT] = rr_rgb_scale(rr_rgb_mul(m->diffuse, s->settings.ambient), m->ambient);
-    if (rr_rgb_max(m->mirror) > 0.0 && depth < c->o->max_depth) {
-        /* R = 2(N.V)N - V */
-        rr_vec3 R = rr_v3_sub(rr_v3_scale(N, 2.0 * rr_v3_dot(N, V)), V);
-        rr_ray mr = {rt_offset_origin(c->eps_scale, h.point, N, R), R};
-        mis_state mm;
-        if (mis) {
-            mm = *mis;
-            mis_reflect(c, &mm, &h);
-        }
-        rr_rgb Lm = radiance(c, mr, depth + 1, bounce, mis ? &mm : NULL, rng, NULL);
-        local.c[RT_LAYER_MIRROR] = rr_rgb_mul(m->mirror, Lm);
-    }
+    local.c[RT_LAYER_MIRROR] = mirror_term(c, &h, V, m, depth, bounce, mis, rng);
     if (diffuse && c->o->indirect == RT_INDIRECT_RADIOSITY && c->o->radiosity_indirect)
         local.c[RT_LAYER_INDIRECT] = c->o->radiosity_indirect(c->o->radiosity_user, &h, m->diffuse);
     if (bounces) {

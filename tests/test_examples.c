@@ -48,12 +48,6 @@ static int find_object(const scene *s, const char *name)
     return -1;
 }
 
-static rr_rgb indirect_hook(void *user, const rt_hit *hit, rr_rgb rho)
-{
-    const void *const *pair = user;
-    return rad_indirect_at(pair[0], pair[1], hit, rho);
-}
-
 /* Renders of one small view in the three modes that matter here. */
 typedef struct renders {
     scene *s;
@@ -93,10 +87,8 @@ static void render_all(renders *r, const char *file)
     o.max_depth = 5;
     o.light_samples = 4;
     o.threads = 2;
-    const void *pair[2] = {r->sol, r->s};
     o.indirect = RT_INDIRECT_RADIOSITY;
-    o.radiosity_indirect = indirect_hook;
-    o.radiosity_user = (void *)pair;
+    rad_bind_render(r->sol, 0, &o);
     assert_int_equal(rt_render(r->s, r->a, &o, &r->hybrid, NULL), RR_OK);
     o.radiosity_indirect = NULL;
     o.radiosity_user = NULL;

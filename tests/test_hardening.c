@@ -118,12 +118,6 @@ static scene *scaled_scene(double k, const char *mode_extra, const char *ff)
     return s;
 }
 
-static rr_rgb indirect_hook(void *user, const rt_hit *hit, rr_rgb rho)
-{
-    void **u = user;
-    return rad_indirect_at(u[0], u[1], hit, rho);
-}
-
 static void render_scene(scene *s, rt_indirect indirect, rt_film *film)
 {
     rr_error err;
@@ -138,15 +132,12 @@ static void render_scene(scene *s, rt_indirect indirect, rt_film *film)
     o.light_samples = s->settings.light_samples;
     o.indirect = indirect;
     rad_solution *sol = NULL;
-    void *user[2] = {NULL, s};
     if (indirect == RT_INDIRECT_RADIOSITY) {
         rad_pass_opts po;
         memset(&po, 0, sizeof po);
         po.use_scene_choices = 1;
         assert_int_equal(rad_pass_run(s, a, &po, &sol, &err), RR_OK);
-        user[0] = sol;
-        o.radiosity_indirect = indirect_hook;
-        o.radiosity_user = user;
+        rad_bind_render(sol, 0, &o);
     }
     assert_int_equal(rt_render(s, a, &o, film, &err), RR_OK);
     rad_solution_destroy(sol);

@@ -182,18 +182,6 @@ static void bad_limits(void **state)
     scene_destroy(s);
 }
 
-static rr_rgb radiosity_hook(void *user, const rt_hit *hit)
-{
-    const void *const *pair = user;
-    return rad_radiance_at(pair[0], pair[1], hit);
-}
-
-static rr_rgb indirect_hook(void *user, const rt_hit *hit, rr_rgb rho)
-{
-    const void *const *pair = user;
-    return rad_indirect_at(pair[0], pair[1], hit, rho);
-}
-
 /* The radiosity pass against an independent method: the Cornell box rendered
  * from the radiosity solution, by the hybrid (ray-traced direct light plus the
  * radiosity pass's indirect light), and with Monte Carlo secondary rays must
@@ -229,12 +217,9 @@ static void cornell_radiosity_vs_secondary(void **state)
     o.max_depth = 5;
     o.light_samples = 4;
     o.threads = 2;
-    const void *pair[2] = {sol, s};
-    o.radiosity = radiosity_hook;
-    o.radiosity_user = (void *)pair;
+    rad_bind_render(sol, 1, &o);
     assert_int_equal(rt_render(s, a, &o, &fr, NULL), RR_OK);
-    o.radiosity = NULL;
-    o.radiosity_indirect = indirect_hook;
+    rad_bind_render(sol, 0, &o);
     o.indirect = RT_INDIRECT_RADIOSITY;
     o.spp = 16;
     assert_int_equal(rt_render(s, a, &o, &fh, NULL), RR_OK);
