@@ -10,9 +10,10 @@
  *       reference: per-pixel relative spread (standard deviation over the
  *       seeds / reference, median over the pixels) and the worst pixel of
  *       all the 64-spp renders relative to the reference.
- *   radray-bench-direct error REF.exr A.exr [B.exr ...]
- *       relative RMS error of each image against REF (sqrt(sum (a-r)^2 /
- *       sum r^2) over every channel).
+ *   radray-bench-direct error [--layer NAME] REF.exr A.exr [B.exr ...]
+ *       relative RMS error of each image (or of one layer, e.g. diffuse:
+ *       emitters seen directly dominate the main image's error) against REF
+ *       (sqrt(sum (a-r)^2 / sum r^2) over every channel).
  */
 #include <math.h>
 #include <stdio.h>
@@ -117,18 +118,18 @@ static int spread(int threads)
     return 0;
 }
 
-static int error(int argc, char **argv)
+static int error(const char *layer, int argc, char **argv)
 {
     rr_image ref;
     rr_error err;
-    if (img_read_exr(argv[0], NULL, &ref, &err) != RR_OK) {
+    if (img_read_exr(argv[0], layer, &ref, &err) != RR_OK) {
         fprintf(stderr, "radray-bench-direct: %s\n", err.msg);
         return 2;
     }
     size_t n = 3 * (size_t)ref.width * (size_t)ref.height;
     for (int i = 1; i < argc; i++) {
         rr_image im;
-        if (img_read_exr(argv[i], NULL, &im, &err) != RR_OK) {
+        if (img_read_exr(argv[i], layer, &im, &err) != RR_OK) {
             fprintf(stderr, "radray-bench-direct: %s\n", err.msg);
             return 2;
         }
@@ -154,9 +155,11 @@ int main(int argc, char **argv)
 {
     if (argc >= 2 && !strcmp(argv[1], "spread"))
         return spread(argc >= 4 && !strcmp(argv[2], "--threads") ? atoi(argv[3]) : 0);
+    if (argc >= 6 && !strcmp(argv[1], "error") && !strcmp(argv[2], "--layer"))
+        return error(argv[3], argc - 4, argv + 4);
     if (argc >= 4 && !strcmp(argv[1], "error"))
-        return error(argc - 2, argv + 2);
+        return error(NULL, argc - 2, argv + 2);
     fprintf(stderr, "usage: radray-bench-direct spread [--threads N]\n"
-                    "       radray-bench-direct error REF.exr A.exr [B.exr ...]\n");
+                    "       radray-bench-direct error [--layer NAME] REF.exr A.exr [B.exr ...]\n");
     return 2;
 }

@@ -223,6 +223,15 @@ typedef struct rt_mirror_path {
 #define RT_FIND_EMITTER_MAX 64
 int rt_lights_find_emitter(const rt_lights *L, rr_ray r, rt_hit *h);
 
+/* 1 when point x lies within RT_NEAR_RADII bounding radii of an area light
+ * or one of its images (always 1 beyond RT_NEAR_MAX of them): where light
+ * sampling alone has a heavy tail (1/d^2 of points close to the emitter) and
+ * BSDF rays are worth their cost. A function of x alone, so choosing the
+ * number of BSDF rays by it keeps multiple importance sampling unbiased. */
+#define RT_NEAR_RADII 2.0
+#define RT_NEAR_MAX 64
+int rt_lights_near(const rt_lights *L, rr_vec3 x);
+
 /* The mirror plane of a hit, or -1 (not a planar mirror). */
 int rt_lights_mirror_plane(const rt_lights *L, const rt_hit *h);
 /* Solid-angle pdf with which rt_lights_sample picks the emitter point hit by

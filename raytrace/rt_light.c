@@ -56,8 +56,8 @@ typedef struct light {
     int nchain;
     uint32_t chain[RT_CHAIN_MAX]; /* mirror planes, c[0] first from the light */
     rr_vec3 p;          /* point: (virtual) position; directional: (virtual) unit direction to the light;
-                           sphere: (virtual) centre of the bounding sphere */
-    double r;           /* sphere: bounding radius */
+                           sphere, triangle: (virtual) centre of the bounding sphere */
+    double r;           /* sphere, triangle: bounding radius */
     rr_vec3 tv[3], tn;  /* triangle: (virtual) corners and front normal */
     double area;        /* triangle: area */
     rr_rgb radiance;    /* triangle: Le; delta: intensity */
@@ -374,6 +374,9 @@ rr_status rt_lights_build(const scene *s, const rt_accel *a, int max_mirror_dept
         l->area = scene_tri_area(s, t);
         l->radiance = s->materials[s->tris[t].material].emission;
         l->weight = l->area * rr_rgb_mean(l->radiance);
+        l->p = rr_v3_scale(rr_v3_add(rr_v3_add(l->tv[0], l->tv[1]), l->tv[2]), 1.0 / 3.0);
+        for (int e = 0; e < 3; e++)
+            l->r = fmax(l->r, rr_v3_len(rr_v3_sub(l->tv[e], l->p)));
         L->tri_light[t] = (int32_t)L->narea++;
     }
     for (size_t o = 0; st == RR_OK && o < s->nobjects; o++) {
@@ -617,11 +620,14 @@ int rt_lights_sample(const rt_lights *L, rr_vec3 x, rr_vec3 n, double u0, double
         if (!(cos_y > 0.0) || !crosses_first_plane(L, l, x, yv, 0))
             return 0;
         pdf = pk / l->area * d2 / cos_y;
-        /* The point on the real emitter. */
-        const scene_tri *tr = &L->s->tris[l->index];
-        const rr_vec3 *V = L->s->verts;
-        y = rr_v3_add(rr_v3_add(rr_v3_scale(V[tr->v[0]], b0), rr_v3_scale(V[tr->v[1]], b1)),
-                      rr_v3_scale(V[tr->v[2]], 1.0 - b0 - b1));
+        /* The point on the real emitter (an image's sample is its reflection). */
+        y = yv;
+        if (l->nchain > 0) {
+            const scene_tri *tr = &L->s->tris[l->index];
+            const rr_vec3 *V = L->s->verts;
+            y = rr_v3_add(rr_v3_add(rr_v3_scale(V[tr->v[0]], b0), rr_v3_scale(V[tr->v[1]], b1)),
+                          rr_v3_scale(V[tr->v[2]], 1.0 - b0 - b1));
+        }
     } else {
         dir = cone_sample(l->p, l->r, x, u1, u2);
         pdf = pk * cone_pdf(l->p, l->r, x);
@@ -743,4 +749,19 @@ int rt_lights_find_emitter(const rt_lights *L, rr_ray r, rt_hit *h)
     h->part = -1;
     h->front = 1;
     return 1;
+}
+
+int rt_lights_near(const rt_lights *L, rr_vec3 x)
+{
+    if (!L || L->narea == 0)
+        return 0;
+    if (L->narea > RT_NEAR_MAX)
+        return 1;
+    for (size_t i = 0; i < L->narea; i++) {
+        const light *l = &L->area[i];
+        double reach = RT_NEAR_RADII * l->r;
+        if (rr_v3_len2(rr_v3_sub(x, l->p)) < reach * reach)
+            return 1;
+    }
+    return 0;
 }

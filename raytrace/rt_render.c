@@ -157,12 +157,12 @@ static rr_rgb bsdf_emission(const render_ctx *c, rr_vec3 H, rr_vec3 N, rr_vec3 d
 }
 
 /* Direct light at H: every delta light (and its mirror images) with its
- * shadow rays, nl samples of the area lights (and their images), and, when
- * nb > 0, nb BSDF rays for the diffuse part, combined with the light samples
- * by the balance heuristic (nb = 0: the light samples are weighted against
- * the one bounce ray the caller takes). */
+ * shadow rays, nl samples of the area lights (and their images), and nb BSDF
+ * rays for the diffuse part, combined with the light samples by the balance
+ * heuristic against nbw BSDF rays in all (nbw = nb, or 1 when the caller
+ * takes a bounce ray; nbw = 0: pure light sampling). */
 static void direct_light(const render_ctx *c, rr_vec3 H, rr_vec3 N, rr_vec3 V, const scene_material *m, int nl, int nb,
-                         int depth, rr_rng *rng, rr_rgb *diffuse, rr_rgb *specular)
+                         int nbw, int depth, rr_rng *rng, rr_rgb *diffuse, rr_rgb *specular)
 {
     const rt_lights *L = c->lights;
     size_t nd = rt_lights_delta_count(L);
@@ -174,7 +174,6 @@ static void direct_light(const render_ctx *c, rr_vec3 H, rr_vec3 N, rr_vec3 V, c
     if (rt_lights_area_count(L) == 0)
         return;
     int n = nl > 0 ? nl : 1;
-    double nbw = nb > 0 ? nb : 1; /* BSDF rays the light samples are weighed against */
     for (int k = 0; k < n; k++) {
         double u0 = ((double)k + rr_rng_uniform(rng)) / n;
         double u1 = rr_rng_uniform(rng), u2 = rr_rng_uniform(rng);
@@ -185,8 +184,10 @@ static void direct_light(const render_ctx *c, rr_vec3 H, rr_vec3 N, rr_vec3 V, c
         rt_phong(N, ls.L, V, m, rr_rgb_scale(ls.E, 1.0 / n), &dd, specular);
         /* Near an emitter the BSDF strategy wins, which is what keeps the
          * 1/d^2 of light sampling from making fireflies. */
-        double pl = n * ls.pdf, pb = nbw * rr_v3_dot(N, ls.L) / RR_PI;
-        dd = rr_rgb_scale(dd, pl / (pl + pb));
+        if (nbw > 0) {
+            double pl = n * ls.pdf, pb = nbw * rr_v3_dot(N, ls.L) / RR_PI;
+            dd = rr_rgb_scale(dd, pl / (pl + pb));
+        }
         *diffuse = rr_rgb_add(*diffuse, dd);
     }
     if (nb <= 0 || !(rr_rgb_max(m->diffuse) > 0.0))
@@ -272,9 +273,9 @@ static rr_rgb radiance(const render_ctx *c, rr_ray ray, int depth, int bounce, c
         nlight = 1;
     /* BSDF rays for the direct term where no bounce ray is taken (multiple
      * importance sampling in every mode, not only with secondary rays). */
-    int nbsdf = bounces ? 0 : (nlight + 3) / 4;
+    int nbsdf = bounces || !rt_lights_near(c->lights, h.point) ? 0 : (nlight + 3) / 4;
     if (diffuse || rr_rgb_max(m->specular) > 0.0)
-        direct_light(c, h.point, N, V, m, nlight, nbsdf, depth, rng, &local.c[RT_LAYER_DIFFUSE],
+        direct_light(c, h.point, N, V, m, nlight, nbsdf, bounces ? 1 : nbsdf, depth, rng, &local.c[RT_LAYER_DIFFUSE],
                      &local.c[RT_LAYER_SPECULAR]);
     if (diffuse && c->o->indirect == RT_INDIRECT_AMBIENT)
         local.c[RT_LAYER_AMBIENT] = rr_rgb_scale(rr_rgb_mul(m->diffuse, s->settings.ambient), m->ambient);
