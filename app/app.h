@@ -75,6 +75,15 @@ rr_status app_check_memory(const app_pipeline *p, int mode, int indirect_overrid
  * warns on stderr with the count and the first coordinates. Returns the count. */
 size_t app_scrub_film(rt_film *film);
 
+/* ---- diagnose.c: warnings that name the cause of lost light ---- */
+
+/* Warns about every closed triangle object whose faces point outwards and
+ * that has an emitter inside (a room built inside out). Returns the count. */
+size_t app_diagnose_scene(const scene *s);
+/* Warns about every object whose back faces receive more than share of the
+ * emitted power in the light tracer's ledger g. Returns the count. */
+size_t app_diagnose_ledger(const scene *s, const rt_particle_ledger *g, double share);
+
 /* Prints "radray: <msg>" on stderr. */
 void app_error(const char *fmt, ...)
 #if defined(__GNUC__)

@@ -276,6 +276,7 @@ static int prepare(job *j)
         app_error("%s", err.msg);
         return APP_EXIT_USAGE;
     }
+    app_diagnose_scene(j->sc);
     if (j->width > 0) {
         rr_view v;
         if (rr_view_resize(&j->sc->view, (int)j->width, &v, &err) != RR_OK) {

@@ -1,9 +1,15 @@
-/* cmd_energy.c - `radray energy SCENE`: the energy ledger of the radiosity
- * solution: where the emitted power went, per surface and in total. */
+/* cmd_energy.c - `radray energy SCENE`: where the emitted power went, by two
+ * independent estimators (the radiosity pass's ledger and a light tracer's),
+ * compared per object; `--check` turns the comparison into an exit code.
+ * Definitions of every column: notes/energy.md. */
 #include <getopt.h>
+#include <math.h>
+#include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
+#include <unistd.h>
 
 #include "app.h"
 #include "rad.h"
@@ -11,14 +17,29 @@
 static const char energy_usage[] =
     "usage: radray energy SCENE [options]\n"
     "\n"
-    "Runs the radiosity pass on SCENE and prints, per object and in total, the\n"
-    "power emitted, incident, reflected (diffusely), mirrored (reflected on by mirrors),\n"
-    "absorbed and escaped (through openings),\n"
-    "and checks the balance: emitted = absorbed + escaped.\n"
-    "Power is radiosity x area: scene emission Le (radiance) emits pi Le per unit area.\n"
+    "Where the emitted power goes, by two independent estimators:\n"
+    "  the radiosity ledger     from the radiosity pass's solution (B = E + rho F B);\n"
+    "  the light-tracing ledger particles emitted by every emitter in proportion to its power\n"
+    "                           and scattered by each material (diffuse, mirror; Russian roulette),\n"
+    "                           with standard errors from independent batches.\n"
+    "Per object: emitted, incident (arriving at front faces), reflected (diffusely), mirrored,\n"
+    "absorbed; light tracing also: back (arriving at back faces, where it ends: surfaces are\n"
+    "one-sided in the radiosity pass). In total: escaped (radiosity: landed on no patch's front;\n"
+    "light tracing: left the scene + back faces + lost). Power = radiosity x area, in scene units;\n"
+    "point lights emit 4 pi I, directional lights E pi R^2 (R: the scene's bounding radius).\n"
+    "Tables show the mean of R, G, B; --json has the triples. Definitions: notes/energy.md.\n"
     "\n"
     "options:\n"
-    "      --json             machine-readable output (RGB triples)\n"
+    "      --check            exit 1 unless the ledgers agree: every object (and light) above 0.1 %\n"
+    "                         of the emitted power within 4 standard errors + the allowance in\n"
+    "                         emitted, incident and absorbed power, the total escaped likewise,\n"
+    "                         and no power created (escaped below 0)\n"
+    "      --allowance PCT    discretisation allowance of the radiosity pass, percent (default 1)\n"
+    "      --particles N      light-tracing particles (default 1000000; 0: radiosity ledger only)\n"
+    "      --batches N        batches for the standard errors (default 32)\n"
+    "      --seed N           seed of the light tracer (default: the scene's)\n"
+    "      --threads N        threads (default: the scene's, else all)\n"
+    "      --json             machine-readable output\n"
     "      --patch-area A     largest patch area\n"
     "      --patch-edge L     longest patch edge\n"
     "      --solver S         auto, direct or iterative\n"
@@ -27,9 +48,33 @@ static const char energy_usage[] =
     "      --set KEY=VALUE    override a scene value by its JSON path (repeatable)\n"
     "      --max-memory SIZE  refuse, before any work, a pass estimated to need more memory than\n"
     "                         SIZE, e.g. 512M, 4G (default: half the physical memory)\n"
+    "  -q, --quiet            no progress bar\n"
     "  -h, --help             show this help\n"
     "\n"
-    "Exit codes: 0 ok (balance holds), 1 runtime error or balance broken, 2 usage error or bad input.\n";
+    "Warnings name causes of lost light: an emitter inside a closed object facing outwards, light\n"
+    "ending on back faces, power created by the form factors.\n"
+    "\n"
+    "Exit codes: 0 ok, 1 runtime error, balance broken or (with --check) the ledgers disagree,\n"
+    "2 usage error or bad input, 130 interrupted.\n";
+
+typedef struct energy_args {
+    const char *path;
+    char **sets;
+    size_t nsets;
+    int json, check, quiet;
+    long particles, batches, threads;
+    long long seed; /* < 0: the scene's */
+    double allowance;
+    size_t max_memory;
+} energy_args;
+
+static volatile sig_atomic_t g_stop;
+
+static void on_sigint(int sig)
+{
+    (void)sig;
+    g_stop = 1;
+}
 
 static void json_rgb(const char *key, rr_rgb c, int last)
 {
@@ -50,164 +95,424 @@ static void json_string(const char *s)
     putchar('"');
 }
 
-int app_cmd_energy(int argc, char **argv)
+/* 0: go on; else the exit code. */
+static int parse_args(int argc, char **argv, energy_args *A)
 {
-    enum { O_JSON = 256, O_AREA, O_EDGE, O_SOLVER, O_FF, O_SAMPLES, O_SET, O_MAXMEM };
+    enum { O_JSON = 256, O_AREA, O_EDGE, O_SOLVER, O_FF, O_SAMPLES, O_SET, O_MAXMEM, O_CHECK, O_ALLOW, O_PARTICLES,
+           O_BATCHES, O_SEED, O_THREADS };
     static const struct option longopts[] = {
         {"json", no_argument, NULL, O_JSON},         {"patch-area", required_argument, NULL, O_AREA},
         {"patch-edge", required_argument, NULL, O_EDGE}, {"solver", required_argument, NULL, O_SOLVER},
         {"ff", required_argument, NULL, O_FF},       {"ff-samples", required_argument, NULL, O_SAMPLES},
         {"set", required_argument, NULL, O_SET},     {"help", no_argument, NULL, 'h'},
-        {"max-memory", required_argument, NULL, O_MAXMEM},
+        {"max-memory", required_argument, NULL, O_MAXMEM}, {"check", no_argument, NULL, O_CHECK},
+        {"allowance", required_argument, NULL, O_ALLOW}, {"particles", required_argument, NULL, O_PARTICLES},
+        {"batches", required_argument, NULL, O_BATCHES}, {"seed", required_argument, NULL, O_SEED},
+        {"threads", required_argument, NULL, O_THREADS}, {"quiet", no_argument, NULL, 'q'},
         {NULL, 0, NULL, 0}};
     static const char *const keys[] = {"radiosity.patch_area", "radiosity.patch_edge", "radiosity.solver",
                                        "radiosity.form_factors", "radiosity.ff_samples"};
-    char **sets = calloc((size_t)argc + 1, sizeof *sets);
-    size_t nsets = 0;
-    int json = 0, rc = APP_EXIT_USAGE;
-    scene *s = NULL;
-    rt_accel *a = NULL;
-    rad_solution *sol = NULL;
-    rad_energy_row *rows = NULL;
-    size_t nrows = 0;
-    size_t max_memory = app_default_max_memory();
-    if (!sets) {
-        app_error("out of memory");
-        return APP_EXIT_RUNTIME;
-    }
     optind = 1;
     opterr = 0;
     int c;
-    while ((c = getopt_long(argc, argv, ":h", longopts, NULL)) != -1) {
+    while ((c = getopt_long(argc, argv, ":hq", longopts, NULL)) != -1) {
+        long v;
+        char *end;
         if (c == 'h') {
             fputs(energy_usage, stdout);
-            rc = APP_EXIT_OK;
-            goto done;
+            return APP_EXIT_OK + 1000;
+        } else if (c == 'q') {
+            A->quiet = 1;
         } else if (c == O_JSON) {
-            json = 1;
+            A->json = 1;
+        } else if (c == O_CHECK) {
+            A->check = 1;
         } else if (c >= O_AREA && c <= O_SAMPLES) {
             size_t n = strlen(keys[c - O_AREA]) + strlen(optarg) + 2;
-            if ((sets[nsets] = malloc(n)) != NULL)
-                snprintf(sets[nsets], n, "%s=%s", keys[c - O_AREA], optarg);
-            nsets++;
-        } else if (c == O_MAXMEM) {
-            if (app_parse_size(optarg, &max_memory)) {
-                app_error("--max-memory: expected a size such as 512M or 4G, got '%s'", optarg);
-                goto done;
-            }
+            if ((A->sets[A->nsets] = malloc(n)) != NULL)
+                snprintf(A->sets[A->nsets], n, "%s=%s", keys[c - O_AREA], optarg);
+            A->nsets++;
         } else if (c == O_SET) {
-            sets[nsets++] = strdup(optarg);
+            A->sets[A->nsets++] = strdup(optarg);
+        } else if (c == O_MAXMEM) {
+            if (app_parse_size(optarg, &A->max_memory)) {
+                app_error("--max-memory: expected a size such as 512M or 4G, got '%s'", optarg);
+                return APP_EXIT_USAGE;
+            }
+        } else if (c == O_ALLOW) {
+            A->allowance = strtod(optarg, &end);
+            if (end == optarg || *end || !(A->allowance >= 0.0 && A->allowance <= 100.0)) {
+                app_error("--allowance: expected a percentage in [0, 100], got '%s'", optarg);
+                return APP_EXIT_USAGE;
+            }
+        } else if (c == O_PARTICLES || c == O_BATCHES || c == O_THREADS) {
+            long lo = c == O_BATCHES ? 2 : c == O_THREADS ? 1 : 0;
+            long hi = c == O_PARTICLES ? 1L << 40 : c == O_BATCHES ? 1024 : 4096;
+            if (app_parse_int(optarg, lo, hi, &v)) {
+                const char *name = c == O_PARTICLES ? "--particles" : c == O_BATCHES ? "--batches" : "--threads";
+                app_error("%s: expected a whole number in [%ld, %ld], got '%s'", name, lo, hi, optarg);
+                return APP_EXIT_USAGE;
+            }
+            *(c == O_PARTICLES ? &A->particles : c == O_BATCHES ? &A->batches : &A->threads) = v;
+        } else if (c == O_SEED) {
+            if (app_parse_int(optarg, 0, 2147483647L, &v)) {
+                app_error("--seed: expected a whole number in [0, 2147483647], got '%s'", optarg);
+                return APP_EXIT_USAGE;
+            }
+            A->seed = v;
         } else if (c == ':') {
             app_error("option '%s' needs a value (try 'radray energy --help')", argv[optind - 1]);
-            goto done;
+            return APP_EXIT_USAGE;
         } else {
             app_error("unknown option '%s' (try 'radray energy --help')", argv[optind - 1]);
-            goto done;
+            return APP_EXIT_USAGE;
         }
     }
-    for (size_t i = 0; i < nsets; i++)
-        if (!sets[i]) {
+    for (size_t i = 0; i < A->nsets; i++)
+        if (!A->sets[i]) {
             app_error("out of memory");
-            rc = APP_EXIT_RUNTIME;
-            goto done;
+            return APP_EXIT_RUNTIME;
         }
     if (optind != argc - 1) {
         app_error("energy: expected one SCENE (try 'radray energy --help')");
-        goto done;
+        return APP_EXIT_USAGE;
     }
+    if (A->particles > 0 && A->particles < A->batches) {
+        app_error("--particles: need at least one particle per batch (%ld)", A->batches);
+        return APP_EXIT_USAGE;
+    }
+    A->path = argv[optind];
+    return 0;
+}
+
+typedef struct progress_bar {
+    int enabled, last;
+    double t0;
+} progress_bar;
+
+static void draw_progress(void *user, uint64_t done, uint64_t total)
+{
+    progress_bar *p = user;
+    int pct = (int)(100.0 * (double)done / (double)total);
+    if (!p->enabled || (pct == p->last && done != total))
+        return;
+    p->last = pct;
+    double t = app_now_seconds() - p->t0, eta = done > 0 ? t * ((double)total / (double)done - 1.0) : 0.0;
+    fprintf(stderr, "\rlight tracing %3d%% %6.1f s, %5.1f s left", pct, t, eta);
+    if (done == total)
+        fputc('\n', stderr);
+    fflush(stderr);
+}
+
+/* The radiosity balance: emitted = absorbed + escaped up to the solver. */
+static double balance_error(const rad_energy_row *t)
+{
+    rr_rgb e = t->emitted, s = rr_rgb_add(t->absorbed, t->escaped);
+    double worst = 0;
+    double ev[3] = {e.r, e.g, e.b}, sv[3] = {s.r, s.g, s.b};
+    for (int ch = 0; ch < 3; ch++) {
+        double rel = ev[ch] > 0 ? fabs(ev[ch] - sv[ch]) / ev[ch] : fabs(sv[ch]);
+        worst = rel > worst ? rel : worst;
+    }
+    return worst;
+}
+
+typedef struct energy_result {
+    const scene *s;
+    const rad_solution *sol;
+    rad_energy_row *rows;
+    size_t nrows;
+    rt_particle_ledger g; /* g.row NULL: no light tracing */
+    rad_energy_cmp *cmp;
+    size_t ncmp, failures;
+    double balance, balance_tol;
+    int created;          /* escaped below 0 beyond the solver's tolerance */
+    double allowance;
+} energy_result;
+
+static const char *column_name(int c)
+{
+    return c == RT_LEDGER_EMITTED ? "emitted" : c == RT_LEDGER_INCIDENT ? "incident" : c == RT_LEDGER_ABSORBED ? "absorbed" : "escaped";
+}
+
+static void print_text(const energy_result *R)
+{
+    const rad_solution *sol = R->sol;
+    printf("energy ledger of %s: %zu patches, %zu form factors, %s solver, residual %.2g\n", R->s->path, sol->P->n,
+           sol->nnz, sol->stats.used == RAD_SOLVER_DIRECT ? "direct" : "iterative", sol->stats.residual);
+    printf("power = radiosity x area (scene units), mean of R, G, B\n\nradiosity ledger\n");
+    printf("%-18s %12s %12s %12s %12s %12s %12s %12s\n", "surface", "area", "emitted", "incident", "reflected",
+           "mirrored", "absorbed", "escaped");
+    for (size_t i = 0; i < R->nrows; i++) {
+        const rad_energy_row *r = &R->rows[i];
+        if (i == R->nrows - 1)
+            printf("%.*s\n", 18 + 7 * 13, "-------------------------------------------------------------------"
+                                         "------------------------------------------------------------");
+        printf("%-18s %12.5g %12.5g %12.5g %12.5g %12.5g %12.5g %12.5g\n", r->name, r->area, rr_rgb_mean(r->emitted),
+               rr_rgb_mean(r->incident), rr_rgb_mean(r->reflected), rr_rgb_mean(r->mirrored),
+               rr_rgb_mean(r->absorbed), rr_rgb_mean(r->escaped));
+    }
+    printf("\nbalance: emitted = absorbed + escaped to %.2g (relative, worst channel): %s\n", R->balance,
+           R->balance <= R->balance_tol ? "holds" : "BROKEN");
+    const rt_particle_ledger *g = &R->g;
+    if (!g->row)
+        return;
+    printf("\nlight-tracing ledger: %llu particles in %d batches, %.3g rays, %.2f s (%.3g particles/s)\n",
+           (unsigned long long)g->particles, g->batches, (double)g->segments, g->seconds,
+           (double)g->particles / fmax(g->seconds, 1e-9));
+    printf("%-18s %12s %12s %12s %12s %12s %12s %10s\n", "surface", "emitted", "incident", "reflected", "mirrored",
+           "absorbed", "back", "SE(abs.)");
+    for (size_t r = 0; r < g->nobjects + g->nlights; r++) {
+        const rt_ledger_row *x = &g->row[r];
+        int any = 0;
+        for (int c = 0; c < RT_LEDGER_COLUMNS; c++)
+            any |= rr_rgb_max(x->c[c]) > 0.0;
+        if (!any)
+            continue;
+        const char *name = r < g->nobjects ? R->s->objects[r].name : R->s->lights[r - g->nobjects].name;
+        printf("%-18s %12.5g %12.5g %12.5g %12.5g %12.5g %12.5g %10.2g\n", name,
+               rr_rgb_mean(x->c[RT_LEDGER_EMITTED]), rr_rgb_mean(x->c[RT_LEDGER_INCIDENT]),
+               rr_rgb_mean(x->c[RT_LEDGER_REFLECTED]), rr_rgb_mean(x->c[RT_LEDGER_MIRRORED]),
+               rr_rgb_mean(x->c[RT_LEDGER_ABSORBED]), rr_rgb_mean(x->c[RT_LEDGER_BACK]),
+               rr_rgb_mean(g->se[r].c[RT_LEDGER_ABSORBED]));
+    }
+    printf("escaped: %.5g left the scene, %.5g lost (bounce cap); radiosity's escaped compares with %.5g +- %.2g "
+           "(left + back faces + lost)\n",
+           rr_rgb_mean(g->escaped), rr_rgb_mean(g->lost), rr_rgb_mean(g->unabsorbed), rr_rgb_mean(g->unabsorbed_se));
+    size_t checked = 0;
+    double worst_z = 0.0;
+    for (size_t i = 0; i < R->ncmp; i++)
+        if (R->cmp[i].checked) {
+            checked++;
+            worst_z = fmax(worst_z, R->cmp[i].z);
+        }
+    printf("\ncheck: %zu comparisons above 0.1 %% of the emitted power, within 4 SE + %.3g %%: ", checked,
+           100.0 * R->allowance);
+    if (R->failures)
+        printf("%zu DISAGREE\n", R->failures);
+    else
+        printf("all agree (largest |difference| %.2g SE)\n", worst_z);
+    for (size_t i = 0; i < R->ncmp; i++) {
+        const rad_energy_cmp *c = &R->cmp[i];
+        if (c->checked && !c->pass)
+            printf("  %-18s %-8s radiosity %.5g, light tracing %.5g +- %.2g: %+.2f %%, %.1f SE\n", c->name,
+                   column_name(c->column), c->rad, c->part, c->se, 100.0 * (c->rad - c->part) / fmax(fabs(c->part), 1e-300),
+                   c->z);
+    }
+    if (R->created)
+        printf("  power created: the radiosity ledger's escaped power is below 0\n");
+}
+
+static void json_ledger_rows(const energy_result *R)
+{
+    printf("\"rows\": [");
+    for (size_t i = 0; i < R->nrows; i++) {
+        const rad_energy_row *r = &R->rows[i];
+        printf("%s{\"name\": ", i ? ", " : "");
+        json_string(r->name);
+        printf(", \"object\": %lld, \"light\": %lld, \"area\": %.10g, ", (long long)r->object, (long long)r->light,
+               r->area);
+        json_rgb("emitted", r->emitted, 0);
+        json_rgb("incident", r->incident, 0);
+        json_rgb("reflected", r->reflected, 0);
+        json_rgb("mirrored", r->mirrored, 0);
+        json_rgb("absorbed", r->absorbed, 0);
+        json_rgb("escaped", r->escaped, 1);
+        printf("}");
+    }
+    printf("]");
+}
+
+static void json_particles(const energy_result *R)
+{
+    static const char *const cols[RT_LEDGER_COLUMNS] = {"emitted", "incident", "reflected",
+                                                        "mirrored", "absorbed", "back"};
+    const rt_particle_ledger *g = &R->g;
+    printf(", \"light_tracing\": {\"particles\": %llu, \"batches\": %d, \"rays\": %llu, \"seconds\": %.4g, ",
+           (unsigned long long)g->particles, g->batches, (unsigned long long)g->segments, g->seconds);
+    json_rgb("escaped", g->escaped, 0);
+    json_rgb("escaped_se", g->escaped_se, 0);
+    json_rgb("lost", g->lost, 0);
+    json_rgb("lost_se", g->lost_se, 0);
+    printf("\"rows\": [");
+    for (size_t r = 0; r < g->nobjects + g->nlights; r++) {
+        printf("%s{\"name\": ", r ? ", " : "");
+        json_string(r < g->nobjects ? R->s->objects[r].name : R->s->lights[r - g->nobjects].name);
+        printf(", \"object\": %lld, \"light\": %lld, ", r < g->nobjects ? (long long)r : -1LL,
+               r < g->nobjects ? -1LL : (long long)(r - g->nobjects));
+        for (int c = 0; c < RT_LEDGER_COLUMNS; c++) {
+            char key[32];
+            json_rgb(cols[c], g->row[r].c[c], 0);
+            snprintf(key, sizeof key, "%s_se", cols[c]);
+            json_rgb(key, g->se[r].c[c], c == RT_LEDGER_COLUMNS - 1);
+        }
+        printf("}");
+    }
+    printf("]}, \"check\": {\"allowance\": %.6g, \"sigmas\": 4, \"failures\": %zu, \"comparisons\": [", R->allowance,
+           R->failures);
+    for (size_t i = 0; i < R->ncmp; i++) {
+        const rad_energy_cmp *c = &R->cmp[i];
+        printf("%s{\"name\": ", i ? ", " : "");
+        json_string(c->name);
+        printf(", \"object\": %lld, \"light\": %lld, \"column\": \"%s\", \"radiosity\": %.10g, \"particles\": %.10g, "
+               "\"se\": %.6g, \"z\": %.6g, \"checked\": %s, \"pass\": %s}",
+               (long long)c->object, (long long)c->light, column_name(c->column), c->rad, c->part, c->se,
+               isfinite(c->z) ? c->z : 1e308, c->checked ? "true" : "false", c->pass ? "true" : "false");
+    }
+    printf("]}");
+}
+
+static void print_json(const energy_result *R, int agree)
+{
+    const rad_solution *sol = R->sol;
+    printf("{\"scene\": ");
+    json_string(R->s->path);
+    printf(", \"patches\": %zu, \"form_factors\": %zu, \"solver\": \"%s\", \"iterations\": %d, "
+           "\"residual\": %.3g, \"balance_relative_error\": %.3g, \"balanced\": %s, \"power_created\": %s, ",
+           sol->P->n, sol->nnz, sol->stats.used == RAD_SOLVER_DIRECT ? "direct" : "iterative", sol->stats.iterations,
+           sol->stats.residual, R->balance, R->balance <= R->balance_tol ? "true" : "false",
+           R->created ? "true" : "false");
+    json_ledger_rows(R);
+    if (R->g.row)
+        json_particles(R);
+    printf(", \"agree\": %s}\n", agree ? "true" : "false");
+}
+
+/* Runs both estimators and the comparison into R; 0 or the exit code. */
+static int run(const energy_args *A, scene *s, rt_accel *a, energy_result *R)
+{
     rr_error err;
-    scene_load_opts lo = {0};
-    lo.overrides = (const char *const *)sets;
-    lo.noverrides = nsets;
-    lo.warn = app_warn_sink();
-    lo.max_image_bytes = max_memory;
-    if (scene_load(argv[optind], &lo, &s, &err) != RR_OK) {
-        app_error("%s", err.msg);
-        goto done;
-    }
-    app_pipeline mem;
-    memset(&mem, 0, sizeof mem);
-    mem.sc = s;
-    if (app_check_memory(&mem, APP_MODE_RADIOSITY, -1, max_memory, &err) != RR_OK) {
-        app_error("%s", err.msg);
-        goto done;
-    }
-    rc = APP_EXIT_RUNTIME;
-    if (rt_accel_build(s, &a, &err) != RR_OK) {
-        app_error("%s", err.msg);
-        goto done;
-    }
     rad_pass_opts po;
     memset(&po, 0, sizeof po);
     po.use_scene_choices = 1;
     po.warn = app_warn_sink();
     po.ff.seed = s->settings.seed;
     po.ff.threads = s->settings.threads;
+    rad_solution *sol = NULL;
     rr_status st = rad_pass_run(s, a, &po, &sol, &err);
+    R->sol = sol;
     if (st == RR_OK)
-        st = rad_energy(s, sol->P, sol->F, sol->B, &rows, &nrows, &err);
+        st = rad_energy_solution(sol, &R->rows, &R->nrows, &err);
     if (st != RR_OK) {
         app_error("%s", err.msg);
-        rc = st == RR_ERR_INVALID ? APP_EXIT_USAGE : APP_EXIT_RUNTIME;
+        return st == RR_ERR_INVALID ? APP_EXIT_USAGE : APP_EXIT_RUNTIME;
+    }
+    const rad_energy_row *t = &R->rows[R->nrows - 1];
+    R->balance = balance_error(t);
+    R->balance_tol = fmax(1e-6, 100.0 * sol->stats.residual);
+    R->created = rr_rgb_mean(t->escaped) < -fmax(1e-6, 100.0 * sol->stats.residual) * rr_rgb_mean(t->emitted);
+    if (A->particles == 0)
+        return 0;
+    rt_lights *L = NULL;
+    if ((st = rt_lights_build(s, a, 0, &L, &err)) != RR_OK) {
+        app_error("%s", err.msg);
+        return APP_EXIT_RUNTIME;
+    }
+    rt_particle_opts o = {0};
+    o.particles = (uint64_t)A->particles;
+    o.batches = (int)A->batches;
+    o.seed = A->seed >= 0 ? (uint64_t)A->seed : s->settings.seed;
+    o.threads = A->threads > 0 ? (int)A->threads : s->settings.threads;
+    progress_bar bar = {!A->quiet && isatty(STDERR_FILENO), -1, app_now_seconds()};
+    if (!A->quiet)
+        fprintf(stderr, "light tracing %ld particles in %ld batches\n", A->particles, A->batches);
+    o.progress = draw_progress;
+    o.progress_user = &bar;
+    o.interrupt = &g_stop;
+    st = rt_particles_trace(s, a, L, &o, &R->g, &err);
+    rt_lights_destroy(L);
+    if (st == RR_ERR_INTERRUPTED) {
+        if (bar.enabled)
+            fputc('\n', stderr);
+        app_error("interrupted");
+        return APP_EXIT_INTERRUPTED;
+    }
+    rad_energy_check_opts co = {4.0, R->allowance, 0.001};
+    if (st == RR_OK)
+        st = rad_energy_compare(R->rows, R->nrows, &R->g, &co, &R->cmp, &R->ncmp, &R->failures, &err);
+    if (st != RR_OK) {
+        app_error("%s", err.msg);
+        return APP_EXIT_RUNTIME;
+    }
+    app_diagnose_ledger(s, &R->g, 0.01);
+    return 0;
+}
+
+int app_cmd_energy(int argc, char **argv)
+{
+    energy_args A = {0};
+    A.particles = 1000000;
+    A.batches = 32;
+    A.seed = -1;
+    A.allowance = 1.0;
+    A.max_memory = app_default_max_memory();
+    A.sets = calloc((size_t)argc + 1, sizeof *A.sets);
+    scene *s = NULL;
+    rt_accel *a = NULL;
+    energy_result R;
+    memset(&R, 0, sizeof R);
+    struct sigaction sa, old_int;
+    int handler = 0;
+    if (!A.sets) {
+        app_error("out of memory");
+        return APP_EXIT_RUNTIME;
+    }
+    int rc = parse_args(argc, argv, &A);
+    if (rc != 0) {
+        rc = rc == 1000 ? APP_EXIT_OK : rc;
         goto done;
     }
-    const rad_energy_row *t = &rows[nrows - 1];
-    double worst = 0;
-    for (int ch = 0; ch < 3; ch++) {
-        double e = ch == 0 ? t->emitted.r : (ch == 1 ? t->emitted.g : t->emitted.b);
-        double ab = ch == 0 ? t->absorbed.r + t->escaped.r
-                            : (ch == 1 ? t->absorbed.g + t->escaped.g : t->absorbed.b + t->escaped.b);
-        double rel = e > 0 ? fabs(e - ab) / e : fabs(ab);
-        worst = rel > worst ? rel : worst;
+    rc = APP_EXIT_USAGE;
+    R.allowance = A.allowance / 100.0;
+    rr_error err;
+    scene_load_opts lo = {0};
+    lo.overrides = (const char *const *)A.sets;
+    lo.noverrides = A.nsets;
+    lo.warn = app_warn_sink();
+    lo.max_image_bytes = A.max_memory;
+    if (scene_load(A.path, &lo, &s, &err) != RR_OK) {
+        app_error("%s", err.msg);
+        goto done;
     }
-    /* The balance holds to the solver's residual; allow a generous multiple. */
-    double tol = fmax(1e-6, 100.0 * sol->stats.residual);
-    if (json) {
-        printf("{\"scene\": ");
-        json_string(s->path);
-        printf(", \"patches\": %zu, \"form_factors\": %zu, \"solver\": \"%s\", \"iterations\": %d, "
-               "\"residual\": %.3g, \"balance_relative_error\": %.3g, \"balanced\": %s, \"rows\": [",
-               sol->P->n, sol->nnz, sol->stats.used == RAD_SOLVER_DIRECT ? "direct" : "iterative",
-               sol->stats.iterations, sol->stats.residual, worst, worst <= tol ? "true" : "false");
-        for (size_t i = 0; i < nrows; i++) {
-            printf("%s{\"name\": ", i ? ", " : "");
-            json_string(rows[i].name);
-            printf(", \"area\": %.10g, ", rows[i].area);
-            json_rgb("emitted", rows[i].emitted, 0);
-            json_rgb("incident", rows[i].incident, 0);
-            json_rgb("reflected", rows[i].reflected, 0);
-            json_rgb("mirrored", rows[i].mirrored, 0);
-            json_rgb("absorbed", rows[i].absorbed, 0);
-            json_rgb("escaped", rows[i].escaped, 1);
-            printf("}");
-        }
-        printf("]}\n");
-    } else {
-        printf("energy ledger of %s: %zu patches, %zu form factors, %s solver, residual %.2g\n", s->path, sol->P->n,
-               sol->nnz, sol->stats.used == RAD_SOLVER_DIRECT ? "direct" : "iterative", sol->stats.residual);
-        printf("power = radiosity x area (scene units), mean of R, G, B\n\n");
-        printf("%-18s %12s %12s %12s %12s %12s %12s %12s\n", "surface", "area", "emitted", "incident", "reflected",
-               "mirrored", "absorbed", "escaped");
-        for (size_t i = 0; i < nrows; i++) {
-            const rad_energy_row *r = &rows[i];
-            if (i == nrows - 1)
-                printf("%s\n", "------------------------------------------------------------------------------------"
-                               "--------------------------------------------");
-            printf("%-18s %12.5g %12.5g %12.5g %12.5g %12.5g %12.5g %12.5g\n", r->name, r->area,
-                   rr_rgb_mean(r->emitted), rr_rgb_mean(r->incident), rr_rgb_mean(r->reflected),
-                   rr_rgb_mean(r->mirrored), rr_rgb_mean(r->absorbed), rr_rgb_mean(r->escaped));
-        }
-        printf("\nbalance: emitted = absorbed + escaped to %.2g (relative, worst channel): %s\n", worst,
-               worst <= tol ? "holds" : "BROKEN");
+    R.s = s;
+    app_pipeline mem;
+    memset(&mem, 0, sizeof mem);
+    mem.sc = s;
+    if (app_check_memory(&mem, APP_MODE_RADIOSITY, -1, A.max_memory, &err) != RR_OK) {
+        app_error("%s", err.msg);
+        goto done;
     }
-    rc = worst <= tol ? APP_EXIT_OK : APP_EXIT_RUNTIME;
+    app_diagnose_scene(s);
+    rc = APP_EXIT_RUNTIME;
+    if (rt_accel_build(s, &a, &err) != RR_OK) {
+        app_error("%s", err.msg);
+        goto done;
+    }
+    memset(&sa, 0, sizeof sa);
+    sa.sa_handler = on_sigint;
+    sigemptyset(&sa.sa_mask);
+    sa.sa_flags = SA_RESETHAND;
+    g_stop = 0;
+    handler = sigaction(SIGINT, &sa, &old_int) == 0;
+    if ((rc = run(&A, s, a, &R)) != 0)
+        goto done;
+    int agree = R.balance <= R.balance_tol && !R.created && R.failures == 0;
+    if (A.json)
+        print_json(&R, agree);
+    else
+        print_text(&R);
+    rc = R.balance > R.balance_tol || (A.check && !agree) ? APP_EXIT_RUNTIME : APP_EXIT_OK;
 done:
-    free(rows);
-    rad_solution_destroy(sol);
+    if (handler)
+        sigaction(SIGINT, &old_int, NULL);
+    free(R.cmp);
+    rt_particle_ledger_free(&R.g);
+    free(R.rows);
+    rad_solution_destroy((rad_solution *)R.sol);
     rt_accel_destroy(a);
     scene_destroy(s);
-    for (size_t i = 0; i < nsets; i++)
-        free(sets[i]);
-    free(sets);
+    for (size_t i = 0; i < A.nsets; i++)
+        free(A.sets[i]);
+    free(A.sets);
     return rc;
 }

@@ -120,6 +120,7 @@ int app_cmd_info(int argc, char **argv)
         app_error("%s", err.msg);
         return APP_EXIT_USAGE;
     }
+    app_diagnose_scene(s);
     const rr_view *v = &s->view;
     printf("scene      %s (%s)\n", s->name, s->path);
     printf("camera     E (%g, %g, %g)  O (%g, %g, %g)  U (%g, %g, %g)  s %g\n", v->E.x, v->E.y, v->E.z, v->O.x,

@@ -270,6 +270,7 @@ int app_cmd_render(int argc, char **argv)
         app_error("%s", err.msg);
         goto done;
     }
+    app_diagnose_scene(sc);
     if (width > 0) {
         rr_view v;
         if (rr_view_resize(&sc->view, (int)width, &v, &err) != RR_OK) {

@@ -180,20 +180,63 @@ rr_status rad_solve(const rad_patches *P, const rad_ff *F, const rad_solve_opts 
 /* ---- energy ledger ---- */
 
 typedef struct rad_energy_row {
-    char name[SCENE_NAME_MAX]; /* object name, or "total" */
+    char name[SCENE_NAME_MAX]; /* object name, light name, or "total" */
+    int64_t object;    /* scene object, or -1 */
+    int64_t light;     /* scene light, or -1 */
     double area;
-    rr_rgb emitted;    /* sum E_i A_i */
-    rr_rgb incident;   /* sum A_i H_i, H_i = sum_j F_ij B_j  (power arriving) */
+    rr_rgb emitted;    /* surfaces: sum A_i E_i of their own emission; lights: their power (rt_light_power) */
+    rr_rgb incident;   /* sum A_i (H_i + H0_i), H_i = sum_j F_ij B_j, H0_i the first shot (power arriving) */
     rr_rgb reflected;  /* rho * incident (diffusely) */
     rr_rgb mirrored;   /* rho_mirror * incident (reflected on by mirrors: it arrives again elsewhere) */
     rr_rgb absorbed;   /* (1 - rho - rho_mirror) * incident */
-    rr_rgb escaped;    /* sum B_i A_i (1 - sum_j F_ij (1 - rho_mirror_j)): leaves through openings */
+    rr_rgb escaped;    /* surfaces: sum B_i A_i (1 - sum_j F_ij (1 - rho_mirror_j)), what leaves them and
+                          lands on no patch's front; lights: power - what lands on patch fronts */
 } rad_energy_row;
 
 /* One row per object that has patches, then a "total" row (rows[*nrows-1]).
- * In the total, emitted = absorbed + escaped up to the solver tolerance. */
+ * In the total, emitted = absorbed + escaped up to the solver tolerance.
+ * Without a solution, patch emission counts as emitted (no lights). */
 rr_status rad_energy(const scene *s, const rad_patches *P, const rad_ff *F, const rr_rgb *B, rad_energy_row **rows,
                      size_t *nrows, rr_error *err);
+/* The ledger of a solution (needs its form factors: not one read from a
+ * cache): rows per object with patches, then one per scene light (point and
+ * directional lights as themselves: emitted = their power; their light
+ * enters the patches as the first shot H0), then "total". */
+struct rad_solution;
+rr_status rad_energy_solution(const struct rad_solution *sol, rad_energy_row **rows, size_t *nrows, rr_error *err);
+
+/* ---- the radiosity ledger against the light tracer's (rt_particles_trace) ----
+ *
+ * Per object (and light) row, the mean over R, G, B of three columns
+ * (emitted, incident, absorbed) and, for the total, of the escaped power
+ * (the particles' escaped + back + lost: the radiosity ledger cannot tell
+ * them apart). A comparison is checked when either ledger's value exceeds
+ * min_share of the emitted power; it passes when
+ *     |radiosity - particles| <= sigmas * SE + allowance * max(|radiosity|, |particles|),
+ * SE the particles' standard error (mean of the channels' SEs). The
+ * allowance is the discretisation error the radiosity pass is allowed
+ * (piecewise-constant patches, form-factor noise); notes/energy.md. */
+typedef struct rad_energy_cmp {
+    char name[SCENE_NAME_MAX]; /* the row's name */
+    int64_t object, light;     /* as in rad_energy_row (-1, -1: the total) */
+    int column;                /* RT_LEDGER_EMITTED, _INCIDENT, _ABSORBED, or -1: escaped (total only) */
+    double rad, part, se;      /* radiosity value, particle value and its standard error */
+    double z;                  /* |rad - part| / se (INFINITY when se is 0 and they differ) */
+    int checked, pass;
+} rad_energy_cmp;
+
+typedef struct rad_energy_check_opts {
+    double sigmas;     /* <= 0: 4 */
+    double allowance;  /* < 0: 0.01 */
+    double min_share;  /* <= 0: 0.001 */
+} rad_energy_check_opts;
+
+/* Compares rows (rad_energy_solution) with the particle ledger g (of the
+ * same scene). *out: the comparisons (free()), *failures: how many checked
+ * ones fail. */
+rr_status rad_energy_compare(const rad_energy_row *rows, size_t nrows, const rt_particle_ledger *g,
+                             const rad_energy_check_opts *o, rad_energy_cmp **out, size_t *n, size_t *failures,
+                             rr_error *err);
 
 /* ---- the whole pass ---- */
 
@@ -213,6 +256,7 @@ typedef struct rad_solution {
     rr_rgb *vertex_B;    /* per patch vertex: area-weighted mean of the patches around it */
     rr_rgb *emitted;     /* per patch: pi Le of its material (the patches' emission minus the first shot below) */
     rr_rgb *first_shot;  /* per patch: irradiance from point and directional lights (shadowed) */
+    rr_rgb *light_landed; /* per scene light: its power that ends on patch fronts, sum (1 - m_k) A_k H0_k */
     rr_rgb *vertex_Hind; /* per vertex: indirect irradiance, sum_j F_ij (B_j - emitted_j), area-weighted */
     rad_solve_stats stats;
     double seconds_patches, seconds_ff, seconds_solve;

@@ -6,6 +6,8 @@
 
 #include "rad.h"
 
+#define FIRST_SHOT_CHUNK 256 /* patches per unit of the first shot's deterministic sums */
+
 static double now_seconds(void)
 {
     struct timespec t;
@@ -53,6 +55,7 @@ void rad_solution_destroy(rad_solution *sol)
     free(sol->vertex_B);
     free(sol->emitted);
     free(sol->first_shot);
+    free(sol->light_landed);
     free(sol->vertex_Hind);
     free(sol->stats.history);
     free(sol);
@@ -61,8 +64,11 @@ void rad_solution_destroy(rad_solution *sol)
 /* H0: irradiance at patch k from every point and directional light and
  * their images in planar mirrors (the light interface, rt_light.c),
  * averaged over 4 points of the patch (centroid and the three points
- * halfway to the corners), each with its shadow rays. */
-static rr_rgb first_shot(const scene *s, const rt_accel *a, const rt_lights *L, const rad_patches *P, size_t k)
+ * halfway to the corners), each with its shadow rays. When landed is set,
+ * landed[l] += (1 - m) A times what scene light l contributes (the power of
+ * light l that ends on this patch's front, for the energy ledger). */
+static rr_rgb first_shot(const scene *s, const rt_accel *a, const rt_lights *L, const rad_patches *P, size_t k,
+                         rr_rgb *landed)
 {
     static const double w[4][3] = {{1. / 3, 1. / 3, 1. / 3}, {2. / 3, 1. / 6, 1. / 6}, {1. / 6, 2. / 3, 1. / 6},
                                    {1. / 6, 1. / 6, 2. / 3}};
@@ -76,8 +82,14 @@ static rr_rgb first_shot(const scene *s, const rt_accel *a, const rt_lights *L, 
         rad_patch_surface(P, s, a, (uint32_t)k, xf, &x, &N);
         for (size_t i = 0; i < nd; i++) {
             rt_light_sample ls;
-            if (rt_lights_delta(L, i, x, N, &ls))
-                H = rr_rgb_add(H, rr_rgb_scale(ls.E, 0.25 * rr_v3_dot(N, ls.L)));
+            if (!rt_lights_delta(L, i, x, N, &ls))
+                continue;
+            rr_rgb e = rr_rgb_scale(ls.E, 0.25 * rr_v3_dot(N, ls.L));
+            H = rr_rgb_add(H, e);
+            if (landed) {
+                rr_rgb *d = &landed[rt_lights_delta_source(L, i)];
+                *d = rr_rgb_add(*d, rr_rgb_scale(e, (1.0 - p->mirror) * p->area));
+            }
         }
     }
     return H;
@@ -177,13 +189,32 @@ rr_status rad_pass_run(const scene *s, const rt_accel *a, const rad_pass_opts *o
         free(Hind);
         goto fail;
     }
-#pragma omp parallel for schedule(dynamic, 64) if (s->nlights > 0)
-    for (long k = 0; k < (long)n; k++) {
-        rad_patch *p = &sol->P->p[k];
-        sol->emitted[k] = p->emission;
-        sol->first_shot[k] = s->nlights ? first_shot(s, a, L, sol->P, (size_t)k) : rr_rgb_make(0, 0, 0);
-        p->emission = rr_rgb_add(p->emission, rr_rgb_mul(p->rho, sol->first_shot[k]));
+    /* Chunks of patches, each summing its lights' landed power in patch
+     * order, reduced in chunk order: the same sums for any thread count. */
+    size_t nl = s->nlights, nchunks = (n + FIRST_SHOT_CHUNK - 1) / FIRST_SHOT_CHUNK;
+    rr_rgb *part = nl ? calloc(nchunks * nl, sizeof *part) : NULL;
+    sol->light_landed = calloc(nl ? nl : 1, sizeof *sol->light_landed);
+    if ((nl && !part) || !sol->light_landed) {
+        free(part);
+        free(Hind);
+        rt_lights_destroy(L);
+        st = rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory for %zu patches", s->path, n);
+        goto fail;
     }
+#pragma omp parallel for schedule(dynamic, 1) if (nl > 0)
+    for (long c = 0; c < (long)nchunks; c++) {
+        size_t hi = ((size_t)c + 1) * FIRST_SHOT_CHUNK < n ? ((size_t)c + 1) * FIRST_SHOT_CHUNK : n;
+        for (size_t k = (size_t)c * FIRST_SHOT_CHUNK; k < hi; k++) {
+            rad_patch *p = &sol->P->p[k];
+            sol->emitted[k] = p->emission;
+            sol->first_shot[k] = nl ? first_shot(s, a, L, sol->P, k, part + (size_t)c * nl) : rr_rgb_make(0, 0, 0);
+            p->emission = rr_rgb_add(p->emission, rr_rgb_mul(p->rho, sol->first_shot[k]));
+        }
+    }
+    for (size_t c = 0; c < nchunks && nl; c++)
+        for (size_t l = 0; l < nl; l++)
+            sol->light_landed[l] = rr_rgb_add(sol->light_landed[l], part[c * nl + l]);
+    free(part);
     rt_lights_destroy(L);
     if ((st = rad_solve(sol->P, sol->F, &so, sol->B, &sol->stats, err)) != RR_OK) {
         free(Hind);

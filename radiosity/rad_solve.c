@@ -68,37 +68,37 @@ static int rgb_nonneg_finite(rr_rgb v) { return rr_rgb_isfinite(v) && v.r >= 0.0
 rr_status rad_system_check(const rad_patches *P, const rad_ff *F, rr_error *err)
 {
     if (!P || !F)
-        return rr_error_set(err, RR_ERR_INVALID, "radiosity: missing patches or form factors");
+        return rr_error_set(err, RR_ERR_INVALID, "missing patches or form factors");
     if (P->n == 0)
-        return rr_error_set(err, RR_ERR_INVALID, "radiosity: there are no patches: the scene has no surface to light");
+        return rr_error_set(err, RR_ERR_INVALID, "there are no patches: the scene has no surface to light");
     if (F->n != P->n)
-        return rr_error_set(err, RR_ERR_INVALID, "radiosity: the form factors are for %zu patches, but there are %zu",
+        return rr_error_set(err, RR_ERR_INVALID, "the form factors are for %zu patches, but there are %zu",
                             F->n, P->n);
     if (!F->rowptr || F->rowptr[0] != 0)
-        return rr_error_set(err, RR_ERR_INVALID, "radiosity: form factor rows do not start at 0");
+        return rr_error_set(err, RR_ERR_INVALID, "form factor rows do not start at 0");
     for (size_t i = 0; i < P->n; i++) {
         const rad_patch *p = &P->p[i];
         if (!isfinite(p->area) || p->area <= 0.0)
-            return rr_error_set(err, RR_ERR_INVALID, "radiosity: patch %zu (object %u) has area %g, expected > 0", i,
+            return rr_error_set(err, RR_ERR_INVALID, "patch %zu (object %u) has area %g, expected > 0", i,
                                 (unsigned)p->object, p->area);
         if (!rgb_nonneg_finite(p->emission))
             return rr_error_set(err, RR_ERR_INVALID,
-                                "radiosity: patch %zu (object %u) has a negative or non-finite emission (%g, %g, %g)",
+                                "patch %zu (object %u) has a negative or non-finite emission (%g, %g, %g)",
                                 i, (unsigned)p->object, p->emission.r, p->emission.g, p->emission.b);
         if (!rgb_nonneg_finite(p->rho))
             return rr_error_set(err, RR_ERR_INVALID,
-                                "radiosity: patch %zu (object %u) has a negative or non-finite reflectance (%g, %g, %g)",
+                                "patch %zu (object %u) has a negative or non-finite reflectance (%g, %g, %g)",
                                 i, (unsigned)p->object, p->rho.r, p->rho.g, p->rho.b);
         if (F->rowptr[i + 1] < F->rowptr[i])
-            return rr_error_set(err, RR_ERR_INVALID, "radiosity: form factor row %zu has a negative length", i);
+            return rr_error_set(err, RR_ERR_INVALID, "form factor row %zu has a negative length", i);
         for (size_t k = F->rowptr[i]; k < F->rowptr[i + 1]; k++) {
             if (F->col[k] >= P->n)
                 return rr_error_set(err, RR_ERR_INVALID,
-                                    "radiosity: form factor row %zu names patch %u, but there are %zu", i,
+                                    "form factor row %zu names patch %u, but there are %zu", i,
                                     (unsigned)F->col[k], P->n);
             if (!isfinite(F->val[k]) || F->val[k] < 0.0)
                 return rr_error_set(err, RR_ERR_INVALID,
-                                    "radiosity: form factor F[%zu][%u] = %g is not a finite non-negative number", i,
+                                    "form factor F[%zu][%u] = %g is not a finite non-negative number", i,
                                     (unsigned)F->col[k], F->val[k]);
         }
     }
@@ -115,7 +115,7 @@ static rr_status check_physics(const rad_patches *P, int allow_rho_ge_1, rr_erro
             double rho = rad_rgb_get(p->rho, c);
             if (rho >= 1.0)
                 return rr_error_set(err, RR_ERR_INVALID,
-                                    "radiosity: patch %zu (object %u) has reflectance >= 1 in channel %c (%.4g): the "
+                                    "patch %zu (object %u) has reflectance >= 1 in channel %c (%.4g): the "
                                     "radiosity system has no physical solution (a surface cannot reflect more than "
                                     "it receives)",
                                     i, (unsigned)p->object, rad_channel_name(c), rho);
@@ -125,8 +125,8 @@ static rr_status check_physics(const rad_patches *P, int allow_rho_ge_1, rr_erro
     }
     if (!emits)
         return rr_error_set(err, RR_ERR_INVALID,
-                            "radiosity: no patch emits light: give at least one material a non-zero \"emission\" "
-                            "(point and directional lights do not take part in the radiosity pass)");
+                            "no patch emits light and no point or directional light reaches a patch's front: "
+                            "give a material a non-zero \"emission\", or aim a light at the front faces");
     return RR_OK;
 }
 
@@ -191,7 +191,7 @@ static rr_status solve_iterative(const rad_patches *P, const rad_ff *F, double t
     int cap = 64;
     st->history = malloc((size_t)cap * sizeof *st->history);
     if (!st->history)
-        return rr_error_set(err, RR_ERR_NOMEM, "radiosity: out of memory for the residual history");
+        return rr_error_set(err, RR_ERR_NOMEM, "out of memory for the residual history");
     double r = INFINITY;
     for (int it = 1; it <= maxit; it++) {
         gs_sweep(P, F, X);
@@ -199,7 +199,7 @@ static rr_status solve_iterative(const rad_patches *P, const rad_ff *F, double t
         if (st->nhistory == cap) {
             double *h = realloc(st->history, 2 * (size_t)cap * sizeof *h);
             if (!h)
-                return rr_error_set(err, RR_ERR_NOMEM, "radiosity: out of memory for the residual history");
+                return rr_error_set(err, RR_ERR_NOMEM, "out of memory for the residual history");
             st->history = h;
             cap *= 2;
         }
@@ -208,14 +208,14 @@ static rr_status solve_iterative(const rad_patches *P, const rad_ff *F, double t
         st->residual = r;
         if (!isfinite(r) || r > 1e100)
             return rr_error_set(err, RR_ERR_INVALID,
-                                "radiosity: Gauss-Seidel diverged after %d sweeps (residual %g): some reflectance "
+                                "Gauss-Seidel diverged after %d sweeps (residual %g): some reflectance "
                                 "times its form-factor row sum reaches 1",
                                 it, r);
         if (r < tol)
             return RR_OK;
     }
     return rr_error_set(err, RR_ERR_LIMIT,
-                        "radiosity: Gauss-Seidel did not converge in %d sweeps (residual %.3g, tolerance %.3g): "
+                        "Gauss-Seidel did not converge in %d sweeps (residual %.3g, tolerance %.3g): "
                         "raise max_iterations or the tolerance",
                         maxit, r, tol);
 }
@@ -226,10 +226,10 @@ static rr_status chol_fail(const cholmod_common *c, const char *what, rr_error *
 {
     if (c->status == CHOLMOD_OUT_OF_MEMORY)
         return rr_error_set(err, RR_ERR_NOMEM,
-                            "radiosity: out of memory in the direct solver (%s): use the iterative solver", what);
+                            "out of memory in the direct solver (%s): use the iterative solver", what);
     if (c->status == CHOLMOD_TOO_LARGE)
-        return rr_error_set(err, RR_ERR_LIMIT, "radiosity: the system is too large for the direct solver (%s)", what);
-    return rr_error_set(err, RR_ERR_INTERNAL, "radiosity: CHOLMOD failed in %s (status %d)", what, c->status);
+        return rr_error_set(err, RR_ERR_LIMIT, "the system is too large for the direct solver (%s)", what);
+    return rr_error_set(err, RR_ERR_INTERNAL, "CHOLMOD failed in %s (status %d)", what, c->status);
 }
 
 static int same_unknowns(const rad_patches *P, int a, int b)
@@ -295,7 +295,7 @@ static rr_status direct_channels(direct *d, cholmod_sparse *A, cholmod_factor *L
         const SuiteSparse_long *perm = L->Perm;
         size_t bad = L->minor < d->m ? d->glob[perm ? (size_t)perm[L->minor] : L->minor] : 0;
         return rr_error_set(err, RR_ERR_INVALID,
-                            "radiosity: the system is not positive definite (channel %c, near patch %zu, object %u): "
+                            "the system is not positive definite (channel %c, near patch %zu, object %u): "
                             "a reflectance times its form-factor row sum reaches 1, or the form factors are far "
                             "from reciprocal",
                             rad_channel_name(ch), bad, (unsigned)P->p[bad].object);
@@ -394,7 +394,7 @@ static rr_status direct_unknown_set(direct *d, const int *chans, int nch, rr_rgb
     cholmod_factor *L = NULL;
     SuiteSparse_long *dpos = malloc(d->m * sizeof *dpos);
     if (!dpos) {
-        st = rr_error_set(err, RR_ERR_NOMEM, "radiosity: out of memory in the direct solver");
+        st = rr_error_set(err, RR_ERR_NOMEM, "out of memory in the direct solver");
         goto done;
     }
     const SuiteSparse_long *Ap = A->p, *Ai = A->i;
@@ -413,7 +413,7 @@ static rr_status direct_unknown_set(direct *d, const int *chans, int nch, rr_rgb
     double need = d->cc->lnz * (double)(sizeof(double) + sizeof(SuiteSparse_long));
     if (need > memory_budget()) {
         st = rr_error_set(err, RR_ERR_LIMIT,
-                          "radiosity: the direct solver would need %.1f GiB for %zu patches: use the iterative "
+                          "the direct solver would need %.1f GiB for %zu patches: use the iterative "
                           "solver",
                           need / (1024.0 * 1024.0 * 1024.0), d->m);
         goto done;
@@ -441,7 +441,7 @@ static rr_status solve_direct(const rad_patches *P, const rad_ff *F, rr_rgb *X, 
 {
     cholmod_common cc;
     if (!cholmod_l_start(&cc))
-        return rr_error_set(err, RR_ERR_INTERNAL, "radiosity: CHOLMOD failed to start");
+        return rr_error_set(err, RR_ERR_INTERNAL, "CHOLMOD failed to start");
     cc.print = 0;    /* errors come back as rr_error messages, not on stdout */
     cc.final_ll = 1; /* LL' everywhere, so a non-positive pivot is reported */
     direct d = {P, F, &cc, NULL, NULL, NULL, 0};
@@ -450,7 +450,7 @@ static rr_status solve_direct(const rad_patches *P, const rad_ff *F, rr_rgb *X, 
     d.glob = malloc(P->n * sizeof *d.glob);
     d.fii = calloc(P->n, sizeof *d.fii);
     if (!d.loc || !d.glob || !d.fii) {
-        st = rr_error_set(err, RR_ERR_NOMEM, "radiosity: out of memory in the direct solver");
+        st = rr_error_set(err, RR_ERR_NOMEM, "out of memory in the direct solver");
         goto done;
     }
     for (size_t i = 0; i < P->n; i++) {
@@ -487,7 +487,7 @@ rr_status rad_solve(const rad_patches *P, const rad_ff *F, const rad_solve_opts 
     if (!o)
         o = &defaults;
     if (!B)
-        return rr_error_set(err, RR_ERR_INVALID, "radiosity: no output array");
+        return rr_error_set(err, RR_ERR_INVALID, "no output array");
     rr_status st = rad_system_check(P, F, err);
     if (st != RR_OK)
         return st;
@@ -501,18 +501,18 @@ rr_status rad_solve(const rad_patches *P, const rad_ff *F, const rad_solve_opts 
     case RAD_SOLVER_AUTO: s.used = P->n <= direct_max ? RAD_SOLVER_DIRECT : RAD_SOLVER_ITERATIVE; break;
     case RAD_SOLVER_DIRECT:
     case RAD_SOLVER_ITERATIVE: s.used = o->solver; break;
-    default: return rr_error_set(err, RR_ERR_INVALID, "radiosity: unknown solver %d", (int)o->solver);
+    default: return rr_error_set(err, RR_ERR_INVALID, "unknown solver %d", (int)o->solver);
     }
 
     rr_rgb *X = malloc(P->n * sizeof *X);
     if (!X)
-        return rr_error_set(err, RR_ERR_NOMEM, "radiosity: out of memory for %zu radiosities", P->n);
+        return rr_error_set(err, RR_ERR_NOMEM, "out of memory for %zu radiosities", P->n);
     if (s.used == RAD_SOLVER_DIRECT) {
         st = solve_direct(P, F, X, err);
         if (st == RR_OK) {
             s.residual = residual(P, F, X);
             if (!isfinite(s.residual))
-                st = rr_error_set(err, RR_ERR_INVALID, "radiosity: the direct solve produced non-finite radiosities");
+                st = rr_error_set(err, RR_ERR_INVALID, "the direct solve produced non-finite radiosities");
         }
     } else {
         st = solve_iterative(P, F, tol, maxit, X, &s, err);

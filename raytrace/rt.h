@@ -76,6 +76,10 @@ typedef struct rt_hit {
  * 1 and fills *hit, or 0 when nothing is hit. */
 int rt_ref_closest(const scene *s, rr_ray ray, double tmin, double tmax, rt_hit *hit);
 
+/* Point p lies inside closed object obj (scene_object_closed; 0 for an open one): for
+ * diagnostics (a light inside a closed object that faces outwards). */
+int rt_object_encloses(const scene *s, uint32_t obj, rr_vec3 p);
+
 /* Ray-sphere hits in closed form, numerically stable (no cancellation for far
  * or grazing rays): the smallest t in (tmin, tmax), or 0 when none. */
 int rt_sphere_hit(rr_vec3 center, double radius, rr_ray ray, double tmin, double tmax, double *t);
@@ -179,6 +183,11 @@ size_t rt_lights_delta_count(const rt_lights *L);   /* point and directional lig
 size_t rt_lights_area_count(const rt_lights *L);    /* area lights and their images */
 size_t rt_lights_image_count(const rt_lights *L);   /* of all of them, the images */
 size_t rt_lights_mirror_planes(const rt_lights *L);
+/* The scene light (index into scene->lights) of delta light k or of its image. */
+uint32_t rt_lights_delta_source(const rt_lights *L, size_t k);
+/* The defined power of scene light l: point 4 pi I, directional E pi R^2 (R:
+ * the radius of the scene's bounding sphere; rt_lights_emit's disk). */
+rr_rgb rt_light_power(const scene *s, size_t l);
 /* 1 when the scene has any emitter (a light, an emissive triangle, sphere or
  * solid leaf): the one rule for "is there light to interreflect". */
 int rt_scene_emits(const scene *s);
@@ -231,6 +240,95 @@ int rt_lights_find_emitter(const rt_lights *L, rr_ray r, rt_hit *h);
 #define RT_NEAR_RADII 2.0
 #define RT_NEAR_MAX 64
 int rt_lights_near(const rt_lights *L, rr_vec3 x);
+
+/* ---- emission (rt_light.c): lights as sources of particles ----
+ *
+ * The same emitters seen the other way round, for light tracing: a particle
+ * leaves a real emitter (images play no part: particles reflect off mirrors
+ * themselves), the emitter picked with probability proportional to its power
+ * weight: point light 4 pi I, directional light E pi R^2 (R: the radius of
+ * the scene's bounding sphere; the light crosses the disk of that radius
+ * facing it, from outside the scene), emissive triangle pi Le A, emissive
+ * sphere pi Le 4 pi r^2, solid pi Le_max 4 pi R_b^2 (its bounding sphere).
+ * Surfaces emit Lambertian from their front. A solid's emissive surface is
+ * found without knowing its area: a random line through its bounding sphere
+ * (uniform in the measure of lines, which is cos * area * solid angle) meets
+ * it where it meets it, and each crossing out of the solid on an emissive
+ * leaf is an emission point and direction (one chosen of them, weighted by
+ * their count). So every power below is an unbiased estimate. */
+typedef struct rt_emission {
+    rr_ray ray;        /* origin (offset off the surface) and unit direction */
+    rr_rgb power;      /* power the particle carries (pick and sampling pdfs divided out) */
+    uint32_t object;   /* scene object that emitted it, or UINT32_MAX for a scene light */
+    uint32_t light;    /* scene light (point, directional), or UINT32_MAX */
+} rt_emission;
+
+/* Real emitters (scene lights, emissive triangles, spheres, solids). */
+size_t rt_lights_emitter_count(const rt_lights *L);
+/* One particle from uniforms u[0] (emitter choice) .. u[5]: 1 and *out, or 0
+ * when the sample emits nothing (a line that missed the solid's emissive
+ * surface: it counts 0, the estimate stays unbiased). */
+int rt_lights_emit(const rt_lights *L, const double u[6], rt_emission *out);
+/* Cosine-weighted unit direction about unit N from (u1, u2) (Malley's method
+ * on Duff et al.'s branchless basis). */
+rr_vec3 rt_cosine_dir(rr_vec3 N, double u1, double u2);
+
+/* ---- light tracing (rt_particle.c): an independent energy ledger ----
+ *
+ * Particles from rt_lights_emit, traced with closest hits through the BVH
+ * and scattered by the radiosity pass's model of each material: Lambertian
+ * diffuse (rho) plus perfect mirror (m), one-sided (light arriving at a back
+ * face ends there), Phong specular ignored (the lecture's display term, in
+ * neither ledger). Tallies use expected values at each hit (incident P,
+ * reflected rho P, mirrored m P, absorbed (1 - rho - m) P), and the particle
+ * goes on by Russian roulette (diffuse with probability mean(rho P)/mean(P),
+ * mirror with mean(m P)/mean(P), power rescaled so its mean stays P's).
+ * A particle's power ends in back (back faces), escaped (hit nothing) or
+ * lost (past RT_PARTICLE_BOUNCES), or is absorbed at front faces; absorbed
+ * is tallied by its expected value at every hit, so the ledger balances in
+ * expectation (to its standard errors), not per particle. Standard errors from independent
+ * batches. Deterministic for a seed whatever the thread count (one RNG stream
+ * per particle, one tally per batch, batches summed in order). */
+#define RT_PARTICLE_BOUNCES 100000
+
+/* Columns of a ledger row (power, linear RGB, scene units). */
+enum {
+    RT_LEDGER_EMITTED = 0, /* leaving the object's emissive surfaces (or the light) */
+    RT_LEDGER_INCIDENT,    /* arriving at its front faces */
+    RT_LEDGER_REFLECTED,   /* of that, reflected diffusely */
+    RT_LEDGER_MIRRORED,    /* reflected by its mirror reflectance */
+    RT_LEDGER_ABSORBED,    /* absorbed at its front faces */
+    RT_LEDGER_BACK,        /* arriving at its back faces (and ending there) */
+    RT_LEDGER_COLUMNS
+};
+typedef struct rt_ledger_row {
+    rr_rgb c[RT_LEDGER_COLUMNS];
+} rt_ledger_row;
+
+typedef struct rt_particle_opts {
+    uint64_t particles; /* in total (>= batches) */
+    int batches;        /* >= 2; standard errors from the spread between batches (0: 32) */
+    uint64_t seed;
+    int threads;        /* 0 = OpenMP default */
+    void (*progress)(void *user, uint64_t done, uint64_t total); /* one thread at a time */
+    void *progress_user;
+    const volatile sig_atomic_t *interrupt; /* non-zero: stop within a particle, RR_ERR_INTERRUPTED */
+} rt_particle_opts;
+
+typedef struct rt_particle_ledger {
+    size_t nobjects, nlights;          /* rows: scene objects, then scene lights */
+    rt_ledger_row *row, *se;           /* [nobjects + nlights]: mean and standard error of the mean */
+    rr_rgb escaped, escaped_se;        /* left the scene (hit nothing) */
+    rr_rgb lost, lost_se;              /* cut by RT_PARTICLE_BOUNCES */
+    rr_rgb unabsorbed, unabsorbed_se;  /* escaped + back faces + lost: what the radiosity ledger calls escaped */
+    uint64_t particles, segments;      /* particles emitted, rays traced */
+    int batches;
+    double seconds;     /* wall time of the tracing */
+} rt_particle_ledger;
+
+rr_status rt_particles_trace(const scene *s, const rt_accel *a, const rt_lights *L, const rt_particle_opts *o,
+                             rt_particle_ledger *out, rr_error *err);
+void rt_particle_ledger_free(rt_particle_ledger *g); /* NULL and double free are harmless */
 
 /* The mirror plane of a hit, or -1 (not a planar mirror). */
 int rt_lights_mirror_plane(const rt_lights *L, const rt_hit *h);

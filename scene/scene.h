@@ -213,5 +213,9 @@ void scene_destroy(scene *s);
 /* Geometric (face) normal of triangle i, unit length, from the winding. */
 rr_vec3 scene_tri_normal(const scene *s, size_t i);
 double scene_tri_area(const scene *s, size_t i);
+/* Object obj is a closed solid: a box, sphere or solid, or a mesh or
+ * triangle list that is watertight and consistently oriented (the rule by
+ * which "cull": "auto" culls). */
+int scene_object_closed(const scene *s, uint32_t obj);
 
 #endif

@@ -16,9 +16,9 @@
 
 #define K_COMMON "type", "name", "material", "transform", "cull"
 static const char *const k_mesh[] = {K_COMMON, "file", "flip", NULL};
-static const char *const k_triangles[] = {K_COMMON, "vertices", "indices", NULL};
-static const char *const k_quad[] = {K_COMMON, "vertices", NULL};
-static const char *const k_box[] = {K_COMMON, "min", "max", NULL};
+static const char *const k_triangles[] = {K_COMMON, "vertices", "indices", "flip", NULL};
+static const char *const k_quad[] = {K_COMMON, "vertices", "flip", NULL};
+static const char *const k_box[] = {K_COMMON, "min", "max", "flip", NULL};
 static const char *const k_sphere[] = {K_COMMON, "center", "radius", NULL};
 
 typedef struct obj_type {
@@ -524,15 +524,15 @@ static rr_status parse_object(const sp_ctx *c, const cJSON *obj, size_t oi, scen
     } else {
         obj_geom g;
         memset(&g, 0, sizeof g);
-        switch (ty->kind) {
-        case SCENE_OBJ_MESH:
-            st = sp_bool(c, obj, opath, "flip", SP_OPTIONAL, &flip);
-            if (st == RR_OK)
-                st = build_mesh(c, obj, opath, o->source, &g);
-            break;
-        case SCENE_OBJ_TRIANGLES: st = build_triangles(c, obj, opath, &g); break;
-        case SCENE_OBJ_QUAD: st = build_quad(c, obj, opath, &g); break;
-        default: st = build_box(c, obj, opath, &g); break;
+        /* "flip": true turns any triangle object inside out (a room built from a box, seen from inside). */
+        st = sp_bool(c, obj, opath, "flip", SP_OPTIONAL, &flip);
+        if (st == RR_OK) {
+            switch (ty->kind) {
+            case SCENE_OBJ_MESH: st = build_mesh(c, obj, opath, o->source, &g); break;
+            case SCENE_OBJ_TRIANGLES: st = build_triangles(c, obj, opath, &g); break;
+            case SCENE_OBJ_QUAD: st = build_quad(c, obj, opath, &g); break;
+            default: st = build_box(c, obj, opath, &g); break;
+            }
         }
         if (st == RR_OK)
             st = finish_triangles(c, s, b, oi, opath, &x, has_x, flip, &g);
@@ -544,14 +544,11 @@ static rr_status parse_object(const sp_ctx *c, const cJSON *obj, size_t oi, scen
     /* "auto": cull back faces of closed solids only, and not of mirrors; the
      * reasons are in notes/scene-format.md ("Back-face culling"). */
     if (cull < 0) {
-        int closed = ty->kind == SCENE_OBJ_BOX || ty->kind == SCENE_OBJ_SPHERE ||
-                     ((ty->kind == SCENE_OBJ_MESH || ty->kind == SCENE_OBJ_TRIANGLES) && o->report.watertight &&
-                      o->report.consistently_oriented);
+        int closed = scene_object_closed(s, (uint32_t)oi);
         int mirror = rr_rgb_max(s->materials[o->material].mirror) > 0.0;
         /* A solid is closed by construction; its leaves may bring their own
          * materials, and a mirror on any of them is a mirror path. */
         if (ty->kind == SCENE_OBJ_CSG) {
-            closed = 1;
             for (size_t i = first_node; i < s->ncsg; i++)
                 if (s->csg[i].op == SCENE_CSG_LEAF && rr_rgb_max(s->materials[s->csg[i].material].mirror) > 0.0)
                     mirror = 1;
@@ -560,6 +557,15 @@ static rr_status parse_object(const sp_ctx *c, const cJSON *obj, size_t oi, scen
     }
     o->cull_backfaces = cull;
     return RR_OK;
+}
+
+int scene_object_closed(const scene *s, uint32_t obj)
+{
+    const scene_object *o = &s->objects[obj];
+    if (o->kind == SCENE_OBJ_BOX || o->kind == SCENE_OBJ_SPHERE || o->kind == SCENE_OBJ_CSG)
+        return 1;
+    return (o->kind == SCENE_OBJ_MESH || o->kind == SCENE_OBJ_TRIANGLES) && o->report.watertight &&
+           o->report.consistently_oriented;
 }
 
 rr_status sp_parse_objects(const sp_ctx *c, const cJSON *root, scene *s)

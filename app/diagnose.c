@@ -1,0 +1,99 @@
+/* diagnose.c - warnings that name the cause of light that goes nowhere
+ * (notes/energy.md, "Diagnostics"): an emitter inside a closed object whose
+ * faces point outwards, and (from the light tracer's ledger) light that ends
+ * on back faces. Printed by render, info and energy. */
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "app.h"
+
+#define MAX_EMITTER_POINTS 256
+#define MAX_TESTS 50000000.0 /* triangle tests of the enclosure check */
+
+/* Six times the signed volume of a closed triangle object: > 0 when its faces
+ * point outwards. */
+static double signed_volume6(const scene *s, const scene_object *o)
+{
+    double v = 0.0;
+    for (size_t t = o->tri_first; t < o->tri_first + o->tri_count; t++) {
+        rr_vec3 A = s->verts[s->tris[t].v[0]], B = s->verts[s->tris[t].v[1]], C = s->verts[s->tris[t].v[2]];
+        v += rr_v3_dot(A, rr_v3_cross(B, C));
+    }
+    return v;
+}
+
+typedef struct emitter_point {
+    rr_vec3 p;
+    uint32_t object; /* UINT32_MAX for a scene light */
+    const char *name;
+} emitter_point;
+
+/* Points that stand for the emitters: light positions, emissive triangles'
+ * centroids, emissive spheres' centres (at most MAX_EMITTER_POINTS). */
+static size_t emitter_points(const scene *s, emitter_point *e)
+{
+    size_t n = 0;
+    for (size_t i = 0; i < s->nlights && n < MAX_EMITTER_POINTS; i++)
+        if (s->lights[i].type == SCENE_LIGHT_POINT)
+            e[n++] = (emitter_point){s->lights[i].position, UINT32_MAX, s->lights[i].name};
+    for (size_t i = 0; i < s->nemissive && n < MAX_EMITTER_POINTS; i++) {
+        const scene_tri *t = &s->tris[s->emissive_tris[i]];
+        rr_vec3 c = rr_v3_scale(rr_v3_add(rr_v3_add(s->verts[t->v[0]], s->verts[t->v[1]]), s->verts[t->v[2]]), 1.0 / 3);
+        e[n++] = (emitter_point){c, t->object, s->objects[t->object].name};
+    }
+    for (size_t o = 0; o < s->nobjects && n < MAX_EMITTER_POINTS; o++)
+        if (s->objects[o].kind == SCENE_OBJ_SPHERE && rr_rgb_max(s->materials[s->objects[o].material].emission) > 0)
+            e[n++] = (emitter_point){s->objects[o].center, (uint32_t)o, s->objects[o].name};
+    return n;
+}
+
+size_t app_diagnose_scene(const scene *s)
+{
+    emitter_point e[MAX_EMITTER_POINTS];
+    size_t ne = emitter_points(s, e), warned = 0;
+    rr_warn_sink w = app_warn_sink();
+    for (size_t o = 0; o < s->nobjects && ne > 0; o++) {
+        const scene_object *ob = &s->objects[o];
+        int triangles = ob->kind != SCENE_OBJ_SPHERE && ob->kind != SCENE_OBJ_CSG;
+        if (!triangles || !scene_object_closed(s, (uint32_t)o) || (double)ob->tri_count * (double)ne > MAX_TESTS ||
+            !(signed_volume6(s, ob) > 0.0))
+            continue; /* only closed triangle objects can face the wrong way (solids face out by definition) */
+        for (size_t k = 0; k < ne; k++) {
+            if (e[k].object == o || !rt_object_encloses(s, (uint32_t)o, e[k].p))
+                continue;
+            rr_warn(&w,
+                    "%s: '%s' is closed and its faces point outwards, but the emitter '%s' is inside it: seen from "
+                    "inside it shows only back faces, which %s (the radiosity pass finds no form factors to it). If "
+                    "it is a room, set \"flip\": true on '%s' so that its faces point inwards",
+                    s->path, ob->name, e[k].name,
+                    ob->cull_backfaces ? "are culled, so light passes out through its walls"
+                                       : "are one-sided, so light ends on them",
+                    ob->name);
+            warned++;
+            break;
+        }
+    }
+    return warned;
+}
+
+size_t app_diagnose_ledger(const scene *s, const rt_particle_ledger *g, double share)
+{
+    double emitted = 0.0;
+    for (size_t r = 0; r < g->nobjects + g->nlights; r++)
+        emitted += rr_rgb_mean(g->row[r].c[RT_LEDGER_EMITTED]);
+    size_t warned = 0;
+    rr_warn_sink w = app_warn_sink();
+    for (size_t o = 0; o < g->nobjects && emitted > 0.0; o++) {
+        double back = rr_rgb_mean(g->row[o].c[RT_LEDGER_BACK]) / emitted;
+        if (!(back > share))
+            continue;
+        rr_warn(&w,
+                "%s: %.1f %% of the emitted power arrives at the back faces of '%s' and ends there (surfaces are "
+                "one-sided in the radiosity pass): its front faces point away from the light. Set \"flip\": true "
+                "on it if it is seen from the other side, or reverse its winding",
+                s->path, 100.0 * back, s->objects[o].name);
+        warned++;
+    }
+    return warned;
+}

@@ -1,0 +1,435 @@
+/* test_energy.c - the light tracer's energy ledger against closed forms, the
+ * comparison with the radiosity ledger, and `radray energy --check` on the
+ * acceptance scenes and on each broken case it must catch.
+ *
+ * Closed forms (black walls unless stated; "cube": the inside of [-1,1]^3):
+ *  - point light at the centre of the cube: 1/6 of 4 pi I on each wall;
+ *  - the same with one wall a mirror of reflectance m: the mirror receives
+ *    1/6, the other five 5/6 + m/6 in total (a plane mirror cannot see itself);
+ *  - a closed furnace of reflectance rho (one wall emitting): everything is
+ *    absorbed, and the total incident power is emitted / (1 - rho) (each unit
+ *    arrives 1 + rho + rho^2 + ... times);
+ *  - an emissive sphere, and an emissive CSG sphere leaf (the line-measure
+ *    estimator), in a black cube: emitted pi Le 4 pi r^2;
+ *  - a directional light on a board facing it: E x the board's area.
+ * Tolerance: 4 standard errors of the ledger (batches), plus 1e-9 relative
+ * where the estimate is deterministic.
+ */
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <cmocka.h>
+
+#include <math.h>
+#include <signal.h>
+#include <stdio.h>
+#include <string.h>
+#include <sys/stat.h>
+
+#include "rad.h"
+#include "test_cli_run.h"
+#include "test_scenes.h"
+
+static const char *k_head = "{\"format\":\"radray-scene/1\",\"camera\":{\"type\":\"lecture\",\"E\":[0,0,-0.9],"
+                            "\"O\":[0,0,-0.4],\"U\":[0,1,0],\"s\":0.05,\"w\":4,\"h\":4},";
+
+typedef struct world {
+    scene *s;
+    rt_accel *a;
+    rt_lights *L;
+    rt_particle_ledger g;
+} world;
+
+/* Loads materials + objects (+ lights) and traces n particles. */
+static void trace(world *w, const char *body, uint64_t n, int threads)
+{
+    static char json[16384];
+    snprintf(json, sizeof json, "%s%s}", k_head, body);
+    memset(w, 0, sizeof *w);
+    rr_error err;
+    if (scene_load_string(json, "energy", "", NULL, &w->s, &err) != RR_OK)
+        fail_msg("%s", err.msg);
+    assert_int_equal(rt_accel_build(w->s, &w->a, NULL), RR_OK);
+    assert_int_equal(rt_lights_build(w->s, w->a, 0, &w->L, NULL), RR_OK);
+    rt_particle_opts o = {0};
+    o.particles = n;
+    o.seed = 7;
+    o.threads = threads;
+    if (rt_particles_trace(w->s, w->a, w->L, &o, &w->g, &err) != RR_OK)
+        fail_msg("%s", err.msg);
+}
+
+static void world_free(world *w)
+{
+    rt_particle_ledger_free(&w->g);
+    rt_lights_destroy(w->L);
+    rt_accel_destroy(w->a);
+    scene_destroy(w->s);
+}
+
+static double col(const world *w, size_t row, int c) { return rr_rgb_mean(w->g.row[row].c[c]); }
+static double se(const world *w, size_t row, int c) { return rr_rgb_mean(w->g.se[row].c[c]); }
+
+static void expect_near(double got, double want, double sd, const char *what)
+{
+    double tol = 4.0 * sd + 1e-9 * fabs(want);
+    if (!(fabs(got - want) <= tol))
+        fail_msg("%s: %.9g, expected %.9g +- %.3g", what, got, want, tol);
+}
+
+/* The six inward walls of test_inward_cube, all of material mat. */
+static size_t cube(char *buf, size_t cap, size_t len, const char *mat) { return test_inward_cube(buf, cap, len, mat); }
+
+/* Replaces the first `from` in buf (capacity cap) by `to`. */
+static void replace_first(char *buf, size_t cap, const char *from, const char *to)
+{
+    char *p = strstr(buf, from);
+    assert_non_null(p);
+    size_t lf = strlen(from), lt = strlen(to), rest = strlen(p + lf);
+    assert_true((size_t)(p - buf) + lt + rest + 1 <= cap);
+    memmove(p + lt, p + lf, rest + 1);
+    memcpy(p, to, lt);
+}
+
+static void point_light_in_black_cube(void **state)
+{
+    (void)state;
+    char body[8192];
+    size_t n = (size_t)snprintf(body, sizeof body, "\"materials\":{\"black\":{\"diffuse\":[0,0,0]}},"
+                                                   "\"lights\":[{\"type\":\"point\",\"position\":[0.01,0.02,0.03],"
+                                                   "\"intensity\":[2,2,2]}],\"objects\":[");
+    n = cube(body, sizeof body, n, "black");
+    snprintf(body + n, sizeof body - n, "]");
+    world w;
+    trace(&w, body, 200000, 0);
+    double power = 4.0 * RR_PI * 2.0;
+    assert_true(fabs(rr_rgb_mean(rt_light_power(w.s, 0)) - power) < 1e-12);
+    expect_near(col(&w, w.s->nobjects, RT_LEDGER_EMITTED), power, 0.0, "emitted");
+    double sum = 0.0;
+    for (size_t o = 0; o < 6; o++) {
+        /* Off-centre by at most 0.03: each wall's share moves by < 2 %; the
+         * six still sum to everything. */
+        double share = col(&w, o, RT_LEDGER_INCIDENT) / power;
+        assert_true(share > 1.0 / 6.0 * 0.96 && share < 1.0 / 6.0 * 1.04);
+        expect_near(col(&w, o, RT_LEDGER_ABSORBED), col(&w, o, RT_LEDGER_INCIDENT), 0.0, "absorbed = incident");
+        sum += col(&w, o, RT_LEDGER_INCIDENT);
+    }
+    expect_near(sum, power, 1e-9 * power, "all arrives");
+    assert_true(rr_rgb_max(w.g.escaped) == 0.0);
+    world_free(&w);
+}
+
+static void point_light_and_mirror(void **state)
+{
+    (void)state;
+    char body[8192];
+    size_t n = (size_t)snprintf(body, sizeof body,
+                                "\"materials\":{\"black\":{\"diffuse\":[0,0,0]},\"m\":{\"mirror\":[0.8,0.8,0.8]}},"
+                                "\"lights\":[{\"type\":\"point\",\"position\":[0,0,0],\"intensity\":[1,1,1]}],"
+                                "\"objects\":[");
+    n = cube(body, sizeof body, n, "black");
+    replace_first(body, sizeof body, "\"material\":\"black\"", "\"material\":\"m\""); /* wall 0: the mirror */
+    n = strlen(body);
+    snprintf(body + n, sizeof body - n, "]");
+    world w;
+    trace(&w, body, 400000, 0);
+    double power = 4.0 * RR_PI;
+    size_t mirror = 0;
+    assert_true(rr_rgb_max(w.s->materials[w.s->objects[0].material].mirror) > 0.0);
+    expect_near(col(&w, mirror, RT_LEDGER_INCIDENT), power / 6.0, se(&w, mirror, RT_LEDGER_INCIDENT), "mirror");
+    expect_near(col(&w, mirror, RT_LEDGER_MIRRORED), 0.8 * power / 6.0, se(&w, mirror, RT_LEDGER_MIRRORED),
+                "mirrored");
+    double rest = 0.0, rest_se = 0.0;
+    for (size_t o = 1; o < 6; o++) {
+        rest += col(&w, o, RT_LEDGER_INCIDENT);
+        rest_se += se(&w, o, RT_LEDGER_INCIDENT);
+    }
+    expect_near(rest, power * (5.0 + 0.8) / 6.0, rest_se, "the other walls");
+    world_free(&w);
+}
+
+static void furnace_total_incident(void **state)
+{
+    (void)state;
+    const double rhos[2] = {0.5, 0.9};
+    for (int k = 0; k < 2; k++) {
+        char body[8192];
+        size_t n = (size_t)snprintf(body, sizeof body,
+                                    "\"materials\":{\"w\":{\"diffuse\":[%g,%g,%g]},\"e\":{\"diffuse\":[%g,%g,%g],"
+                                    "\"emission\":[1,1,1]}},\"objects\":[",
+                                    rhos[k], rhos[k], rhos[k], rhos[k], rhos[k], rhos[k]);
+        n = cube(body, sizeof body, n, "w");
+        replace_first(body, sizeof body, "\"material\":\"w\"", "\"material\":\"e\""); /* wall 0 emits */
+        snprintf(body + n, sizeof body - n, "]");
+        world w;
+        trace(&w, body, 100000, 0);
+        double emitted = RR_PI * 4.0, inc = 0.0, inc_se = 0.0, abs_sum = 0.0, abs_se = 0.0;
+        expect_near(col(&w, 0, RT_LEDGER_EMITTED), emitted, 0.0, "emitted");
+        for (size_t o = 0; o < 6; o++) {
+            inc += col(&w, o, RT_LEDGER_INCIDENT);
+            inc_se += se(&w, o, RT_LEDGER_INCIDENT);
+            abs_sum += col(&w, o, RT_LEDGER_ABSORBED);
+            abs_se += se(&w, o, RT_LEDGER_ABSORBED);
+        }
+        /* Absorption is tallied by expected values: it balances to its SE. */
+        expect_near(abs_sum, emitted, abs_se, "all absorbed");
+        assert_true(rr_rgb_max(w.g.unabsorbed) == 0.0);
+        expect_near(inc, emitted / (1.0 - rhos[k]), inc_se, "incident = emitted / (1 - rho)");
+        world_free(&w);
+    }
+}
+
+static void curved_emitters(void **state)
+{
+    (void)state;
+    const char *objs[2] = {"{\"type\":\"sphere\",\"name\":\"lamp\",\"material\":\"e\",\"center\":[0.1,0,0],"
+                           "\"radius\":0.3}",
+                           "{\"type\":\"csg\",\"name\":\"lamp\",\"op\":\"union\",\"material\":\"black\","
+                           "\"children\":[{\"type\":\"sphere\",\"center\":[0.1,0,0],\"radius\":0.3,\"material\":"
+                           "\"e\"},{\"type\":\"sphere\",\"center\":[0.1,0,0],\"radius\":0.1}]}"};
+    for (int k = 0; k < 2; k++) {
+        char body[8192];
+        size_t n = (size_t)snprintf(body, sizeof body,
+                                    "\"materials\":{\"black\":{\"diffuse\":[0,0,0]},\"e\":{\"diffuse\":[0,0,0],"
+                                    "\"emission\":[3,3,3]}},\"objects\":[%s,",
+                                    objs[k]);
+        n = cube(body, sizeof body, n, "black");
+        snprintf(body + n, sizeof body - n, "]");
+        world w;
+        trace(&w, body, 200000, 0);
+        double want = RR_PI * 3.0 * 4.0 * RR_PI * 0.09;
+        expect_near(col(&w, 0, RT_LEDGER_EMITTED), want, se(&w, 0, RT_LEDGER_EMITTED), "emitted");
+        double inc = 0.0;
+        for (size_t o = 1; o < 7; o++)
+            inc += col(&w, o, RT_LEDGER_INCIDENT);
+        expect_near(inc, col(&w, 0, RT_LEDGER_EMITTED), 1e-9 * want, "all arrives at the walls");
+        world_free(&w);
+    }
+}
+
+static void directional_on_board(void **state)
+{
+    (void)state;
+    world w;
+    trace(&w,
+          "\"materials\":{\"a\":{\"diffuse\":[0.5,0.5,0.5]}},\"lights\":[{\"type\":\"directional\","
+          "\"direction\":[0,0,1],\"intensity\":[2,2,2]}],\"objects\":[{\"type\":\"quad\",\"name\":\"board\","
+          "\"material\":\"a\",\"vertices\":[[-1,-1,0],[1,-1,0],[1,1,0],[-1,1,0]]}]",
+          200000, 0);
+    /* The quad faces +z, towards the light: E times its area. */
+    expect_near(col(&w, 0, RT_LEDGER_INCIDENT), 2.0 * 4.0, se(&w, 0, RT_LEDGER_INCIDENT), "board");
+    expect_near(col(&w, 0, RT_LEDGER_REFLECTED), 4.0, se(&w, 0, RT_LEDGER_REFLECTED), "reflected");
+    world_free(&w);
+}
+
+/* The same ledger, bit for bit, with 1 and 2 threads. */
+static void thread_count_independent(void **state)
+{
+    (void)state;
+    char body[8192];
+    size_t n = (size_t)snprintf(body, sizeof body,
+                                "\"materials\":{\"w\":{\"diffuse\":[0.7,0.6,0.5]},\"e\":{\"diffuse\":[0.5,0.5,0.5],"
+                                "\"emission\":[1,2,3]}},\"objects\":[");
+    n = cube(body, sizeof body, n, "w");
+    replace_first(body, sizeof body, "\"material\":\"w\"", "\"material\":\"e\"");
+    snprintf(body + n, sizeof body - n, "]");
+    world a, b;
+    trace(&a, body, 20000, 1);
+    trace(&b, body, 20000, 2);
+    assert_memory_equal(a.g.row, b.g.row, (a.g.nobjects + a.g.nlights) * sizeof *a.g.row);
+    assert_memory_equal(a.g.se, b.g.se, (a.g.nobjects + a.g.nlights) * sizeof *a.g.se);
+    world_free(&a);
+    world_free(&b);
+}
+
+/* rad_energy_compare on made-up ledgers: a row within 4 SE + allowance
+ * passes, one beyond fails, one below the share is not checked, and power
+ * created (radiosity escaped below 0, particles 0) fails. */
+static void compare_rules(void **state)
+{
+    (void)state;
+    rad_energy_row rows[3];
+    memset(rows, 0, sizeof rows);
+    snprintf(rows[0].name, sizeof rows[0].name, "a");
+    snprintf(rows[1].name, sizeof rows[1].name, "b");
+    snprintf(rows[2].name, sizeof rows[2].name, "total");
+    rows[0].object = 0;
+    rows[1].object = 1;
+    rows[0].light = rows[1].light = rows[2].object = rows[2].light = -1;
+    rows[0].emitted = rows[2].emitted = rr_rgb_make(100, 100, 100);
+    rows[0].incident = rows[0].absorbed = rr_rgb_make(10.0, 10.0, 10.0);
+    rows[1].incident = rows[1].absorbed = rr_rgb_make(50.0, 50.0, 50.0);
+    rows[2].escaped = rr_rgb_make(-0.5, -0.5, -0.5);
+    rt_ledger_row prow[2], pse[2];
+    memset(prow, 0, sizeof prow);
+    memset(pse, 0, sizeof pse);
+    prow[0].c[RT_LEDGER_EMITTED] = rr_rgb_make(100, 100, 100);
+    prow[0].c[RT_LEDGER_INCIDENT] = prow[0].c[RT_LEDGER_ABSORBED] = rr_rgb_make(10.5, 10.5, 10.5); /* 4 SE + 1 % */
+    pse[0].c[RT_LEDGER_INCIDENT] = pse[0].c[RT_LEDGER_ABSORBED] = rr_rgb_make(0.1, 0.1, 0.1);
+    prow[1].c[RT_LEDGER_INCIDENT] = prow[1].c[RT_LEDGER_ABSORBED] = rr_rgb_make(52.0, 52.0, 52.0);
+    pse[1].c[RT_LEDGER_INCIDENT] = pse[1].c[RT_LEDGER_ABSORBED] = rr_rgb_make(0.1, 0.1, 0.1);
+    rt_particle_ledger g = {0};
+    g.nobjects = 2;
+    g.row = prow;
+    g.se = pse;
+    rad_energy_cmp *c = NULL;
+    size_t n = 0, bad = 0;
+    assert_int_equal(rad_energy_compare(rows, 3, &g, NULL, &c, &n, &bad, NULL), RR_OK);
+    int seen_escaped = 0;
+    for (size_t i = 0; i < n; i++) {
+        if (c[i].object == 0 && c[i].column == RT_LEDGER_INCIDENT)
+            assert_true(c[i].checked && c[i].pass);
+        if (c[i].object == 1 && c[i].column == RT_LEDGER_INCIDENT)
+            assert_true(c[i].checked && !c[i].pass);
+        if (c[i].object == 1 && c[i].column == RT_LEDGER_EMITTED)
+            assert_false(c[i].checked); /* 0 in both */
+        if (c[i].column == -1) {
+            seen_escaped = 1;
+            assert_true(c[i].checked && !c[i].pass);
+        }
+    }
+    assert_true(seen_escaped);
+    assert_int_equal(bad, 3); /* b incident, b absorbed, escaped */
+    free(c);
+}
+
+/* ---- the command line ---- */
+
+static char g_out[65536];
+static char g_dir[64];
+
+static int run(const char *const *args)
+{
+    char log[128];
+    snprintf(log, sizeof log, "%s/log.txt", g_dir);
+    return test_cli_run(log, args, g_out, sizeof g_out);
+}
+
+static const char *data(const char *name)
+{
+    static char path[8][512];
+    static int k;
+    k = (k + 1) % 8;
+    snprintf(path[k], sizeof path[k], "%s/scenes/energy/%s", RR_TEST_DATA, name);
+    return path[k];
+}
+
+/* The acceptance scenes: the ledgers agree, --check exits 0. */
+static void check_passes(void **state)
+{
+    (void)state;
+    char cornell[512];
+    snprintf(cornell, sizeof cornell, "%s/scenes/cornell.json", RR_SOURCE_DIR);
+    const char *scenes[] = {cornell, data("furnace-05.json"), data("furnace-09.json"), data("cube-ceiling-lit.json"),
+                            data("box-flipped.json")};
+    for (size_t i = 0; i < sizeof scenes / sizeof *scenes; i++) {
+        const char *a[] = {"energy", scenes[i], "--check", "--particles", "400000", NULL};
+        int rc = run(a);
+        if (rc != 0 || !strstr(g_out, "all agree") || strstr(g_out, "warning"))
+            fail_msg("%s: exit %d\n%s", scenes[i], rc, g_out);
+    }
+    const char *j[] = {"energy", data("furnace-09.json"), "--json", "--particles", "100000", NULL};
+    assert_int_equal(run(j), 0);
+    assert_non_null(strstr(g_out, "\"light_tracing\""));
+    assert_non_null(strstr(g_out, "\"agree\": true"));
+    assert_non_null(strstr(g_out, "\"power_created\": false"));
+    assert_non_null(strstr(g_out, "\"back_se\""));
+}
+
+/* Each broken case is named: the room built inside out (a box, an OBJ cube)
+ * warns with the fix; walls wound the wrong way warn per wall; a mirror
+ * that the pass treats as black (quadrature) fails the check. */
+static void broken_cases_named(void **state)
+{
+    (void)state;
+    const char *inside[] = {"box-inside-out.json", "obj-room-outward.json"};
+    for (int i = 0; i < 2; i++) {
+        const char *a[] = {"energy", data(inside[i]), "--check", "--particles", "20000", NULL};
+        run(a);
+        if (!strstr(g_out, "'room' is closed and its faces point outwards") || !strstr(g_out, "\"flip\": true") ||
+            !strstr(g_out, "'lamp' is inside it"))
+            fail_msg("%s:\n%s", inside[i], g_out);
+        const char *r[] = {"info", data(inside[i]), NULL};
+        assert_int_equal(run(r), 0);
+        assert_non_null(strstr(g_out, "faces point outwards"));
+    }
+    const char *w[] = {"energy", data("walls-wrong-way.json"), "--particles", "50000", NULL};
+    assert_int_equal(run(w), 0);
+    if (!strstr(g_out, "back faces of 'floor'") || !strstr(g_out, "back faces of 'left'") ||
+        strstr(g_out, "back faces of 'right'"))
+        fail_msg("%s", g_out);
+    char mirror[512];
+    snprintf(mirror, sizeof mirror, "%s/scenes/mirror-room.json", RR_SOURCE_DIR);
+    const char *q[] = {"energy", mirror, "--check", "--ff", "quadrature", "--patch-area", "1", "--particles", "100000", NULL};
+    assert_int_equal(run(q), 1);
+    if (!strstr(g_out, "DISAGREE") || !strstr(g_out, "  floor ") || !strstr(g_out, "  ceiling "))
+        fail_msg("%s", g_out);
+}
+
+static void bad_options(void **state)
+{
+    (void)state;
+    const char *a[] = {"energy", data("furnace-05.json"), "--particles", "-3", NULL};
+    assert_int_equal(run(a), 2);
+    assert_non_null(strstr(g_out, "--particles"));
+    const char *b[] = {"energy", data("furnace-05.json"), "--allowance", "x", NULL};
+    assert_int_equal(run(b), 2);
+    const char *c[] = {"energy", data("furnace-05.json"), "--particles", "10", "--batches", "32", NULL};
+    assert_int_equal(run(c), 2);
+    const char *h[] = {"energy", "--help", NULL};
+    assert_int_equal(run(h), 0);
+    assert_non_null(strstr(g_out, "--check"));
+}
+
+/* Ctrl-C during light tracing: exit 130, promptly. Waits for the line the
+ * tracer prints when it starts, not for a time. */
+static void interrupt_stops(void **state)
+{
+    (void)state;
+    char log[128];
+    snprintf(log, sizeof log, "%s/int.txt", g_dir);
+    const char *a[] = {"energy", data("furnace-09.json"), "--particles", "4000000000", NULL};
+    pid_t pid = test_cli_start(log, a);
+    for (int i = 0; i < 6000; i++) {
+        char *text = NULL;
+        if (rr_file_read_all(log, &text, NULL, NULL) == RR_OK && strstr(text, "light tracing 4000000000")) {
+            free(text);
+            break;
+        }
+        free(text);
+        usleep(10000);
+    }
+    kill(pid, SIGINT);
+    int rc = test_cli_finish(pid, log, g_out, sizeof g_out);
+    assert_int_equal(rc, 130);
+    assert_non_null(strstr(g_out, "interrupted"));
+}
+
+static int setup(void **state)
+{
+    (void)state;
+    snprintf(g_dir, sizeof g_dir, "/tmp/radray-energy-XXXXXX");
+    return mkdtemp(g_dir) ? 0 : -1;
+}
+
+static int teardown(void **state)
+{
+    (void)state;
+    char cmd[128];
+    snprintf(cmd, sizeof cmd, "rm -rf %s", g_dir);
+    return system(cmd) == 0 ? 0 : -1;
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(point_light_in_black_cube), cmocka_unit_test(point_light_and_mirror),
+        cmocka_unit_test(furnace_total_incident),    cmocka_unit_test(curved_emitters),
+        cmocka_unit_test(directional_on_board),      cmocka_unit_test(thread_count_independent),
+        cmocka_unit_test(compare_rules),             cmocka_unit_test(check_passes),
+        cmocka_unit_test(broken_cases_named),        cmocka_unit_test(bad_options),
+        cmocka_unit_test(interrupt_stops),
+    };
+    return cmocka_run_group_tests(tests, setup, teardown);
+}
