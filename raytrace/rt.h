@@ -277,8 +277,8 @@ rr_vec3 rt_cosine_dir(rr_vec3 N, double u1, double u2);
  *
  * Particles from rt_lights_emit, traced with closest hits through the BVH
  * and scattered by the radiosity pass's model of each material: Lambertian
- * diffuse (rho) plus perfect mirror (m), one-sided (light arriving at a back
- * face ends there), Phong specular ignored (the lecture's display term, in
+ * diffuse (rho), one-sided (light arriving at a back face ends there, but
+ * for its mirror part), plus perfect mirror (m), two-sided; Phong specular ignored (the lecture's display term, in
  * neither ledger). Tallies use expected values at each hit (incident P,
  * reflected rho P, mirrored m P, absorbed (1 - rho - m) P), and the particle
  * goes on by Russian roulette (diffuse with probability mean(rho P)/mean(P),
@@ -296,9 +296,9 @@ enum {
     RT_LEDGER_EMITTED = 0, /* leaving the object's emissive surfaces (or the light) */
     RT_LEDGER_INCIDENT,    /* arriving at its front faces */
     RT_LEDGER_REFLECTED,   /* of that, reflected diffusely */
-    RT_LEDGER_MIRRORED,    /* reflected by its mirror reflectance */
+    RT_LEDGER_MIRRORED,    /* reflected by its mirror reflectance (either side) */
     RT_LEDGER_ABSORBED,    /* absorbed at its front faces */
-    RT_LEDGER_BACK,        /* arriving at its back faces (and ending there) */
+    RT_LEDGER_BACK,        /* arriving at its back faces and ending there (all but the mirror part) */
     RT_LEDGER_COLUMNS
 };
 typedef struct rt_ledger_row {

@@ -61,18 +61,24 @@ static uint64_t trace_one(const scene *s, const rt_accel *a, const rt_lights *L,
             *unabsorbed = rr_rgb_add(*unabsorbed, P);
             return seg;
         }
-        if (!h.front) {
-            add(v, h.object, RT_LEDGER_BACK, P);
-            *unabsorbed = rr_rgb_add(*unabsorbed, P);
-            return seg;
-        }
         const scene_material *m = &s->materials[h.material];
         rr_rgb rho = m->diffuse, mir = m->mirror;
-        rr_rgb keep = rr_rgb_make(1.0 - rho.r - mir.r, 1.0 - rho.g - mir.g, 1.0 - rho.b - mir.b);
-        add(v, h.object, RT_LEDGER_INCIDENT, P);
-        add(v, h.object, RT_LEDGER_REFLECTED, rr_rgb_mul(rho, P));
-        add(v, h.object, RT_LEDGER_MIRRORED, rr_rgb_mul(mir, P));
-        add(v, h.object, RT_LEDGER_ABSORBED, rr_rgb_mul(keep, P));
+        if (!h.front) {
+            /* One-sided diffuse surfaces, two-sided mirrors (as in the
+             * radiosity pass's extended form factors and the ray tracer):
+             * the mirror part goes on, the rest ends here. */
+            rr_rgb ends = rr_rgb_mul(rr_rgb_make(1.0 - mir.r, 1.0 - mir.g, 1.0 - mir.b), P);
+            add(v, h.object, RT_LEDGER_BACK, ends);
+            add(v, h.object, RT_LEDGER_MIRRORED, rr_rgb_mul(mir, P));
+            *unabsorbed = rr_rgb_add(*unabsorbed, ends);
+            rho = rr_rgb_make(0, 0, 0);
+        } else {
+            add(v, h.object, RT_LEDGER_INCIDENT, P);
+            add(v, h.object, RT_LEDGER_REFLECTED, rr_rgb_mul(rho, P));
+            add(v, h.object, RT_LEDGER_MIRRORED, rr_rgb_mul(mir, P));
+            add(v, h.object, RT_LEDGER_ABSORBED,
+                rr_rgb_mul(rr_rgb_make(1.0 - rho.r - mir.r, 1.0 - rho.g - mir.g, 1.0 - rho.b - mir.b), P));
+        }
         if (seg >= RT_PARTICLE_BOUNCES) {
             *lost = rr_rgb_add(*lost, rr_rgb_mul(rr_rgb_add(rho, mir), P));
             *unabsorbed = rr_rgb_add(*unabsorbed, rr_rgb_mul(rr_rgb_add(rho, mir), P));
@@ -91,7 +97,7 @@ static uint64_t trace_one(const scene *s, const rt_accel *a, const rt_lights *L,
             rr_vec3 in = rr_v3_norm(ray.d);
             d = rr_v3_madd(in, N, -2.0 * rr_v3_dot(in, N)); /* R = d - 2(d.N)N */
         } else {
-            return seg; /* absorbed: already tallied */
+            return seg; /* absorbed (or ended on a back face): already tallied */
         }
         ray.o = rt_offset_origin(scale, h.point, N, d);
         ray.d = d;
