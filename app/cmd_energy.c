@@ -232,7 +232,10 @@ typedef struct energy_result {
 
 static const char *column_name(int c)
 {
-    return c == RT_LEDGER_EMITTED ? "emitted" : c == RT_LEDGER_INCIDENT ? "incident" : c == RT_LEDGER_ABSORBED ? "absorbed" : "escaped";
+    return c == RT_LEDGER_EMITTED    ? "emitted"
+           : c == RT_LEDGER_INCIDENT ? "incident"
+           : c == RT_LEDGER_ABSORBED ? "absorbed"
+                                     : "escaped";
 }
 
 static void print_text(const energy_result *R)
@@ -296,11 +299,32 @@ static void print_text(const energy_result *R)
         const rad_energy_cmp *c = &R->cmp[i];
         if (c->checked && !c->pass)
             printf("  %-18s %-8s radiosity %.5g, light tracing %.5g +- %.2g: %+.2f %%, %.1f SE\n", c->name,
-                   column_name(c->column), c->rad, c->part, c->se, 100.0 * (c->rad - c->part) / fmax(fabs(c->part), 1e-300),
-                   c->z);
+                   column_name(c->column), c->rad, c->part, c->se,
+                   100.0 * (c->rad - c->part) / fmax(fabs(c->part), 1e-300), c->z);
     }
     if (R->created)
         printf("  power created: the radiosity ledger's escaped power is below 0\n");
+}
+
+/* The mirrors' share and power created, on stderr (both outputs). */
+static void report_shares(const energy_result *R)
+{
+    const rad_energy_row *t = &R->rows[R->nrows - 1];
+    double e = rr_rgb_mean(t->emitted);
+    rr_warn_sink w = app_warn_sink();
+    if (R->created)
+        rr_warn(&w,
+                "%s: the radiosity ledger creates power: escaped %.4g of %.4g emitted is below 0 (form-factor rows "
+                "summing above 1: quadrature form factors, or too few Monte Carlo rays)",
+                R->s->path, rr_rgb_mean(t->escaped), e);
+    double mr = rr_rgb_mean(t->mirrored), mp = 0.0;
+    for (size_t r = 0; R->g.row && r < R->g.nobjects + R->g.nlights; r++)
+        mp += rr_rgb_mean(R->g.row[r].c[RT_LEDGER_MIRRORED]);
+    if (e > 0.0 && (mr > 0.0 || mp > 0.0))
+        fprintf(stderr, "radray: mirrors reflect %.1f %% of the emitted power on (radiosity ledger)%s", 100.0 * mr / e,
+                R->g.row ? "" : "\n");
+    if (e > 0.0 && (mr > 0.0 || mp > 0.0) && R->g.row)
+        fprintf(stderr, ", %.1f %% (light tracing)\n", 100.0 * mp / e);
 }
 
 static void json_ledger_rows(const energy_result *R)
@@ -496,6 +520,7 @@ int app_cmd_energy(int argc, char **argv)
     handler = sigaction(SIGINT, &sa, &old_int) == 0;
     if ((rc = run(&A, s, a, &R)) != 0)
         goto done;
+    report_shares(&R);
     int agree = R.balance <= R.balance_tol && !R.created && R.failures == 0;
     if (A.json)
         print_json(&R, agree);

@@ -6,8 +6,9 @@
  * add A_i H0_i to what arrives; their rows emit their power and escape what
  * lands on no patch front (the patches' own emission is then E_i, and B_i =
  * E_i + rho_i (H_i + H0_i); the derivation below holds with H_i + H0_i for H_i
- * and the lights' power for the first shot's share of the emission). What leaves patch i and lands on no patch, B_i A_i (1 -
- * sum_j F_ij), escapes through the openings of the scene.
+ * and the lights' power for the first shot's share of the emission). What
+ * leaves patch i and lands on no patch, B_i A_i (1 - sum_j F_ij), escapes
+ * through the openings of the scene (or ends on a back face).
  *
  * Why the total balances. Sum the radiosity equation B_i = E_i + rho_i H_i
  * times A_i over all patches:
@@ -178,7 +179,8 @@ rr_status rad_energy(const scene *s, const rad_patches *P, const rad_ff *F, cons
 rr_status rad_energy_solution(const struct rad_solution *sol, rad_energy_row **rows, size_t *nrows, rr_error *err)
 {
     if (!sol || !sol->F)
-        return rr_error_set(err, RR_ERR_INVALID, "energy ledger: the solution has no form factors (read from a cache?)");
+        return rr_error_set(err, RR_ERR_INVALID,
+                            "energy ledger: the solution has no form factors (read from a cache?)");
     const scene *s = sol->scene;
     size_t nl = s && sol->light_landed ? s->nlights : 0;
     rr_rgb *power = calloc(nl ? nl : 1, sizeof *power);

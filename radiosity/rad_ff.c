@@ -542,9 +542,10 @@ done:
  * on j stays there; the rest goes on. So each ray puts at most 1 in all, and
  * a raw row's EFFECTIVE sum r_i = sum_j F_ij (1 - m_j) is <= 1 exactly; the
  * energy ledger's "escaped" column, B_i A_i (1 - r_i), rests on it. The
- * averaging breaks that bound by the noise of the entries. balance_rows restores it: G_ij = A_i F_ij is symmetric, and G_ij :=
- * s_i s_j G_ij keeps it so for any s > 0; s is chosen so that every row's
- * effective sum is r_i again.
+ * averaging breaks that bound by the noise of the entries. balance_rows
+ * restores it: G_ij = A_i F_ij is symmetric, and G_ij := s_i s_j G_ij keeps
+ * it so for any s > 0; s is chosen so that every row's effective sum is r_i
+ * again.
  *
  * With u_j = (1 - m_j) s_j the equations s_i sum_j G_ij (1 - m_j) s_j / A_i =
  * r_i are u_i (G u)_i = b_i, symmetric matrix balancing: the stationary

@@ -282,6 +282,7 @@ static void energy_ledger(void **state)
     const char *d[] = {"energy", scene_file("dark.json", "4", k_quad), NULL};
     assert_int_equal(run(d), 2);
     assert_non_null(strstr(g_out, "emits"));
+    assert_null(strstr(g_out, "radiosity: radiosity")); /* the pass's prefix, once */
     const char *e[] = {"render", sc, "--mode", "radiosty", NULL};
     assert_int_equal(run(e), 2);
     assert_non_null(strstr(g_out, "--mode"));

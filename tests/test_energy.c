@@ -223,6 +223,48 @@ static void directional_on_board(void **state)
     world_free(&w);
 }
 
+/* The radiosity ledger shows a point light as itself: its power emitted,
+ * what reaches no patch front escaped; the walls' incident power sums to it
+ * (the first shot, 4 points per patch: within 1 % at these patches). */
+static void radiosity_ledger_lights(void **state)
+{
+    (void)state;
+    char body[8192];
+    size_t n = (size_t)snprintf(body, sizeof body, "\"materials\":{\"w\":{\"diffuse\":[0.5,0.5,0.5]}},"
+                                                   "\"lights\":[{\"type\":\"point\",\"name\":\"bulb\",\"position\":"
+                                                   "[0,0.5,0],\"intensity\":[1,1,1]}],\"objects\":[");
+    n = cube(body, sizeof body, n, "w");
+    snprintf(body + n, sizeof body - n, "]");
+    world w;
+    trace(&w, body, 1000, 0);
+    rad_pass_opts po;
+    memset(&po, 0, sizeof po);
+    rad_solution *sol = NULL;
+    rr_error err;
+    if (rad_pass_run(w.s, w.a, &po, &sol, &err) != RR_OK)
+        fail_msg("%s", err.msg);
+    rad_energy_row *rows = NULL;
+    size_t nr = 0;
+    assert_int_equal(rad_energy_solution(sol, &rows, &nr, &err), RR_OK);
+    assert_int_equal(nr, 6 + 1 + 1);
+    const rad_energy_row *L = &rows[6], *t = &rows[7];
+    assert_string_equal(L->name, "bulb");
+    assert_true(L->light == 0 && L->object == -1);
+    double power = 4.0 * RR_PI;
+    assert_true(fabs(rr_rgb_mean(L->emitted) - power) < 1e-12);
+    assert_true(fabs(rr_rgb_mean(t->emitted) - power) < 1e-12); /* the walls emit nothing themselves */
+    double direct = 0.0;
+    for (size_t i = 0; i < sol->P->n; i++)
+        direct += sol->P->p[i].area * rr_rgb_mean(sol->first_shot[i]);
+    assert_true(fabs(direct - power) < 0.01 * power);
+    assert_true(fabs(rr_rgb_mean(L->escaped)) < 0.01 * power);
+    /* Closed: everything is absorbed, to the solver. */
+    assert_true(fabs(rr_rgb_mean(t->absorbed) + rr_rgb_mean(t->escaped) - power) < 1e-6 * power);
+    free(rows);
+    rad_solution_destroy(sol);
+    world_free(&w);
+}
+
 /* The same ledger, bit for bit, with 1 and 2 threads. */
 static void thread_count_independent(void **state)
 {
@@ -322,7 +364,7 @@ static void check_passes(void **state)
     char cornell[512];
     snprintf(cornell, sizeof cornell, "%s/scenes/cornell.json", RR_SOURCE_DIR);
     const char *scenes[] = {cornell, data("furnace-05.json"), data("furnace-09.json"), data("cube-ceiling-lit.json"),
-                            data("box-flipped.json")};
+                            data("cube-mirror-wall.json"), data("box-flipped.json")};
     for (size_t i = 0; i < sizeof scenes / sizeof *scenes; i++) {
         const char *a[] = {"energy", scenes[i], "--check", "--particles", "400000", NULL};
         int rc = run(a);
@@ -361,7 +403,8 @@ static void broken_cases_named(void **state)
         fail_msg("%s", g_out);
     char mirror[512];
     snprintf(mirror, sizeof mirror, "%s/scenes/mirror-room.json", RR_SOURCE_DIR);
-    const char *q[] = {"energy", mirror, "--check", "--ff", "quadrature", "--patch-area", "1", "--particles", "100000", NULL};
+    const char *q[] = {"energy",       mirror, "--check",     "--ff",   "quadrature",
+                       "--patch-area", "1",    "--particles", "100000", NULL};
     assert_int_equal(run(q), 1);
     if (!strstr(g_out, "DISAGREE") || !strstr(g_out, "  floor ") || !strstr(g_out, "  ceiling "))
         fail_msg("%s", g_out);
@@ -426,7 +469,8 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(point_light_in_black_cube), cmocka_unit_test(point_light_and_mirror),
         cmocka_unit_test(furnace_total_incident),    cmocka_unit_test(curved_emitters),
-        cmocka_unit_test(directional_on_board),      cmocka_unit_test(thread_count_independent),
+        cmocka_unit_test(directional_on_board),      cmocka_unit_test(radiosity_ledger_lights),
+        cmocka_unit_test(thread_count_independent),
         cmocka_unit_test(compare_rules),             cmocka_unit_test(check_passes),
         cmocka_unit_test(broken_cases_named),        cmocka_unit_test(bad_options),
         cmocka_unit_test(interrupt_stops),
