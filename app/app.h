@@ -21,6 +21,8 @@ enum { APP_EXIT_OK = 0, APP_EXIT_RUNTIME = 1, APP_EXIT_USAGE = 2 };
 /* `render` only: interrupted by SIGINT (128 + 2, the shells' convention); the
  * finished tiles were written to OUT.partial.exr. */
 enum { APP_EXIT_INTERRUPTED = 130 };
+/* `render` only: the same for SIGTERM (128 + 15). */
+enum { APP_EXIT_TERMINATED = 143 };
 
 int app_cmd_render(int argc, char **argv);
 int app_cmd_info(int argc, char **argv);
@@ -102,9 +104,29 @@ int app_plot_residuals(const char *path, const double *res, int n, const char *t
 double app_now_seconds(void);
 /* s ends with suffix, ignoring case. */
 int app_ends_with(const char *s, const char *suffix);
-/* Refuses an output path before any work is done: creates missing folders
- * and checks that a file can be created there; prints the error, returns -1. */
+/* ---- output.c: outputs checked before any work, committed together ---- */
+
+/* Refuses an output path before any work is done: it must not be a folder,
+ * and the nearest existing folder on its path must let us create files
+ * (missing folders are made only when the file is written). Prints the
+ * error, returns -1. */
 int app_check_writable(const char *path);
+/* a and b name one file (the same inode when both exist, else the same
+ * normalised absolute path). */
+int app_same_file(const char *a, const char *b);
+/* The scene's input files: the scene file and every mesh file of its
+ * objects (at most cap; returns the count). */
+size_t app_scene_inputs(const scene *s, const char **ins, size_t cap);
+/* Checks outputs outs[0..nout) (NULL entries skipped; what[i] names the
+ * option, e.g. "--png") against each other and against the inputs, then
+ * app_check_writable; prints the error and returns -1 on the first problem. */
+int app_check_outputs(const char *const *outs, const char *const *what, size_t nout, const char *const *ins,
+                      size_t nin);
+/* Writes the film's EXR (beauty + layers) and, when png is set, its sRGB
+ * preview as one commit: both to temporaries, then both renamed under a lock
+ * on the folder; on any failure neither replaces its old file. */
+rr_status app_write_film(const char *exr, const char *png, const rt_film *film, int half, double exposure,
+                         rr_error *err);
 
 /* Parses a whole decimal integer in [lo, hi]; 0 on success. */
 int app_parse_int(const char *s, long lo, long hi, long *out);

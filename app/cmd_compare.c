@@ -295,7 +295,9 @@ static int prepare(job *j)
         app_error("-o %s: the figure must end in .png, .pdf or .svg", j->out);
         return APP_EXIT_USAGE;
     }
-    if (app_check_writable(j->out))
+    const char *ins[64], *outs[1] = {j->out}, *what[1] = {"-o"};
+    size_t nin = app_scene_inputs(j->sc, ins, 64);
+    if (app_check_outputs(outs, what, 1, ins, nin))
         return APP_EXIT_USAGE;
     if (rt_film_init(&j->film, j->sc->view.width, j->sc->view.height, &err) != RR_OK ||
         rt_accel_build(j->sc, &j->accel, &err) != RR_OK) {
@@ -533,7 +535,8 @@ int app_cmd_compare(int argc, char **argv)
         d.diff = (const float *const *)diff;
     }
     rr_error err;
-    if (fig_write(j.out, &d, &err) != RR_OK) {
+    /* Missing folders are made now, when the figure is written, never earlier. */
+    if (rr_file_make_parent_dirs(j.out, &err) != RR_OK || fig_write(j.out, &d, &err) != RR_OK) {
         app_error("%s", err.msg);
         goto done;
     }

@@ -60,19 +60,18 @@ static const char render_usage[] =
     "The progress bar is drawn on stderr only when it is a terminal.\n"
     "Ctrl-C (SIGINT) stops the render: the finished tiles (the rest black) are written\n"
     "to OUT.partial.exr, never over OUT, and radray exits with 130; a second Ctrl-C\n"
-    "ends it at once.\n"
+    "ends it at once. SIGTERM does the same (exit 143).\n"
+    "OUT.exr and its PNG are replaced together or not at all. An output that names an\n"
+    "input (the scene, a mesh, the cache) or another output is refused before any work.\n"
     "Pixels that come out NaN or infinite are written as 0 with a warning naming them.\n"
     "Exit codes: 0 ok, 1 runtime error, 2 usage error or bad input (a render over\n"
-    "--max-memory included), 130 interrupted.\n";
+    "--max-memory included), 130 interrupted, 143 terminated.\n";
 
 /* Set by the SIGINT handler, read by rt_render before every pixel. */
 static volatile sig_atomic_t g_interrupted;
 
-static void on_sigint(int sig)
-{
-    (void)sig;
-    g_interrupted = 1;
-}
+/* SIGINT and SIGTERM: stop the same way (the flag says which). */
+static void on_sigint(int sig) { g_interrupted = sig; }
 
 typedef struct progress_state {
     int enabled;
@@ -165,8 +164,8 @@ int app_cmd_render(int argc, char **argv)
     memset(&film, 0, sizeof film);
     char exr_default[4200], png_default[4200], partial[4200];
     size_t max_memory = app_default_max_memory();
-    struct sigaction old_int;
-    int handler = 0;
+    struct sigaction old_int, old_term;
+    int handler = 0, handler_term = 0;
     if (!sets) {
         app_error("out of memory");
         return APP_EXIT_RUNTIME;
@@ -296,8 +295,16 @@ int app_cmd_render(int argc, char **argv)
         snprintf(png_default, sizeof png_default, "%.*s.png", (int)(strlen(out_exr) - 4), out_exr);
         out_png = png_default;
     }
-    if (app_check_writable(out_exr) || (!no_png && app_check_writable(out_png)) || (plot && app_check_writable(plot)))
-        goto done;
+    snprintf(partial, sizeof partial, "%.*s.partial.exr", (int)(strlen(out_exr) - 4), out_exr);
+    {
+        const char *ins[64];
+        size_t nin = app_scene_inputs(sc, ins, 63);
+        ins[nin++] = pl.cache_path;
+        const char *outs[4] = {out_exr, no_png ? NULL : out_png, plot, partial};
+        const char *what[4] = {"-o", "--png", "--plot", "the partial image"};
+        if (app_check_outputs(outs, what, 4, ins, nin))
+            goto done;
+    }
     if (plot && mode != APP_MODE_RADIOSITY && app_mode_indirect(mode, indirect) != RT_INDIRECT_RADIOSITY) {
         app_error("--plot: the convergence plot belongs to the radiosity pass: use it with --mode radiosity");
         goto done;
@@ -331,11 +338,11 @@ int app_cmd_render(int argc, char **argv)
     sa.sa_flags = SA_RESETHAND;
     g_interrupted = 0;
     handler = sigaction(SIGINT, &sa, &old_int) == 0;
+    handler_term = sigaction(SIGTERM, &sa, &old_term) == 0;
     rr_status rst = app_render_mode(&pl, mode, indirect, filter, &film, NULL, draw_progress, &prog, &err);
     if (rst == RR_ERR_INTERRUPTED) {
         if (prog.enabled)
             fputc('\n', stderr);
-        snprintf(partial, sizeof partial, "%.*s.partial.exr", (int)(strlen(out_exr) - 4), out_exr);
         app_scrub_film(&film);
         img_layer pl_layers[RT_LAYER_COUNT];
         for (int i = 0; i < RT_LAYER_COUNT; i++) {
@@ -349,7 +356,7 @@ int app_cmd_render(int argc, char **argv)
             rc = APP_EXIT_RUNTIME;
         } else {
             app_error("%s; wrote the partial image (unfinished tiles black) to %s", err.msg, partial);
-            rc = APP_EXIT_INTERRUPTED;
+            rc = g_interrupted == SIGTERM ? APP_EXIT_TERMINATED : APP_EXIT_INTERRUPTED;
         }
         goto done;
     }
@@ -375,17 +382,8 @@ int app_cmd_render(int argc, char **argv)
     }
     app_scrub_film(&film);
     double secs = seconds_since(&prog.start);
-    img_layer layers[RT_LAYER_COUNT];
-    for (int i = 0; i < RT_LAYER_COUNT; i++) {
-        layers[i].name = rt_layer_name(i);
-        layers[i].image = &film.layer[i];
-    }
-    if (img_write_exr(out_exr, &film.beauty, layers, RT_LAYER_COUNT, sc->settings.half_float ? IMG_HALF : IMG_FLOAT,
-                      &err) != RR_OK) {
-        app_error("%s", err.msg);
-        goto done;
-    }
-    if (!no_png && img_write_png(out_png, &film.beauty, sc->settings.exposure, &err) != RR_OK) {
+    if (app_write_film(out_exr, no_png ? NULL : out_png, &film, sc->settings.half_float, sc->settings.exposure,
+                       &err) != RR_OK) {
         app_error("%s", err.msg);
         goto done;
     }
@@ -403,6 +401,8 @@ int app_cmd_render(int argc, char **argv)
 done:
     if (handler)
         sigaction(SIGINT, &old_int, NULL);
+    if (handler_term)
+        sigaction(SIGTERM, &old_term, NULL);
     rt_film_free(&film);
     rad_solution_destroy(pl.sol);
     rt_accel_destroy(accel);

@@ -37,18 +37,6 @@ int app_ends_with(const char *s, const char *suffix)
     return n >= m && strcasecmp(s + n - m, suffix) == 0;
 }
 
-int app_check_writable(const char *path)
-{
-    rr_error err;
-    char tmp[4200];
-    if (rr_file_make_parent_dirs(path, &err) != RR_OK || rr_file_tmpname(path, tmp, sizeof tmp, &err) != RR_OK) {
-        app_error("%s", err.msg);
-        return -1;
-    }
-    remove(tmp);
-    return 0;
-}
-
 rt_indirect app_mode_indirect(int mode, int indirect_override)
 {
     static const rt_indirect preset[APP_MODE_COUNT] = {RT_INDIRECT_AMBIENT, RT_INDIRECT_SECONDARY, RT_INDIRECT_NONE,
