@@ -158,8 +158,25 @@ rr_status rr_file_make_parent_dirs(const char *path, rr_error *err)
     return RR_OK;
 }
 
+rr_status rr_file_check_regular(const char *path, rr_error *err)
+{
+    struct stat st;
+    if (stat(path, &st) != 0)
+        return rr_error_set(err, RR_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
+    if (!S_ISREG(st.st_mode))
+        return rr_error_set(err, RR_ERR_IO, "%s: cannot read: not a regular file (%s)", path,
+                            S_ISDIR(st.st_mode)    ? "a folder"
+                            : S_ISFIFO(st.st_mode) ? "a FIFO: reading it would wait for a writer"
+                                                   : "a device or socket");
+    return RR_OK;
+}
+
 rr_status rr_file_read_all(const char *path, char **data, size_t *size, rr_error *err)
 {
+    /* Before opening: opening a FIFO blocks, and /dev/zero never ends. */
+    rr_status reg = rr_file_check_regular(path, err);
+    if (reg != RR_OK)
+        return reg;
     FILE *f = fopen(path, "rb");
     if (!f)
         return rr_error_set(err, RR_ERR_IO, "%s: cannot open: %s", path, strerror(errno));

@@ -43,7 +43,12 @@ rr_status rr_path_join(const char *dir, const char *rel, char *out, size_t out_s
 /* Folder part of path ("." when there is none). */
 void rr_path_dirname(const char *path, char *out, size_t out_size);
 
-/* Reads a whole file into a NUL-terminated malloc'd buffer; *size excludes the NUL. */
+/* RR_OK when path is a regular file; else RR_ERR_IO naming what it is (a
+ * folder, a FIFO, a device). Check before opening an input: opening a FIFO
+ * blocks until a writer comes. */
+rr_status rr_file_check_regular(const char *path, rr_error *err);
+/* Reads a whole regular file (rr_file_check_regular first) into a
+ * NUL-terminated malloc'd buffer; *size excludes the NUL. */
 rr_status rr_file_read_all(const char *path, char **data, size_t *size, rr_error *err);
 
 #endif

@@ -5,11 +5,14 @@
  * first shot; per vertex B and indirect irradiance), not the form factors.
  * Patches are rebuilt on load (cheap and deterministic) and must match.
  *
- * The file starts with a key: a 64-bit FNV-1a hash of everything the solution
- * depends on: geometry, materials, lights, the resolved patch limits, the
- * form-factor method, samples and seed, the solver settings, and the mirrors
- * (reflectances, render.max_depth: extended form factors and light images). A cache whose
- * key differs was made for another scene or other settings and is refused. */
+ * The file starts with a key: 64-bit FNV-1a hashes, one per part of what the
+ * solution depends on (geometry, back-face culling, materials with their
+ * mirror reflectances, lights, the resolved patch limits, the form-factor
+ * method, samples and seed, render.max_depth, the solver settings). A cache
+ * whose key differs was made for another scene or other settings and is
+ * refused, naming the parts that differ; a payload whose checksum does not
+ * match is damaged and refused. Scene and cache files must be regular files
+ * (a FIFO would block the read). */
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
@@ -17,7 +20,7 @@
 #include "rad.h"
 
 #define CACHE_MAGIC "RADRAYRC"
-#define CACHE_VERSION 2u /* 2: mirrors in the key (extended form factors, images of lights) */
+#define CACHE_VERSION 3u /* 2: mirrors in the key; 3: the key in named parts, culling, a payload checksum */
 
 typedef struct hasher {
     uint64_t h;
@@ -45,85 +48,130 @@ static void hash_rgb(hasher *x, rr_rgb c)
     hash_double(x, c.b);
 }
 
-/* What the solution depends on, resolved the way rad_pass_run resolves it. */
-static uint64_t cache_key(const scene *s, const rad_pass_opts *o)
+/* What the solution depends on, resolved the way rad_pass_run resolves it,
+ * in named parts, so that a refused cache can say what changed. Audit
+ * (tests/test_radiosity.c flips each input): every input rad_pass_run reads
+ * is in one part; the thread count is not (the pass is the same for any). */
+enum { K_GEOMETRY, K_CULLING, K_MATERIALS, K_LIGHTS, K_PATCHES, K_FORM_FACTORS, K_MIRROR_DEPTH, K_SOLVER, K_COUNT };
+static const char *const k_key_names[K_COUNT] = {"geometry", "back-face culling", "materials", "lights",
+                                                 "patch limits", "form-factor settings", "render.max_depth",
+                                                 "solver settings"};
+
+static void hash_solids(hasher *x, const scene *s)
 {
-    hasher x = {0xcbf29ce484222325ULL};
-    hash_bytes(&x, CACHE_MAGIC, 8);
-    for (size_t i = 0; i < s->nverts; i++)
-        hash_vec(&x, s->verts[i]);
-    for (size_t i = 0; i < s->ntris; i++)
-        hash_bytes(&x, &s->tris[i], sizeof s->tris[i]);
-    for (size_t i = 0; i < s->nmaterials; i++) {
-        hash_rgb(&x, s->materials[i].diffuse);
-        hash_rgb(&x, s->materials[i].emission);
-        hash_rgb(&x, s->materials[i].mirror);
-    }
-    for (size_t i = 0; i < s->nobjects; i++) {
-        const scene_object *ob = &s->objects[i];
-        hash_bytes(&x, &ob->kind, sizeof ob->kind);
-        hash_bytes(&x, &ob->material, sizeof ob->material);
-        if (ob->kind == SCENE_OBJ_SPHERE) {
-            hash_vec(&x, ob->center);
-            hash_double(&x, ob->radius);
-        }
-        hash_bytes(&x, &ob->csg_root, sizeof ob->csg_root);
-    }
-    /* Solids: field by field (the structs have padding). */
+    /* Field by field (the structs have padding). */
     for (size_t i = 0; i < s->ncsg; i++) {
         const scene_csg_node *n = &s->csg[i];
-        uint32_t w[6] = {(uint32_t)n->op, n->left, n->right, (uint32_t)n->solid, n->material, n->object};
-        hash_bytes(&x, w, sizeof w);
+        uint32_t w[7] = {(uint32_t)n->op, n->left,   n->right, (uint32_t)n->solid, n->material, n->object,
+                         (uint32_t)n->shape};
+        hash_bytes(x, w, sizeof w);
         for (int r = 0; r < 3; r++)
-            hash_vec(&x, rr_v3(n->to_world.m[r][0], n->to_world.m[r][1], n->to_world.m[r][2]));
-        hash_vec(&x, n->to_world.t);
-        hash_vec(&x, n->center);
-        hash_double(&x, n->radius);
+            hash_vec(x, rr_v3(n->to_world.m[r][0], n->to_world.m[r][1], n->to_world.m[r][2]));
+        hash_vec(x, n->to_world.t);
+        hash_vec(x, n->center);
+        hash_double(x, n->radius);
         for (int r = 0; r < 4; r++)
             for (int c = 0; c < 4; c++)
-                hash_double(&x, n->q[r][c]);
-        hash_vec(&x, n->clip_lo);
-        hash_vec(&x, n->clip_hi);
+                hash_double(x, n->q[r][c]);
+        hash_vec(x, n->clip_lo);
+        hash_vec(x, n->clip_hi);
         uint64_t tr[2] = {n->tri_first, n->tri_count};
-        hash_bytes(&x, tr, sizeof tr);
+        hash_bytes(x, tr, sizeof tr);
     }
     for (size_t i = 0; i < s->ncsg_verts; i++)
-        hash_vec(&x, s->csg_verts[i]);
+        hash_vec(x, s->csg_verts[i]);
     if (s->ncsg_tris)
-        hash_bytes(&x, s->csg_tris, s->ncsg_tris * sizeof *s->csg_tris);
+        hash_bytes(x, s->csg_tris, s->ncsg_tris * sizeof *s->csg_tris);
+}
+
+static void cache_key(const scene *s, const rad_pass_opts *o, uint64_t key[K_COUNT])
+{
+    hasher x[K_COUNT];
+    for (int k = 0; k < K_COUNT; k++) {
+        x[k].h = 0xcbf29ce484222325ULL;
+        hash_bytes(&x[k], k_key_names[k], strlen(k_key_names[k]));
+    }
+    hasher *g = &x[K_GEOMETRY];
+    for (size_t i = 0; i < s->nverts; i++)
+        hash_vec(g, s->verts[i]);
+    for (size_t i = 0; i < s->ntris; i++)
+        hash_bytes(g, &s->tris[i], sizeof s->tris[i]);
+    for (size_t i = 0; i < s->nobjects; i++) {
+        const scene_object *ob = &s->objects[i];
+        hash_bytes(g, &ob->kind, sizeof ob->kind);
+        hash_bytes(g, &ob->material, sizeof ob->material);
+        if (ob->kind == SCENE_OBJ_SPHERE) {
+            hash_vec(g, ob->center);
+            hash_double(g, ob->radius);
+        }
+        hash_bytes(g, &ob->csg_root, sizeof ob->csg_root);
+        hash_bytes(&x[K_CULLING], &ob->cull_backfaces, sizeof ob->cull_backfaces);
+    }
+    hash_solids(g, s);
+    for (size_t i = 0; i < s->nmaterials; i++) {
+        hash_rgb(&x[K_MATERIALS], s->materials[i].diffuse);
+        hash_rgb(&x[K_MATERIALS], s->materials[i].emission);
+        hash_rgb(&x[K_MATERIALS], s->materials[i].mirror);
+    }
     for (size_t i = 0; i < s->nlights; i++) {
-        hash_bytes(&x, &s->lights[i].type, sizeof s->lights[i].type);
-        hash_vec(&x, s->lights[i].direction);
-        hash_vec(&x, s->lights[i].position);
-        hash_rgb(&x, s->lights[i].intensity);
+        hash_bytes(&x[K_LIGHTS], &s->lights[i].type, sizeof s->lights[i].type);
+        hash_vec(&x[K_LIGHTS], s->lights[i].direction);
+        hash_vec(&x[K_LIGHTS], s->lights[i].position);
+        hash_rgb(&x[K_LIGHTS], s->lights[i].intensity);
     }
     rad_patch_opts po = rad_pass_patch_limits(s, o);
-    hash_double(&x, po.max_area);
-    hash_double(&x, po.max_edge);
+    hash_double(&x[K_PATCHES], po.max_area);
+    hash_double(&x[K_PATCHES], po.max_edge);
     int method = o->use_scene_choices ? (int)s->radiosity.form_factors : (int)o->ff.method;
     int samples = o->ff.samples > 0 ? o->ff.samples : s->radiosity.ff_samples;
     int solver = o->use_scene_choices ? (int)s->radiosity.solver : (int)o->solve.solver;
     double tol = o->solve.tolerance > 0 ? o->solve.tolerance : s->radiosity.tolerance;
-    hash_bytes(&x, &method, sizeof method);
-    hash_bytes(&x, &samples, sizeof samples);
-    hash_bytes(&x, &o->ff.seed, sizeof o->ff.seed);
-    hash_bytes(&x, &o->ff.raw, sizeof o->ff.raw);
-    hash_bytes(&x, &solver, sizeof solver);
-    hash_double(&x, tol);
+    hash_bytes(&x[K_FORM_FACTORS], &method, sizeof method);
+    hash_bytes(&x[K_FORM_FACTORS], &samples, sizeof samples);
+    hash_bytes(&x[K_FORM_FACTORS], &o->ff.seed, sizeof o->ff.seed);
+    hash_bytes(&x[K_FORM_FACTORS], &o->ff.raw, sizeof o->ff.raw);
+    hash_bytes(&x[K_SOLVER], &solver, sizeof solver);
+    hash_double(&x[K_SOLVER], tol);
     int depth = o->ff.mirror_depth > 0 ? o->ff.mirror_depth : s->settings.max_depth;
-    hash_bytes(&x, &depth, sizeof depth);
-    return x.h;
+    hash_bytes(&x[K_MIRROR_DEPTH], &depth, sizeof depth);
+    for (int k = 0; k < K_COUNT; k++)
+        key[k] = x[k].h;
 }
 
 typedef struct cache_header {
     char magic[8];
-    uint32_t version, pad;
-    uint64_t key, n, nverts;
+    uint32_t version, nkeys;
+    uint64_t key[K_COUNT];
+    uint64_t n, nverts;
+    uint64_t checksum; /* FNV-1a of the payload, in order */
 } cache_header;
+
+/* The payload: per patch B, emission, first shot; per vertex B and indirect irradiance. */
+typedef struct payload {
+    void *p[5];
+    size_t n[5];
+} payload;
+
+static payload payload_of(const rad_solution *sol)
+{
+    size_t n = sol->P->n, nv = sol->P->nverts;
+    payload d = {{sol->B, sol->emitted, sol->first_shot, sol->vertex_B, sol->vertex_Hind},
+                 {n * sizeof(rr_rgb), n * sizeof(rr_rgb), n * sizeof(rr_rgb), nv * sizeof(rr_rgb),
+                  nv * sizeof(rr_rgb)}};
+    return d;
+}
+
+static uint64_t payload_checksum(const payload *d)
+{
+    hasher x = {0xcbf29ce484222325ULL};
+    for (int i = 0; i < 5; i++)
+        hash_bytes(&x, d->p[i], d->n[i]);
+    return x.h;
+}
 
 static int write_all(FILE *f, const void *p, size_t n) { return fwrite(p, 1, n, f) == n; }
 
-static rr_status cache_save(const char *path, uint64_t key, const rad_solution *sol, rr_error *err)
+static rr_status cache_save(const char *path, const uint64_t *key, const rad_solution *sol, rr_error *err)
 {
     rr_atomic a;
     rr_status st = rr_atomic_begin(&a, path, err);
@@ -133,15 +181,15 @@ static rr_status cache_save(const char *path, uint64_t key, const rad_solution *
     memset(&h, 0, sizeof h);
     memcpy(h.magic, CACHE_MAGIC, 8);
     h.version = CACHE_VERSION;
-    h.key = key;
+    h.nkeys = K_COUNT;
+    memcpy(h.key, key, sizeof h.key);
     h.n = sol->P->n;
     h.nverts = sol->P->nverts;
-    size_t n = sol->P->n, nv = sol->P->nverts;
-    int ok = write_all(a.fp, &h, sizeof h) && write_all(a.fp, sol->B, n * sizeof *sol->B) &&
-             write_all(a.fp, sol->emitted, n * sizeof *sol->emitted) &&
-             write_all(a.fp, sol->first_shot, n * sizeof *sol->first_shot) &&
-             write_all(a.fp, sol->vertex_B, nv * sizeof *sol->vertex_B) &&
-             write_all(a.fp, sol->vertex_Hind, nv * sizeof *sol->vertex_Hind);
+    payload d = payload_of(sol);
+    h.checksum = payload_checksum(&d);
+    int ok = write_all(a.fp, &h, sizeof h);
+    for (int i = 0; i < 5 && ok; i++)
+        ok = write_all(a.fp, d.p[i], d.n[i]);
     if (!ok) {
         rr_atomic_abort(&a);
         return rr_error_set(err, RR_ERR_IO, "%s: cannot write the radiosity cache", path);
@@ -151,21 +199,37 @@ static rr_status cache_save(const char *path, uint64_t key, const rad_solution *
 
 static int read_all(FILE *f, void *p, size_t n) { return fread(p, 1, n, f) == n; }
 
-/* Loads into a solution whose patches are already built. */
-static rr_status cache_load(const char *path, uint64_t key, rad_solution *sol, rr_error *err)
+/* "geometry, lights" for the parts of the key that differ. */
+static void changed_parts(const uint64_t *a, const uint64_t *b, char *out, size_t n)
 {
+    size_t len = 0;
+    out[0] = '\0';
+    for (int k = 0; k < K_COUNT && len < n; k++)
+        if (a[k] != b[k])
+            len += (size_t)snprintf(out + len, n - len, "%s%s", len ? ", " : "", k_key_names[k]);
+}
+
+/* Loads into a solution whose patches are already built. */
+static rr_status cache_load(const char *path, const uint64_t *key, rad_solution *sol, rr_error *err)
+{
+    rr_status st = RR_OK;
+    rr_error why;
+    if (rr_file_check_regular(path, &why) != RR_OK) /* bad input, as a wrong cache is */
+        return rr_error_set(err, RR_ERR_INVALID, "%s (--radiosity-cache)", why.msg);
     FILE *f = fopen(path, "rb");
     if (!f)
         return rr_error_set(err, RR_ERR_IO, "%s: cannot open the radiosity cache", path);
     cache_header h;
-    rr_status st = RR_OK;
-    if (!read_all(f, &h, sizeof h) || memcmp(h.magic, CACHE_MAGIC, 8) != 0 || h.version != CACHE_VERSION) {
+    char what[256];
+    if (!read_all(f, &h, sizeof h) || memcmp(h.magic, CACHE_MAGIC, 8) != 0 || h.version != CACHE_VERSION ||
+        h.nkeys != K_COUNT) {
         st = rr_error_set(err, RR_ERR_INVALID, "%s: not a radray radiosity cache (version %u)", path, CACHE_VERSION);
-    } else if (h.key != key || h.n != sol->P->n || h.nverts != sol->P->nverts) {
+    } else if (memcmp(h.key, key, sizeof h.key) != 0 || h.n != sol->P->n || h.nverts != sol->P->nverts) {
+        changed_parts(h.key, key, what, sizeof what);
         st = rr_error_set(err, RR_ERR_INVALID,
-                          "%s: this radiosity cache was made for a different scene or different radiosity settings; "
-                          "refusing it (delete it, or give another --radiosity-cache file)",
-                          path);
+                          "%s: this radiosity cache was made with different %s; refusing it (delete it, or give "
+                          "another --radiosity-cache file)",
+                          path, what[0] ? what : "patches");
     } else {
         size_t n = sol->P->n, nv = sol->P->nverts ? sol->P->nverts : 1;
         sol->B = malloc(n * sizeof *sol->B);
@@ -173,13 +237,18 @@ static rr_status cache_load(const char *path, uint64_t key, rad_solution *sol, r
         sol->first_shot = malloc(n * sizeof *sol->first_shot);
         sol->vertex_B = malloc(nv * sizeof *sol->vertex_B);
         sol->vertex_Hind = malloc(nv * sizeof *sol->vertex_Hind);
-        if (!sol->B || !sol->emitted || !sol->first_shot || !sol->vertex_B || !sol->vertex_Hind)
+        payload d = payload_of(sol);
+        int ok = sol->B && sol->emitted && sol->first_shot && sol->vertex_B && sol->vertex_Hind;
+        if (!ok)
             st = rr_error_set(err, RR_ERR_NOMEM, "%s: out of memory reading the radiosity cache", path);
-        else if (!read_all(f, sol->B, n * sizeof *sol->B) || !read_all(f, sol->emitted, n * sizeof *sol->emitted) ||
-                 !read_all(f, sol->first_shot, n * sizeof *sol->first_shot) ||
-                 !read_all(f, sol->vertex_B, sol->P->nverts * sizeof *sol->vertex_B) ||
-                 !read_all(f, sol->vertex_Hind, sol->P->nverts * sizeof *sol->vertex_Hind) || fgetc(f) != EOF)
-            st = rr_error_set(err, RR_ERR_PARSE, "%s: the radiosity cache is truncated or damaged", path);
+        for (int i = 0; i < 5 && ok; i++)
+            ok = read_all(f, d.p[i], d.n[i]);
+        if (st == RR_OK && (!ok || fgetc(f) != EOF))
+            st = rr_error_set(err, RR_ERR_INVALID, "%s: the radiosity cache is truncated or damaged", path);
+        else if (st == RR_OK && payload_checksum(&d) != h.checksum)
+            st = rr_error_set(err, RR_ERR_INVALID,
+                              "%s: the radiosity cache is damaged (its checksum does not match its data); delete it",
+                              path);
     }
     fclose(f);
     return st;
@@ -196,7 +265,8 @@ rr_status rad_pass_run_cached(const scene *s, const rt_accel *a, const rad_pass_
     *from_cache = 0;
     if (!cache_path)
         return rad_pass_run(s, a, o, out, err);
-    uint64_t key = cache_key(s, o);
+    uint64_t key[K_COUNT];
+    cache_key(s, o, key);
     struct stat stt;
     if (stat(cache_path, &stt) != 0) {
         rr_status st = rad_pass_run(s, a, o, out, err);

@@ -268,6 +268,77 @@ static void cli_outputs_never_overwrite_inputs(void **state)
     assert_false(temporaries_left());
 }
 
+/* ---- the radiosity cache ---- */
+
+/* A cache is refused, naming the part of its key that differs, for every
+ * input the solution depends on (the key audit); a damaged payload is
+ * refused by its checksum; a FIFO (cache or scene) or a device is refused at
+ * once instead of blocking. */
+static void cli_cache_key_and_checksum(void **state)
+{
+    (void)state;
+    char scene_path[512], cache[256], out[256];
+    snprintf(scene_path, sizeof scene_path, "%s/scenes/cornell.json", RR_SOURCE_DIR);
+    path_in(cache, sizeof cache, "k.rcache");
+    path_in(out, sizeof out, "k.exr");
+    const char *a[] = {"render", scene_path, "--width", "8", "--patch-area", "8000", "--radiosity-cache", cache,
+                       "-q", "-o", out, NULL};
+    assert_int_equal(finish(start(a)), 0);
+    static const char *const flips[][2] = {
+        {"objects[0].vertices=[[552.8,1,0],[0,0,0],[0,0,559.2],[549.6,0,559.2]]", "geometry"},
+        {"objects[0].cull=true", "back-face culling"},
+        {"materials.white.diffuse=0.5", "materials"},
+        {"lights=[{\"type\":\"point\",\"position\":[278,500,278],\"intensity\":1000}]", "lights"},
+        {"radiosity.patch_area=6000", "patch limits"},
+        {"radiosity.ff_samples=256", "form-factor settings"},
+        {"render.seed=9", "form-factor settings"},
+        {"render.max_depth=3", "render.max_depth"},
+        {"radiosity.solver=direct", "solver settings"},
+    };
+    for (size_t i = 0; i < sizeof flips / sizeof *flips; i++) {
+        const char *b[] = {"render", scene_path, "--width", "8", "--patch-area", "8000", "--radiosity-cache", cache,
+                           "--set", flips[i][0], "-q", "-o", out, NULL};
+        if (i == 4)
+            b[5] = "6000"; /* --patch-area wins over the scene's value */
+        int rc = finish(start(b));
+        if (rc != 2 || !strstr(g_out, "made with different") || !strstr(g_out, flips[i][1]))
+            fail_msg("--set %s: exit %d: %s", flips[i][0], rc, g_out);
+    }
+    /* Every payload value doubled (a damaged copy): the checksum refuses it. */
+    char *data = NULL;
+    size_t n = 0;
+    assert_int_equal(rr_file_read_all(cache, &data, &n, NULL), RR_OK);
+    size_t header = 8 + 4 + 4 + 8 * 8 + 8 + 8 + 8;
+    assert_true(n > header && (n - header) % sizeof(double) == 0);
+    for (size_t k = header; k + sizeof(double) <= n; k += sizeof(double)) {
+        double v;
+        memcpy(&v, data + k, sizeof v);
+        v *= 2.0;
+        memcpy(data + k, &v, sizeof v);
+    }
+    FILE *f = fopen(cache, "wb");
+    assert_non_null(f);
+    assert_int_equal(fwrite(data, 1, n, f), n);
+    fclose(f);
+    free(data);
+    assert_int_equal(finish(start(a)), 2);
+    assert_non_null(strstr(g_out, "damaged"));
+    /* FIFOs and devices: refused, not waited on. */
+    char fifo[256];
+    path_in(fifo, sizeof fifo, "fifo");
+    assert_int_equal(mkfifo(fifo, 0600), 0);
+    const char *c[] = {"render", scene_path, "--width", "8", "--radiosity-cache", fifo, "-q", "-o", out, NULL};
+    assert_int_equal(finish(start(c)), 2);
+    assert_non_null(strstr(g_out, "FIFO"));
+    const char *d[] = {"render", fifo, "-q", "-o", out, NULL};
+    assert_int_equal(finish(start(d)), 2);
+    assert_non_null(strstr(g_out, "FIFO"));
+    const char *e[] = {"render", "/dev/zero", "-q", "-o", out, NULL};
+    assert_int_equal(finish(start(e)), 2);
+    assert_non_null(strstr(g_out, "not a regular file"));
+    remove(fifo);
+}
+
 /* ---- memory limits ---- */
 
 static void cli_refuses_huge_resolution(void **state)
@@ -426,6 +497,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(interrupt_flag_preset),       cmocka_unit_test(cli_sigint_writes_partial),
         cmocka_unit_test(cli_sigterm_writes_partial),  cmocka_unit_test(cli_outputs_never_overwrite_inputs),
+        cmocka_unit_test(cli_cache_key_and_checksum),
         cmocka_unit_test(cli_refuses_huge_resolution), cmocka_unit_test(cli_refuses_tiny_patches),
         cmocka_unit_test(scrub_nonfinite),             cmocka_unit_test(scale_invariance_whitted),
         cmocka_unit_test(scale_invariance_hybrid),
