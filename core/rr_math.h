@@ -46,6 +46,16 @@ static inline rr_vec3 rr_v3_norm(rr_vec3 a)
     double l = rr_v3_len(a);
     return l > 0.0 ? rr_v3_scale(a, 1.0 / l) : a;
 }
+/* The same for any finite a, however large or small its components (scaled by
+ * the largest first, so the squared length cannot overflow or underflow); the
+ * zero vector (and a non-finite one) gives zero. For input, not hot paths. */
+static inline rr_vec3 rr_v3_unit(rr_vec3 a)
+{
+    double m = fmax(fabs(a.x), fmax(fabs(a.y), fabs(a.z)));
+    if (!(m > 0.0) || !isfinite(m))
+        return rr_v3(0.0, 0.0, 0.0);
+    return rr_v3_norm(rr_v3_scale(a, 1.0 / m));
+}
 static inline rr_vec3 rr_v3_min(rr_vec3 a, rr_vec3 b) { return rr_v3(fmin(a.x, b.x), fmin(a.y, b.y), fmin(a.z, b.z)); }
 static inline rr_vec3 rr_v3_max(rr_vec3 a, rr_vec3 b) { return rr_v3(fmax(a.x, b.x), fmax(a.y, b.y), fmax(a.z, b.z)); }
 static inline double rr_v3_get(rr_vec3 a, int axis) { return axis == 0 ? a.x : (axis == 1 ? a.y : a.z); }

@@ -3,6 +3,22 @@
 
 static int finite3(rr_vec3 v) { return rr_v3_isfinite(v); }
 
+/* Derived quantities, not only the inputs: every corner of the screen, and
+ * the ray to it, must be finite (s * w overflowing makes NaN rays). */
+static rr_status rr_view_check(const rr_view *v, rr_error *err)
+{
+    for (int k = 0; k < 4; k++) {
+        int col = k & 1 ? v->width - 1 : 0, row = k & 2 ? v->height - 1 : 0;
+        rr_ray r = rr_view_ray(v, col, row, k & 1 ? 1.0 : -1.0, k & 2 ? -1.0 : 1.0); /* the tent filter's reach */
+        if (!finite3(r.d) || !(rr_v3_len2(r.d) > 0.0) || !isfinite(rr_v3_len2(r.d)))
+            return rr_error_set(err, RR_ERR_INVALID,
+                                "view: the screen (O, s and the size: corner %d, %d) is too large: its rays are not "
+                                "finite (s = %g, %d x %d pixels)",
+                                col, row, v->s, v->width, v->height);
+    }
+    return RR_OK;
+}
+
 rr_status rr_view_lecture(rr_vec3 E, rr_vec3 O, rr_vec3 U, double s, int w, int h, rr_view *out, rr_error *err)
 {
     if (!finite3(E) || !finite3(O) || !finite3(U) || !isfinite(s))
@@ -14,22 +30,24 @@ rr_status rr_view_lecture(rr_vec3 E, rr_vec3 O, rr_vec3 U, double s, int w, int 
     if (w > (1 << 20) || h > (1 << 20))
         return rr_error_set(err, RR_ERR_INVALID, "view: w and h must be at most %d (got w=%d, h=%d)", 1 << 20, w, h);
     rr_vec3 VO = rr_v3_sub(O, E);
-    double lvo = rr_v3_len(VO);
-    if (!(lvo > 0.0))
+    if (!finite3(VO))
+        return rr_error_set(err, RR_ERR_INVALID, "view: O - E overflows (E and O are too far apart)");
+    /* Unit vectors first (scaled, so that large or tiny components are fine). */
+    rr_vec3 vo = rr_v3_unit(VO), u = rr_v3_unit(U);
+    if (!(rr_v3_len(vo) > 0.0))
         return rr_error_set(err, RR_ERR_INVALID, "view: the screen centre O equals the viewpoint E");
-    double lu = rr_v3_len(U);
-    if (!(lu > 0.0))
+    if (!(rr_v3_len(u) > 0.0))
         return rr_error_set(err, RR_ERR_INVALID, "view: the up vector U is zero");
-    rr_vec3 I = rr_v3_cross(VO, U);
-    /* |VO x U| = |VO||U| sin(angle): compare the sine with a small threshold so
-     * that "almost parallel" (numerically meaningless axes) is refused too. */
+    rr_vec3 I = rr_v3_cross(vo, u);
+    /* |vo x u| = sin(angle): compare it with a small threshold so that
+     * "almost parallel" (numerically meaningless axes) is refused too. */
     double li = rr_v3_len(I);
-    if (!(li > 1e-9 * lvo * lu))
+    if (!(li > 1e-9))
         return rr_error_set(err, RR_ERR_INVALID,
                             "view: the up vector U is parallel to the view direction VO = O - E; "
                             "choose an up vector that is not along the line of sight");
     I = rr_v3_scale(I, 1.0 / li);
-    rr_vec3 J = rr_v3_norm(rr_v3_cross(I, VO));
+    rr_vec3 J = rr_v3_norm(rr_v3_cross(I, vo));
     rr_view v;
     v.E = E;
     v.O = O;
@@ -39,6 +57,9 @@ rr_status rr_view_lecture(rr_vec3 E, rr_vec3 O, rr_vec3 U, double s, int w, int 
     v.height = 2 * h + 1;
     v.I = I;
     v.J = J;
+    rr_status st = rr_view_check(&v, err);
+    if (st != RR_OK)
+        return st;
     *out = v;
     return RR_OK;
 }
@@ -64,7 +85,7 @@ rr_status rr_view_lookat(rr_vec3 eye, rr_vec3 target, rr_vec3 up, double fov_deg
         return st;
     out->width = width;
     out->height = height;
-    return RR_OK;
+    return rr_view_check(out, err);
 }
 
 rr_vec3 rr_view_screen_point(const rr_view *v, int col, int row, double dx, double dy)
@@ -92,6 +113,9 @@ rr_status rr_view_resize(const rr_view *v, int width, rr_view *out, rr_error *er
     r.width = width;
     r.height = h < 1 ? 1 : (int)h;
     r.s = v->s * scale;
+    rr_status st = rr_view_check(&r, err);
+    if (st != RR_OK)
+        return st;
     *out = r;
     return RR_OK;
 }

@@ -352,12 +352,12 @@ static rr_status parse_light(const sp_ctx *c, const cJSON *v, const char *path, 
         if ((st = sp_check_object(c, v, path, k_light_dir)) != RR_OK ||
             (st = sp_vec3(c, v, path, "direction", SP_REQUIRED, &l->direction)) != RR_OK)
             return st;
+        l->direction = rr_v3_unit(l->direction); /* scaled first: no overflow to a dead (0, 0, 0) light */
         if (!(rr_v3_len(l->direction) > 0)) {
             char p[SP_PATH_MAX];
             sp_key(p, path, "direction");
             return sp_fail(c, RR_ERR_INVALID, p, "the direction is the zero vector");
         }
-        l->direction = rr_v3_norm(l->direction);
     } else if (cJSON_IsString(type) && strcmp(type->valuestring, "point") == 0) {
         l->type = SCENE_LIGHT_POINT;
         if ((st = sp_check_object(c, v, path, k_light_point)) != RR_OK ||

@@ -39,6 +39,50 @@ static int js_hex(char ch)
     return (ch >= '0' && ch <= '9') || (ch >= 'a' && ch <= 'f') || (ch >= 'A' && ch <= 'F');
 }
 
+/* The value of \\uXXXX at p (p[0] is the backslash), or -1. */
+static long js_u4(const char *p)
+{
+    long v = 0;
+    for (int k = 2; k < 6; k++) {
+        char c = p[k];
+        if (!js_hex(c))
+            return -1;
+        v = 16 * v + (c <= '9' ? c - '0' : (c | 0x20) - 'a' + 10);
+    }
+    return v;
+}
+
+/* Length of the well-formed UTF-8 sequence at p (RFC 3629: no overlong
+ * forms, no surrogates, nothing above U+10FFFF), or 0. */
+static int js_utf8(const char *s)
+{
+    const unsigned char *p = (const unsigned char *)s;
+    int n;
+    unsigned char lo = 0x80, hi = 0xBF;
+    if (p[0] >= 0xC2 && p[0] <= 0xDF)
+        n = 2;
+    else if (p[0] >= 0xE0 && p[0] <= 0xEF) {
+        n = 3;
+        if (p[0] == 0xE0)
+            lo = 0xA0;
+        if (p[0] == 0xED)
+            hi = 0x9F;
+    } else if (p[0] >= 0xF0 && p[0] <= 0xF4) {
+        n = 4;
+        if (p[0] == 0xF0)
+            lo = 0x90;
+        if (p[0] == 0xF4)
+            hi = 0x8F;
+    } else
+        return 0;
+    if (p[1] < lo || p[1] > hi)
+        return 0;
+    for (int k = 2; k < n; k++)
+        if (p[k] < 0x80 || p[k] > 0xBF)
+            return 0;
+    return n;
+}
+
 static int js_string(jscan *j)
 {
     const char *start = j->p;
@@ -59,9 +103,20 @@ static int js_string(jscan *j)
         if (ch == '\\') {
             char e = j->p[1];
             if (e == 'u') {
-                for (int k = 2; k < 6; k++)
-                    if (!js_hex(j->p[k]))
-                        return js_fail(j, j->p, "\\u needs 4 hexadecimal digits");
+                long u = js_u4(j->p);
+                if (u < 0)
+                    return js_fail(j, j->p, "\\u needs 4 hexadecimal digits");
+                if (u == 0)
+                    return js_fail(j, j->p, "\\u0000 (a NUL character) cannot be in a string: a name would end there");
+                if (u >= 0xDC00 && u <= 0xDFFF)
+                    return js_fail(j, j->p, "lone low surrogate \\uDC00..\\uDFFF (it must follow a high one)");
+                if (u >= 0xD800 && u <= 0xDBFF) {
+                    long lo = j->p[6] == '\\' && j->p[7] == 'u' ? js_u4(j->p + 6) : -1;
+                    if (lo < 0xDC00 || lo > 0xDFFF)
+                        return js_fail(j, j->p,
+                                       "lone high surrogate \\uD800..\\uDBFF (it must be followed by a low one)");
+                    j->p += 6;
+                }
                 j->p += 6;
                 continue;
             }
@@ -69,6 +124,13 @@ static int js_string(jscan *j)
                 return js_fail(j, j->p,
                                "invalid escape in a string (allowed: \\\" \\\\ \\/ \\b \\f \\n \\r \\t \\uXXXX)");
             j->p += 2;
+            continue;
+        }
+        if (ch >= 0x80) {
+            int n = js_utf8(j->p);
+            if (n == 0)
+                return js_fail(j, j->p, "invalid UTF-8 in a string (scene files are UTF-8 text)");
+            j->p += n;
             continue;
         }
         j->p++;

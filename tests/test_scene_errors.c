@@ -296,6 +296,54 @@ static void bad_inputs(void **state)
 #undef OBJ1
 }
 
+/* Hostile values that used to pass: derived view quantities that overflow,
+ * vectors whose length overflows or underflows, and strings that are not
+ * text (invalid UTF-8, a NUL escape, lone surrogates). */
+static void hostile_values(void **state)
+{
+    (void)state;
+    /* s * w overflows: refused (it was a NaN ray and SIGSEGV in the BVH walk). */
+    expect_fail(make_scene("{\"type\":\"lecture\",\"E\":[0,0,5],\"O\":[0,0,4],\"U\":[0,1,0],\"s\":1e306,\"w\":255,"
+                           "\"h\":255}",
+                           NULL, "", NULL, NULL),
+                RR_ERR_INVALID, "rays are not finite");
+    /* A valid up vector with large or tiny components is fine. */
+    const char *ups[] = {"[0,1e300,0]", "[0,1e-300,0]", "[1e-200,1e200,0]"};
+    for (int i = 0; i < 3; i++) {
+        char cam[256];
+        snprintf(cam, sizeof cam,
+                 "{\"type\":\"lecture\",\"E\":[0,0,5],\"O\":[0,0,4],\"U\":%s,\"s\":0.5,\"w\":2,\"h\":1}", ups[i]);
+        scene *sc = load_ok(make_scene(cam, NULL, "", NULL, NULL), NULL);
+        assert_v3(sc->view.J, 0, 1, 0);
+        scene_destroy(sc);
+    }
+    /* A light direction whose length overflows is still a direction. */
+    scene *sc = load_ok(make_scene(NULL, NULL,
+                                   "[{\"type\":\"directional\",\"direction\":[1e308,1e308,0],\"intensity\":1}]",
+                                   NULL, NULL),
+                        NULL);
+    assert_v3(sc->lights[0].direction, sqrt(0.5), sqrt(0.5), 0);
+    scene_destroy(sc);
+    /* Strings. */
+    expect_fail(make_scene(NULL, NULL, "", "[" QUAD("white") ",\"name\":\"a\xff\"}]", NULL), RR_ERR_PARSE,
+                "invalid UTF-8");
+    expect_fail(make_scene(NULL, NULL, "", "[" QUAD("white") ",\"name\":\"a\xc0\xaf\"}]", NULL), RR_ERR_PARSE,
+                "invalid UTF-8"); /* an overlong '/' */
+    expect_fail(make_scene(NULL, NULL, "", "[{\"type\":\"quad\",\"material\":\"white\\u0000junk\",\"vertices\":"
+                                           "[[0,0,0],[1,0,0],[1,1,0],[0,1,0]]}]",
+                           NULL),
+                RR_ERR_PARSE, "\\u0000");
+    expect_fail(make_scene(NULL, NULL, "", "[" QUAD("white") ",\"name\":\"x\\ud800y\"}]", NULL), RR_ERR_PARSE,
+                "lone high surrogate");
+    expect_fail(make_scene(NULL, NULL, "", "[" QUAD("white") ",\"name\":\"x\\udc00\"}]", NULL), RR_ERR_PARSE,
+                "lone low surrogate");
+    /* Real text loads: UTF-8 and a surrogate pair. */
+    sc = load_ok(make_scene(NULL, NULL, "", "[" QUAD("white") ",\"name\":\"c\xc3\xb6rnell \\ud83d\\ude00\"}]", NULL),
+                 NULL);
+    assert_string_equal(sc->objects[0].name, "c\xc3\xb6rnell \xf0\x9f\x98\x80");
+    scene_destroy(sc);
+}
+
 static void resolution_limits(void **state)
 {
     (void)state;
@@ -384,6 +432,7 @@ int main(void)
         cmocka_unit_test(overrides_bad),
         cmocka_unit_test(invalid_json),
         cmocka_unit_test(bad_inputs),
+        cmocka_unit_test(hostile_values),
         cmocka_unit_test(resolution_limits),
         cmocka_unit_test(missing_scene_file),
         cmocka_unit_test(bad_mesh_files),
