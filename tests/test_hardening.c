@@ -19,6 +19,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "img.h"
 #include "rad.h"
 #include "rr_core.h"
 #include "rt.h"
@@ -268,6 +269,52 @@ static void cli_outputs_never_overwrite_inputs(void **state)
     assert_false(temporaries_left());
 }
 
+/* Two renders to one output at once (a dark and a bright version of one
+ * scene): whichever commits last, its EXR and its PNG are the pair left
+ * there, never the EXR of one beside the PNG of the other. */
+static void cli_concurrent_renders_leave_one_pair(void **state)
+{
+    (void)state;
+    char scene_path[512], out[256], png[256], la[128], lb[128];
+    snprintf(scene_path, sizeof scene_path, "%s/scenes/cornell.json", RR_SOURCE_DIR);
+    path_in(out, sizeof out, "race.exr");
+    path_in(png, sizeof png, "race.png");
+    path_in(la, sizeof la, "race-a.txt");
+    path_in(lb, sizeof lb, "race-b.txt");
+    /* 300 pixels wide: writing takes long enough for the old code's window
+     * (EXR renamed, PNG still being written) to be hit in 8 of 12 runs. */
+    const char *dark[] = {"render", scene_path, "--mode", "whitted", "--width", "300", "--spp", "1", "--exposure", "-3",
+                          "--set", "materials.light.emission=[1,1,1]", "-q", "-o", out, NULL};
+    const char *bright[] = {"render", scene_path, "--mode", "whitted", "--width", "300", "--spp", "1", "--set",
+                            "materials.light.emission=[40,40,40]", "-q", "-o", out, NULL};
+    for (int run = 0; run < 12; run++) {
+        pid_t a = test_cli_start(la, dark), b = test_cli_start(lb, bright);
+        assert_int_equal(test_cli_finish(a, la, g_out, sizeof g_out), 0);
+        assert_int_equal(test_cli_finish(b, lb, g_out, sizeof g_out), 0);
+        rr_image im = {0};
+        unsigned char *rgb = NULL;
+        int w = 0, h = 0;
+        assert_int_equal(img_read_exr(out, NULL, &im, NULL), RR_OK);
+        assert_int_equal(img_read_png(png, &rgb, &w, &h, NULL), RR_OK);
+        double e = 0.0, p = 0.0;
+        for (int y = 0; y < im.height; y++)
+            for (int x = 0; x < im.width; x++)
+                e += rr_rgb_mean(rr_image_get(&im, x, y));
+        for (int k = 0; k < 3 * w * h; k++)
+            p += rgb[k];
+        e /= (double)im.width * im.height;
+        p /= 3.0 * w * h;
+        /* Measured alone: EXR means 0.007 (dark) and 0.296 (bright), PNG
+         * means 1.7 and 69.8 (of 255): the two must tell the same story. */
+        int exr_bright = e > 0.05, png_bright = p > 30.0;
+        if (exr_bright != png_bright)
+            fail_msg("run %d: EXR mean %.3g (%s render) beside PNG mean %.1f (%s render)", run, e,
+                     exr_bright ? "bright" : "dark", p, png_bright ? "bright" : "dark");
+        rr_image_free(&im);
+        free(rgb);
+    }
+}
+
 /* ---- the radiosity cache ---- */
 
 /* A cache is refused, naming the part of its key that differs, for every
@@ -497,7 +544,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(interrupt_flag_preset),       cmocka_unit_test(cli_sigint_writes_partial),
         cmocka_unit_test(cli_sigterm_writes_partial),  cmocka_unit_test(cli_outputs_never_overwrite_inputs),
-        cmocka_unit_test(cli_cache_key_and_checksum),
+        cmocka_unit_test(cli_cache_key_and_checksum), cmocka_unit_test(cli_concurrent_renders_leave_one_pair),
         cmocka_unit_test(cli_refuses_huge_resolution), cmocka_unit_test(cli_refuses_tiny_patches),
         cmocka_unit_test(scrub_nonfinite),             cmocka_unit_test(scale_invariance_whitted),
         cmocka_unit_test(scale_invariance_hybrid),
