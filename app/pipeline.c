@@ -147,57 +147,8 @@ static const char *count_text(double v, char *buf, size_t n)
     return buf;
 }
 
-/* The patch count rad_patches_build would make for limits po, by the same
- * formulas (one level per object, level^2 patches per triangle; solids by
- * rad_solid_patch_estimate; spheres on a
- * UV grid of S stacks), without building anything. */
-static double count_patches(const scene *s, rad_patch_opts po)
-{
-    double *olevel = calloc(s->nobjects ? s->nobjects : 1, sizeof *olevel);
-    if (!olevel)
-        return 0;
-    double rmax = 0, n = 0;
-    for (size_t t = 0; t < s->ntris; t++) {
-        const scene_tri *tr = &s->tris[t];
-        rr_vec3 A = s->verts[tr->v[0]], B = s->verts[tr->v[1]], C = s->verts[tr->v[2]];
-        double longest =
-            fmax(rr_v3_len(rr_v3_sub(B, A)), fmax(rr_v3_len(rr_v3_sub(C, B)), rr_v3_len(rr_v3_sub(A, C))));
-        double l = fmax(1.0, fmax(ceil(sqrt(scene_tri_area(s, t) / po.max_area)), ceil(longest / po.max_edge)));
-        l = fmin(l, 65535.0);
-        if (l > olevel[tr->object])
-            olevel[tr->object] = l;
-    }
-    for (size_t t = 0; t < s->ntris; t++)
-        n += olevel[s->tris[t].object] * olevel[s->tris[t].object];
-    for (size_t i = 0; i < s->nobjects; i++)
-        if (s->objects[i].kind == SCENE_OBJ_CSG)
-            n += rad_solid_patch_estimate(s, (uint32_t)i, &po);
-    for (size_t i = 0; i < s->nobjects; i++)
-        if (s->objects[i].kind == SCENE_OBJ_SPHERE)
-            rmax = fmax(rmax, s->objects[i].radius);
-    if (rmax > 0) {
-        double need =
-            fmax(4.0, fmax(RR_PI * rmax / sqrt(2.0 * po.max_area), sqrt(2.0) * RR_PI * rmax / po.max_edge));
-        double S = need > 4096 ? 4096 : ceil(need);
-        for (size_t i = 0; i < s->nobjects; i++)
-            if (s->objects[i].kind == SCENE_OBJ_SPHERE)
-                n += 4.0 * S * S - 4.0 * S;
-    }
-    free(olevel);
-    return n;
-}
-
-/* Rough per-item costs: a BVH node pair and an index per primitive; per patch
- * the patch record, its radiosity, emission, first shot and shared vertices. */
+/* A BVH node pair and an index per primitive. */
 #define APP_BVH_BYTES_PER_PRIM 48.0
-#define APP_PATCH_BYTES (sizeof(rad_patch) + 8.0 * sizeof(rr_rgb) + 2.0 * sizeof(rr_vec3))
-#define APP_FF_ENTRY_BYTES 12.0 /* column (uint32) + value (double) */
-/* The form factors' peak (rad_ff_compute): the raw rows, copied into one
- * matrix (2 x raw), then beside that matrix its transpose and the reciprocal
- * matrix over the union of both patterns (raw + raw + union). The union is
- * 1 to 2 times raw; measured 1.36 (scenes/room.json) and 1.49 (the Cornell
- * box at 108,854 patches), so 2 + 1.5 raw is within 20 % for any union. */
-#define APP_FF_PEAK_RAWS 3.5
 
 rr_status app_check_memory(const app_pipeline *p, int mode, int indirect_override, size_t limit, rr_error *err)
 {
@@ -215,14 +166,9 @@ rr_status app_check_memory(const app_pipeline *p, int mode, int indirect_overrid
         rad_pass_opts po;
         memset(&po, 0, sizeof po);
         po.use_scene_choices = 1;
-        patches = count_patches(sc, rad_pass_patch_limits(sc, &po));
         /* A cache that exists is read instead of computing form factors. */
         int cached = p->cache_path && access(p->cache_path, F_OK) == 0;
-        double per_row = sc->radiosity.form_factors == SCENE_FF_MONTE_CARLO
-                             ? fmin(patches, (double)(sc->radiosity.ff_samples > 0 ? sc->radiosity.ff_samples : 1))
-                             : patches;
-        rad = patches * (double)APP_PATCH_BYTES +
-              (cached ? 0.0 : APP_FF_PEAK_RAWS * APP_FF_ENTRY_BYTES * patches * per_row);
+        rad = rad_pass_memory_estimate(sc, &po, cached, &patches);
     }
     double total = film + bvh + rad;
     if (total <= (double)limit)

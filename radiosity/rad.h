@@ -106,6 +106,10 @@ void rad_patch_surface(const rad_patches *P, const scene *s, const rt_accel *a, 
 /* About how many patches solid object obj gets under limits o (for memory
  * estimates before building). */
 double rad_solid_patch_estimate(const scene *s, uint32_t obj, const rad_patch_opts *o);
+/* The patch count rad_patches_build makes under limits o, by its own level
+ * rules (exact for triangles and spheres; solids by rad_solid_patch_estimate),
+ * without building anything. */
+double rad_patches_estimate(const scene *s, const rad_patch_opts *o);
 
 /* Barycentric coordinates of p in patch k (for interpolation). */
 void rad_patch_barycentric(const rad_patches *P, uint32_t k, rr_vec3 p, double b[3]);
@@ -285,6 +289,12 @@ rr_status rad_pass_run_cached(const scene *s, const rt_accel *a, const rad_pass_
 
 /* The patch limits the pass uses for s given o (resolving the automatic ones). */
 rad_patch_opts rad_pass_patch_limits(const scene *s, const rad_pass_opts *o);
+/* Bytes the pass needs at its peak for s given o (patches and their arrays,
+ * and unless cached, the form factors: the raw rows copied into one matrix,
+ * then its transpose and the reciprocal matrix over their union beside it);
+ * *patches gets the patch count. Within 20 % of the measured peak on
+ * scenes/room.json and the Cornell box at 108,854 patches (notes/hardening.md). */
+double rad_pass_memory_estimate(const scene *s, const rad_pass_opts *o, int cached, double *patches);
 
 /* Radiance B/pi at a ray-tracer hit, interpolated from the vertex radiosity
  * across the patch (Gouraud). */

@@ -45,6 +45,27 @@ rad_patch_opts rad_pass_patch_limits(const scene *s, const rad_pass_opts *o)
     return p;
 }
 
+/* Rough per-item costs: per patch the patch record, its radiosity, emission,
+ * first shot and shared vertices; a form factor is a column (uint32) and a
+ * value (double). The form factors' peak is 2 + U raw matrices, U the union's
+ * size over the raw one (1 to 2; measured 1.36 on scenes/room.json and 1.49
+ * on the Cornell box at 108,854 patches): 3.5 is within 20 % for any U. */
+#define RAD_PATCH_BYTES (sizeof(rad_patch) + 8.0 * sizeof(rr_rgb) + 2.0 * sizeof(rr_vec3))
+#define RAD_FF_ENTRY_BYTES 12.0
+#define RAD_FF_PEAK_RAWS 3.5
+
+double rad_pass_memory_estimate(const scene *s, const rad_pass_opts *o, int cached, double *patches)
+{
+    rad_patch_opts lim = rad_pass_patch_limits(s, o);
+    double n = rad_patches_estimate(s, &lim);
+    int method = o->use_scene_choices ? (int)s->radiosity.form_factors : (int)o->ff.method;
+    int samples = o->ff.samples > 0 ? o->ff.samples : s->radiosity.ff_samples;
+    double per_row = method == RAD_FF_MONTE_CARLO ? fmin(n, (double)(samples > 0 ? samples : 1)) : n;
+    if (patches)
+        *patches = n;
+    return n * (double)RAD_PATCH_BYTES + (cached ? 0.0 : RAD_FF_PEAK_RAWS * RAD_FF_ENTRY_BYTES * n * per_row);
+}
+
 void rad_solution_destroy(rad_solution *sol)
 {
     if (!sol)

@@ -122,6 +122,56 @@ static rr_vec3 sphere_point(const scene_object *o, uint32_t S, uint32_t i, uint3
     return rr_v3_add(o->center, rr_v3(o->radius * sin(th) * cos(ph), o->radius * sin(th) * sin(ph), o->radius * cos(th)));
 }
 
+/* One subdivision level per object: the smallest that brings every triangle
+ * of the object under both limits (olevel: nobjects entries, zeroed). */
+static void object_levels(const scene *s, const rad_patch_opts *o, uint32_t *olevel)
+{
+    for (size_t t = 0; t < s->ntris; t++) {
+        const scene_tri *tr = &s->tris[t];
+        rr_vec3 A = s->verts[tr->v[0]], B = s->verts[tr->v[1]], C = s->verts[tr->v[2]];
+        double longest = fmax(rr_v3_len(rr_v3_sub(B, A)), fmax(rr_v3_len(rr_v3_sub(C, B)), rr_v3_len(rr_v3_sub(A, C))));
+        uint32_t l = level_for(tri_area(A, B, C), longest, o);
+        if (l > olevel[tr->object])
+            olevel[tr->object] = l;
+    }
+}
+
+/* Stacks of every sphere's UV grid (one for all, from the largest radius), 0
+ * without spheres. The largest cells are at the equator: pi r / S on each
+ * side, so a triangle has area (pi r / S)^2 / 2 and a diagonal sqrt(2) pi r /
+ * S (chords are shorter still). */
+static uint32_t sphere_stacks(const scene *s, const rad_patch_opts *o)
+{
+    double rmax = 0;
+    for (size_t i = 0; i < s->nobjects; i++)
+        if (s->objects[i].kind == SCENE_OBJ_SPHERE)
+            rmax = fmax(rmax, s->objects[i].radius);
+    if (!(rmax > 0))
+        return 0;
+    double need = fmax(4.0, fmax(RR_PI * rmax / sqrt(2.0 * o->max_area), sqrt(2.0) * RR_PI * rmax / o->max_edge));
+    return need > 4096 ? 4096u : (uint32_t)ceil(need);
+}
+
+double rad_patches_estimate(const scene *s, const rad_patch_opts *o)
+{
+    uint32_t *olevel = calloc(s->nobjects ? s->nobjects : 1, sizeof *olevel);
+    if (!olevel)
+        return 0.0;
+    object_levels(s, o, olevel);
+    uint32_t S = sphere_stacks(s, o);
+    double n = 0;
+    for (size_t t = 0; t < s->ntris; t++)
+        n += (double)olevel[s->tris[t].object] * (double)olevel[s->tris[t].object];
+    for (size_t i = 0; i < s->nobjects; i++) {
+        if (s->objects[i].kind == SCENE_OBJ_SPHERE)
+            n += (double)sphere_patch_count(S);
+        else if (s->objects[i].kind == SCENE_OBJ_CSG)
+            n += rad_solid_patch_estimate(s, (uint32_t)i, o);
+    }
+    free(olevel);
+    return n;
+}
+
 static void free_solid_meshes(rad__solid_mesh *sm, size_t n)
 {
     if (!sm)
@@ -142,26 +192,9 @@ rr_status rad_patches_build(const scene *s, const rad_patch_opts *o, rad_patches
     if (!P || !olevel)
         goto nomem;
     /* Levels per object, and the counts. */
-    double npatch = 0, nvert = 0, rmax = 0;
-    for (size_t t = 0; t < s->ntris; t++) {
-        const scene_tri *tr = &s->tris[t];
-        rr_vec3 A = s->verts[tr->v[0]], B = s->verts[tr->v[1]], C = s->verts[tr->v[2]];
-        double longest = fmax(rr_v3_len(rr_v3_sub(B, A)), fmax(rr_v3_len(rr_v3_sub(C, B)), rr_v3_len(rr_v3_sub(A, C))));
-        uint32_t l = level_for(tri_area(A, B, C), longest, o);
-        if (l > olevel[tr->object])
-            olevel[tr->object] = l;
-    }
-    for (size_t i = 0; i < s->nobjects; i++)
-        if (s->objects[i].kind == SCENE_OBJ_SPHERE)
-            rmax = fmax(rmax, s->objects[i].radius);
-    uint32_t S = 0;
-    if (rmax > 0) {
-        /* The largest cells are at the equator: pi r / S on each side, so a
-         * triangle has area (pi r / S)^2 / 2 and a diagonal sqrt(2) pi r / S
-         * (chords are shorter still). */
-        double need = fmax(4.0, fmax(RR_PI * rmax / sqrt(2.0 * o->max_area), sqrt(2.0) * RR_PI * rmax / o->max_edge));
-        S = need > 4096 ? 4096u : (uint32_t)ceil(need);
-    }
+    double npatch = 0, nvert = 0;
+    object_levels(s, o, olevel);
+    uint32_t S = sphere_stacks(s, o);
     for (size_t t = 0; t < s->ntris; t++) {
         double l = olevel[s->tris[t].object];
         npatch += l * l;

@@ -74,6 +74,12 @@ static void limits_and_areas(void **state)
     double full = 4 * RR_PI * 0.49;
     if (!(sph < full && sph > 0.95 * full)) /* inscribed: 1 - O(1/S^2) */
         fail_msg("sphere patch area %g of %g (S = %u)", sph, full, P->sphere_stacks);
+    /* The estimate the memory check uses is the count, for triangles and spheres. */
+    assert_true(rad_patches_estimate(s, &o) == (double)P->n);
+    rad_patches_destroy(P);
+    rad_patch_opts o2 = {0.5, 2.0, NULL};
+    assert_int_equal(rad_patches_build(s, &o2, &P, &err), RR_OK);
+    assert_true(rad_patches_estimate(s, &o2) == (double)P->n);
     rad_patches_destroy(P);
     rad_patches_destroy(NULL);
     scene_destroy(s);
