@@ -7,8 +7,9 @@
  * the root is the last node of its object. Transforms compose downwards (a
  * child's own transform acts first, then its parent's, up to the object's),
  * so every leaf holds its whole local-to-world map and inner nodes only
- * combine. n-ary children fold left: difference [a, b, c] is (a - b) - c,
- * stored as two binary nodes.
+ * combine. n-ary unions and intersections fold into balanced binary trees
+ * (depth ceil(log2 n)); differences fold left: difference [a, b, c] is
+ * (a - b) - c, stored as two binary nodes.
  *
  * Bounds are conservative world boxes: the 8 corners of a leaf's local box
  * (sphere: centre +- radius; quadric and box: the clip box) through to_world,
@@ -577,7 +578,83 @@ static void combine_bounds(scene_csg_op op, const scene_csg_node *a, const scene
 static rr_status build_node(solid_ctx *sc, const cJSON *v, const char *path, int level, const rr_xform *world,
                             uint32_t material, uint32_t *idx, int *depth);
 
-/* A "csg" node: its children, folded left into binary nodes. */
+/* One binary node over children a and b (depths da, db) named np; refuses
+ * when level - 1 + its depth is over the limit (every enclosing csg adds at
+ * least one level, so that is a lower bound of the final depth, exact at the
+ * object, level 1). */
+static rr_status combine(solid_ctx *sc, const char *path, const char *np, scene_csg_op op, uint32_t material,
+                         int level, uint32_t a, int da, uint32_t b, int db, uint32_t *idx, int *depth)
+{
+    int d = 1 + (da > db ? da : db);
+    if (level - 1 + d > SP_CSG_DEPTH_MAX)
+        return sp_fail(sc->c, RR_ERR_LIMIT, path,
+                       "the CSG tree is at least %d levels deep, over the limit of %d (group the children into "
+                       "nested csg objects)",
+                       level - 1 + d, SP_CSG_DEPTH_MAX);
+    uint32_t ni;
+    rr_status st = new_node(sc, np, op, material, &ni);
+    if (st != RR_OK)
+        return st;
+    scene_csg_node *n = &sc->s->csg[ni];
+    n->left = a;
+    n->right = b;
+    combine_bounds(n->op, &sc->s->csg[a], &sc->s->csg[b], n);
+    *idx = ni;
+    *depth = d;
+    return RR_OK;
+}
+
+/* Children [lo, hi) of a union or intersection as a balanced tree (the first
+ * half on the left: three children are (a op b) op c, as a left fold). The
+ * node the file wrote is the root; the others are named after the children
+ * they combine. */
+static rr_status fold_balanced(solid_ctx *sc, const char *path, scene_csg_op op, uint32_t material, int level,
+                               const uint32_t *ci, const int *cd, size_t lo, size_t hi, int root, uint32_t *idx,
+                               int *depth)
+{
+    if (hi - lo == 1) {
+        *idx = ci[lo];
+        *depth = cd[lo];
+        return RR_OK;
+    }
+    size_t mid = lo + (hi - lo + 1) / 2;
+    uint32_t a, b;
+    int da, db;
+    rr_status st = fold_balanced(sc, path, op, material, level, ci, cd, lo, mid, 0, &a, &da);
+    if (st == RR_OK)
+        st = fold_balanced(sc, path, op, material, level, ci, cd, mid, hi, 0, &b, &db);
+    if (st != RR_OK)
+        return st;
+    char np[SP_PATH_MAX + 48]; /* path (< SP_PATH_MAX) + ".children[lo..hi]" */
+    if (root)
+        snprintf(np, sizeof np, "%s", path);
+    else
+        snprintf(np, sizeof np, "%s.children[%zu..%zu]", path, lo, hi - 1);
+    return combine(sc, path, np, op, material, level, a, da, b, db, idx, depth);
+}
+
+/* Children of a difference, folded left: ((a - b) - c) - ... */
+static rr_status fold_left(solid_ctx *sc, const char *path, uint32_t material, int level, const uint32_t *ci,
+                           const int *cd, size_t n, uint32_t *idx, int *depth)
+{
+    uint32_t acc = ci[0];
+    int accd = cd[0];
+    for (size_t i = 1; i < n; i++) {
+        char np[SP_PATH_MAX + 48];
+        if (i + 1 < n)
+            snprintf(np, sizeof np, "%s.children[0..%zu]", path, i);
+        else
+            snprintf(np, sizeof np, "%s", path);
+        rr_status st = combine(sc, path, np, SCENE_CSG_DIFFERENCE, material, level, acc, accd, ci[i], cd[i], &acc, &accd);
+        if (st != RR_OK)
+            return st;
+    }
+    *idx = acc;
+    *depth = accd;
+    return RR_OK;
+}
+
+/* A "csg" node: its children, folded into binary nodes. */
 static rr_status csg_node(solid_ctx *sc, const cJSON *v, const char *path, int level, const rr_xform *world,
                           uint32_t material, uint32_t *idx, int *depth)
 {
@@ -615,68 +692,51 @@ static rr_status csg_node(solid_ctx *sc, const cJSON *v, const char *path, int l
     if (level + 1 > SP_CSG_DEPTH_MAX)
         return sp_fail(c, RR_ERR_LIMIT, path, "the CSG tree is nested deeper than the limit of %d levels",
                        SP_CSG_DEPTH_MAX);
-    /* n children fold into a chain n - 1 nodes long above the deepest
-     * child's leaves, so the tree is at least n deep: refuse before
-     * building anything. */
-    if (level - 1 + nch > SP_CSG_DEPTH_MAX)
+    /* Unions and intersections (associative and commutative) fold into a
+     * balanced tree, ceil(log2 n) binary nodes above the deepest child;
+     * differences fold left, a chain n - 1 long ((a - b) - c). Refuse
+     * before building anything when that alone is too deep. */
+    int balanced = op != SCENE_CSG_DIFFERENCE, fold = 0;
+    while (balanced && (1 << fold) < nch)
+        fold++;
+    if (!balanced)
+        fold = nch - 1;
+    if (level + fold > SP_CSG_DEPTH_MAX)
         return sp_fail(c, RR_ERR_LIMIT, p,
-                       "%d children fold into a chain of %d binary nodes, deeper than the limit of %d levels for the "
-                       "whole tree; group them into nested csg objects (a balanced tree is shallower)",
-                       nch, nch - 1, SP_CSG_DEPTH_MAX);
-
-    uint32_t acc = 0;
-    int accd = 0;
+                       "%d children fold into %d levels of binary nodes (%s), deeper than the limit of %d levels for "
+                       "the whole tree; group them into nested csg objects",
+                       nch, fold, balanced ? "a balanced tree" : "a chain: difference folds left",
+                       SP_CSG_DEPTH_MAX);
+    uint32_t *ci = malloc((size_t)nch * sizeof *ci);
+    int *cd = malloc((size_t)nch * sizeof *cd);
+    if (!ci || !cd) {
+        free(ci);
+        free(cd);
+        return sp_fail(c, RR_ERR_NOMEM, p, "out of memory for %d children", nch);
+    }
+    rr_status st = RR_OK;
     size_t i = 0;
-    for (const cJSON *it = ch->child; it; it = it->next, i++) {
+    for (const cJSON *it = ch->child; it && st == RR_OK; it = it->next, i++) {
         char cp[SP_PATH_MAX];
         sp_idx(cp, p, i);
-        rr_status st = sp_solid_check_keys(c, it, cp, 0);
-        if (st != RR_OK)
-            return st;
+        if ((st = sp_solid_check_keys(c, it, cp, 0)) != RR_OK)
+            break;
         uint32_t cmat = material;
         if (sp_get(it, "material") && (st = sp_find_material(c, it, cp, sc->s, &cmat)) != RR_OK)
-            return st;
+            break;
         rr_xform own, cw;
         int has;
         if ((st = sp_parse_transform(c, it, cp, &own, &has)) != RR_OK)
-            return st;
+            break;
         cw = rr_xform_compose(world, &own); /* the child's own transform first, then its parents' */
-        uint32_t ci;
-        int cd;
-        if ((st = build_node(sc, it, cp, level + 1, &cw, cmat, &ci, &cd)) != RR_OK)
-            return st;
-        if (i == 0) {
-            acc = ci, accd = cd;
-            continue;
-        }
-        /* Every enclosing csg adds at least one level above this node, so
-         * level - 1 + d is a lower bound of the final depth, exact at the
-         * object (level 1). */
-        int d = 1 + (accd > cd ? accd : cd);
-        if (level - 1 + d > SP_CSG_DEPTH_MAX)
-            return sp_fail(c, RR_ERR_LIMIT, path,
-                           "the CSG tree is at least %d levels deep, over the limit of %d (n children fold left into "
-                           "a chain of n - 1 binary nodes; group them into nested csg objects)",
-                           level - 1 + d, SP_CSG_DEPTH_MAX);
-        /* The last fold is the node the file wrote; the ones before it are
-         * named after the children they combine. */
-        char np[SP_PATH_MAX + 40]; /* path (< SP_PATH_MAX) + ".children[0..N]" */
-        if (it->next)
-            snprintf(np, sizeof np, "%s.children[0..%zu]", path, i);
-        else
-            snprintf(np, sizeof np, "%s", path);
-        uint32_t ni;
-        if ((st = new_node(sc, np, (scene_csg_op)op, material, &ni)) != RR_OK)
-            return st;
-        scene_csg_node *n = &sc->s->csg[ni];
-        n->left = acc;
-        n->right = ci;
-        combine_bounds(n->op, &sc->s->csg[acc], &sc->s->csg[ci], n);
-        acc = ni, accd = d;
+        st = build_node(sc, it, cp, level + 1, &cw, cmat, &ci[i], &cd[i]);
     }
-    *idx = acc;
-    *depth = accd;
-    return RR_OK;
+    if (st == RR_OK)
+        st = balanced ? fold_balanced(sc, path, (scene_csg_op)op, material, level, ci, cd, 0, (size_t)nch, 1, idx, depth)
+                      : fold_left(sc, path, material, level, ci, cd, (size_t)nch, idx, depth);
+    free(ci);
+    free(cd);
+    return st;
 }
 
 /* Node v at path (keys checked), level 1 for the object itself; world is its

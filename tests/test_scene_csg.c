@@ -713,22 +713,26 @@ static void too_deep(void **state)
     expect_fail(make_scene(NULL, NULL, "", objs, ""), RR_ERR_LIMIT,
                 "the CSG tree is nested deeper than the limit of 32 levels");
 
-    /* 40 children fold into a chain 39 deep */
-    len = (size_t)snprintf(obj, sizeof obj, "{\"type\":\"csg\",\"op\":\"union\",\"material\":\"white\",\"children\":[");
+    /* A difference of 40 children folds into a chain 39 deep */
+    len = (size_t)snprintf(obj, sizeof obj,
+                           "{\"type\":\"csg\",\"op\":\"difference\",\"material\":\"white\",\"children\":[");
     for (int i = 0; i < 40; i++)
         len += (size_t)snprintf(obj + len, sizeof obj - len, "%s" BOX, i ? "," : "");
     snprintf(obj + len, sizeof obj - len, "]}");
     snprintf(objs, sizeof objs, "[%s]", obj);
     expect_fail(make_scene(NULL, NULL, "", objs, ""), RR_ERR_LIMIT,
-                "bad.json: objects[0].children: 40 children fold into a chain of 39 binary nodes, deeper than the "
-                "limit of 32 levels");
+                "bad.json: objects[0].children: 40 children fold into 39 levels of binary nodes (a chain: difference "
+                "folds left), deeper than the limit of 32 levels");
 
-    /* 17 children, the first of which has 17 children: each fold alone is
-     * within the limit, together they are 16 + 17 = 33 deep */
-    len = (size_t)snprintf(obj, sizeof obj, "{\"type\":\"csg\",\"op\":\"union\",\"material\":\"white\",\"children\":[");
+    /* 17 children, the first of which has 17 children, as differences:
+     * each fold alone is within the limit, together they are 16 + 17 = 33
+     * deep */
+    len = (size_t)snprintf(obj, sizeof obj,
+                           "{\"type\":\"csg\",\"op\":\"difference\",\"material\":\"white\",\"children\":[");
     for (int k = 0; k < 2; k++) {
         if (k == 0)
-            len += (size_t)snprintf(obj + len, sizeof obj - len, "{\"type\":\"csg\",\"op\":\"union\",\"children\":[");
+            len += (size_t)snprintf(obj + len, sizeof obj - len,
+                                    "{\"type\":\"csg\",\"op\":\"difference\",\"children\":[");
         for (int i = 0; i < 17 - k; i++)
             len += (size_t)snprintf(obj + len, sizeof obj - len, "%s" BOX, i ? "," : "");
         if (k == 0)
@@ -752,13 +756,56 @@ static void too_deep(void **state)
     scene_destroy(s);
 }
 
+/* Unions fold into balanced trees: 1024 children are 10 levels of binary
+ * nodes, not a chain of 1023 (refused before); three children are still
+ * (a u b) u c, as a left fold. */
+static void union_folds_balanced(void **state)
+{
+    (void)state;
+    static char obj[1 << 17];
+    size_t len = (size_t)snprintf(obj, sizeof obj,
+                                  "{\"format\":\"radray-scene/1\",\"camera\":" CAM ",\"materials\":" MATS
+                                  ",\"objects\":[{\"type\":\"csg\",\"op\":\"union\",\"material\":\"white\",\"children\":[");
+    for (int i = 0; i < 1024; i++)
+        len += (size_t)snprintf(obj + len, sizeof obj - len, "%s{\"type\":\"sphere\",\"center\":[%d,0,0],\"radius\":0.6}",
+                                i ? "," : "", i);
+    snprintf(obj + len, sizeof obj - len, "]}]}");
+    scene *s = load_ok(obj, NULL);
+    assert_int_equal(s->ncsg, 2047);
+    /* Depth: the longest root-to-leaf path. */
+    int deepest = 0;
+    for (size_t i = 0; i < s->ncsg; i++) {
+        if (s->csg[i].op != SCENE_CSG_LEAF)
+            continue;
+        int d = 1;
+        for (size_t k = i, up = 1; up;) {
+            up = 0;
+            for (size_t j = 0; j < s->ncsg; j++)
+                if (s->csg[j].op != SCENE_CSG_LEAF && (s->csg[j].left == k || s->csg[j].right == k)) {
+                    k = j, d++, up = 1;
+                    break;
+                }
+        }
+        deepest = d > deepest ? d : deepest;
+    }
+    assert_int_equal(deepest, 11);
+    assert_v3(root_of(s, 0)->bbox_hi, 1023.6, 0.6, 0.6);
+    scene_destroy(s);
+    s = load_obj("{\"type\":\"csg\",\"op\":\"union\",\"material\":\"white\",\"children\":[" BOX "," BOX "," BOX "]}",
+                 NULL);
+    const scene_csg_node *r = root_of(s, 0);
+    assert_string_equal(s->csg[r->left].name, "objects[0].children[0..1]");
+    assert_string_equal(s->csg[r->right].name, "objects[0].children[2]");
+    scene_destroy(s);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(quadric_shapes),     cmocka_unit_test(quadric_transform), cmocka_unit_test(nested_transforms),
         cmocka_unit_test(material_inheritance), cmocka_unit_test(fold_left),       cmocka_unit_test(bounds_pruning),
         cmocka_unit_test(several_objects),    cmocka_unit_test(mesh_leaf),         cmocka_unit_test(documented_example),
-        cmocka_unit_test(bad_solids),         cmocka_unit_test(too_deep),
+        cmocka_unit_test(bad_solids),         cmocka_unit_test(too_deep),          cmocka_unit_test(union_folds_balanced),
     };
     return cmocka_run_group_tests(tests, make_meshes, remove_meshes);
 }
