@@ -49,7 +49,21 @@ typedef struct app_pipeline {
     const volatile sig_atomic_t *interrupt; /* passed to rt_render (NULL: none) */
 } app_pipeline;
 
-/* Runs the radiosity pass once (no-op when done). */
+/* A progress line on stderr ("what  45%  12.3 s, 15.0 s left"), drawn only
+ * when enabled (a terminal, not --quiet), one update per percent. */
+typedef struct app_progress {
+    int enabled, last;
+    double t0;
+    const char *what;
+} app_progress;
+void app_pass_progress(void *user, size_t done, size_t total);
+/* The radiosity pass's options every command uses: the scene's choices, its
+ * seed and threads, warnings on stderr, the interrupt flag, and prog (may be
+ * NULL) as the form factors' progress line. */
+void app_radiosity_opts(const scene *sc, const volatile sig_atomic_t *interrupt, app_progress *prog,
+                        rad_pass_opts *po);
+/* Runs the radiosity pass once (no-op when done). Ctrl-C stops its form
+ * factors within a row (RR_ERR_INTERRUPTED). */
 rr_status app_pipeline_radiosity(app_pipeline *p, rr_error *err);
 /* Renders mode into film (sized to the view); *seconds = wall time including
  * the radiosity pass when this call ran it. */

@@ -185,23 +185,9 @@ static int parse_args(int argc, char **argv, energy_args *A)
     return 0;
 }
 
-typedef struct progress_bar {
-    int enabled, last;
-    double t0;
-} progress_bar;
-
-static void draw_progress(void *user, uint64_t done, uint64_t total)
+static void particle_progress(void *user, uint64_t done, uint64_t total)
 {
-    progress_bar *p = user;
-    int pct = (int)(100.0 * (double)done / (double)total);
-    if (!p->enabled || (pct == p->last && done != total))
-        return;
-    p->last = pct;
-    double t = app_now_seconds() - p->t0, eta = done > 0 ? t * ((double)total / (double)done - 1.0) : 0.0;
-    fprintf(stderr, "\rlight tracing %3d%% %6.1f s, %5.1f s left", pct, t, eta);
-    if (done == total)
-        fputc('\n', stderr);
-    fflush(stderr);
+    app_pass_progress(user, (size_t)done, (size_t)total);
 }
 
 /* The radiosity balance: emitted = absorbed + escaped up to the solver. */
@@ -406,15 +392,16 @@ static void print_json(const energy_result *R, int agree)
 static int run(const energy_args *A, scene *s, rt_accel *a, energy_result *R)
 {
     rr_error err;
+    app_progress pass = {!A->quiet && isatty(STDERR_FILENO), -1, app_now_seconds(), "radiosity: form factors"};
     rad_pass_opts po;
-    memset(&po, 0, sizeof po);
-    po.use_scene_choices = 1;
-    po.warn = app_warn_sink();
-    po.ff.seed = s->settings.seed;
-    po.ff.threads = s->settings.threads;
+    app_radiosity_opts(s, &g_stop, &pass, &po);
     rad_solution *sol = NULL;
     rr_status st = rad_pass_run(s, a, &po, &sol, &err);
     R->sol = sol;
+    if (st == RR_ERR_INTERRUPTED) {
+        app_error("%s", err.msg);
+        return APP_EXIT_INTERRUPTED;
+    }
     if (st == RR_OK)
         st = rad_energy_solution(sol, &R->rows, &R->nrows, &err);
     if (st != RR_OK) {
@@ -437,10 +424,10 @@ static int run(const energy_args *A, scene *s, rt_accel *a, energy_result *R)
     o.batches = (int)A->batches;
     o.seed = A->seed >= 0 ? (uint64_t)A->seed : s->settings.seed;
     o.threads = A->threads > 0 ? (int)A->threads : s->settings.threads;
-    progress_bar bar = {!A->quiet && isatty(STDERR_FILENO), -1, app_now_seconds()};
+    app_progress bar = {!A->quiet && isatty(STDERR_FILENO), -1, app_now_seconds(), "light tracing"};
     if (!A->quiet)
         fprintf(stderr, "light tracing %ld particles in %ld batches\n", A->particles, A->batches);
-    o.progress = draw_progress;
+    o.progress = particle_progress;
     o.progress_user = &bar;
     o.interrupt = &g_stop;
     st = rt_particles_trace(s, a, L, &o, &R->g, &err);

@@ -44,16 +44,42 @@ rt_indirect app_mode_indirect(int mode, int indirect_override)
     return indirect_override >= 0 ? (rt_indirect)indirect_override : preset[mode];
 }
 
+void app_pass_progress(void *user, size_t done, size_t total)
+{
+    app_progress *p = user;
+    int pct = (int)(100.0 * (double)done / (double)total);
+    if (!p->enabled || (pct == p->last && done != total))
+        return;
+    p->last = pct;
+    double t = app_now_seconds() - p->t0, left = done > 0 ? t * ((double)total / (double)done - 1.0) : 0.0;
+    fprintf(stderr, "\r%s %3d%% %6.1f s, %5.1f s left", p->what, pct, t, left);
+    if (done == total)
+        fputs("\r\033[K", stderr); /* the summary line follows */
+    fflush(stderr);
+}
+
+void app_radiosity_opts(const scene *sc, const volatile sig_atomic_t *interrupt, app_progress *prog,
+                        rad_pass_opts *po)
+{
+    memset(po, 0, sizeof *po);
+    po->use_scene_choices = 1;
+    po->warn = app_warn_sink();
+    po->ff.seed = sc->settings.seed;
+    po->ff.threads = sc->settings.threads;
+    po->ff.interrupt = interrupt;
+    if (prog && prog->enabled) {
+        po->ff.progress = app_pass_progress;
+        po->ff.progress_user = prog;
+    }
+}
+
 rr_status app_pipeline_radiosity(app_pipeline *p, rr_error *err)
 {
     if (p->sol)
         return RR_OK;
+    app_progress prog = {!p->quiet && isatty(STDERR_FILENO), -1, app_now_seconds(), "radiosity: form factors"};
     rad_pass_opts po;
-    memset(&po, 0, sizeof po);
-    po.use_scene_choices = 1;
-    po.warn = app_warn_sink();
-    po.ff.seed = p->sc->settings.seed;
-    po.ff.threads = p->sc->settings.threads;
+    app_radiosity_opts(p->sc, p->interrupt, &prog, &po);
     int cached = 0;
     rr_status st = rad_pass_run_cached(p->sc, p->accel, &po, p->cache_path, &cached, &p->sol, err);
     if (st != RR_OK)

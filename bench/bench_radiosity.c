@@ -69,14 +69,14 @@ int main(int argc, char **argv)
         if (rad_patches_build(s, &po, &P, &err) != RR_OK)
             die(&err);
         double t1 = now();
-        rad_ff_opts fo = {RAD_FF_MONTE_CARLO, 512, 1, 0, 0, 0};
+        rad_ff_opts fo = {.method = RAD_FF_MONTE_CARLO, .samples = 512, .seed = 1};
         rad_ff *F = NULL;
         if (rad_ff_compute(s, a, P, &fo, &F, &err) != RR_OK)
             die(&err);
         double t2 = now();
         double tq = -1;
         if (P->n <= 4096) {
-            rad_ff_opts qo = {RAD_FF_QUADRATURE, 16, 1, 0, 0, 0};
+            rad_ff_opts qo = {.method = RAD_FF_QUADRATURE, .samples = 16, .seed = 1};
             rad_ff *Q = NULL;
             double q0 = now();
             if (rad_ff_compute(s, a, P, &qo, &Q, &err) != RR_OK)

@@ -140,6 +140,12 @@ typedef struct rad_ff_opts {
                           so the solved system conserves energy exactly */
     int mirror_depth;  /* Monte Carlo: reflections a form-factor ray follows off mirrors
                           (extended form factors; 0 = mirrors end rays like any surface) */
+    /* Progress: rows done of all, called from one thread at a time (NULL: none). */
+    void (*progress)(void *user, size_t done, size_t total);
+    void *progress_user;
+    /* Interrupt (a SIGINT handler's flag): when it points to a non-zero value,
+     * no further row starts and rad_ff_compute returns RR_ERR_INTERRUPTED. */
+    const volatile sig_atomic_t *interrupt;
 } rad_ff_opts;
 
 /* Form factors between all patches, visibility by the BVH a (built over s).

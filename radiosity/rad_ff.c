@@ -701,6 +701,20 @@ static int scratch_alloc(ff_scratch *w, const ff_ctx *c, rad_ff_method m, size_t
     return w->perm && w->hits && w->hw && w->col && w->val && (c->mirror_depth == 0 || w->pairs);
 }
 
+/* One more row done: progress every 64 rows and at the end, one thread at a time. */
+static void report_row(const rad_ff_opts *o, size_t *done, size_t n)
+{
+    if (!o->progress)
+        return;
+    size_t now;
+#pragma omp atomic capture
+    now = ++*done;
+    if (now % 64 == 0 || now == n) {
+#pragma omp critical(rad_ff_progress)
+        o->progress(o->progress_user, now, n);
+    }
+}
+
 rr_status rad_ff_compute(const scene *s, const rt_accel *a, const rad_patches *P, const rad_ff_opts *o, rad_ff **out,
                          rr_error *err)
 {
@@ -737,7 +751,8 @@ rr_status rad_ff_compute(const scene *s, const rt_accel *a, const rad_patches *P
     ff_row *rows = calloc(n ? n : 1, sizeof *rows);
     if (!rows)
         return rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory for form factors", s->path);
-    int failed = 0;
+    int failed = 0; /* 1: out of memory, 2: interrupted */
+    size_t done = 0;
     int nthreads = o->threads > 0 ? o->threads : omp_get_max_threads();
 #pragma omp parallel num_threads(nthreads)
     {
@@ -752,6 +767,11 @@ rr_status rad_ff_compute(const scene *s, const rt_accel *a, const rad_patches *P
             int stop;
 #pragma omp atomic read
             stop = failed;
+            if (!stop && o->interrupt && *o->interrupt) {
+#pragma omp atomic write
+                failed = 2;
+                stop = 2;
+            }
             if (stop || !ok)
                 continue;
             size_t m = o->method == RAD_FF_QUADRATURE ? quad_row(&c, (uint32_t)i, &w)
@@ -769,8 +789,17 @@ rr_status rad_ff_compute(const scene *s, const rt_accel *a, const rad_patches *P
             }
             memcpy(r->col, w.col, m * sizeof *r->col);
             memcpy(r->val, w.val, m * sizeof *r->val);
+            report_row(o, &done, n);
         }
         scratch_free(&w);
+    }
+    if (failed == 2) {
+        for (size_t i = 0; i < n; i++) {
+            free(rows[i].col);
+            free(rows[i].val);
+        }
+        free(rows);
+        return rr_error_set(err, RR_ERR_INTERRUPTED, "%s: radiosity pass interrupted (form factors)", s->path);
     }
 
     rad_ff *F = NULL;

@@ -123,7 +123,7 @@ static rad_ff *ff_run_opts(const fx *f, const rad_ff_opts *o)
 
 static rad_ff *ff_run(const fx *f, rad_ff_method m, int samples, int raw, int threads, uint64_t seed)
 {
-    rad_ff_opts o = {m, samples, seed, threads, raw, 0};
+    rad_ff_opts o = {.method = m, .samples = samples, .seed = seed, .threads = threads, .raw = raw};
     return ff_run_opts(f, &o);
 }
 
@@ -511,7 +511,7 @@ static void mc_rows_balanced_closed_box(void **state)
     (void)state;
     fx f;
     fx_open(&f, k_cube, 0.25);
-    rad_ff_opts o = {RAD_FF_MONTE_CARLO, 1024, 11, 0, 0, 0};
+    rad_ff_opts o = {.method = RAD_FF_MONTE_CARLO, .samples = 1024, .seed = 11};
     double over;
     size_t short_rows;
     double worst = check_balanced(&f, &o, &over, &short_rows);
@@ -539,7 +539,7 @@ static void mc_rows_balanced_mirrors(void **state)
     (void)state;
     fx f;
     fx_open_head(&f, k_head_mirrors, CUBE("mir", "half"), 0.25);
-    rad_ff_opts o = {RAD_FF_MONTE_CARLO, 1024, 12, 0, 0, 4};
+    rad_ff_opts o = {.method = RAD_FF_MONTE_CARLO, .samples = 1024, .seed = 12, .mirror_depth = 4};
     double over;
     size_t short_rows, mirror_patches = 0, diag = 0;
     double worst = check_balanced(&f, &o, &over, &short_rows);
@@ -746,7 +746,7 @@ static void bad_options(void **state)
     fx_open(&f, k_parallel, 1.0);
     rad_ff *F = (rad_ff *)(uintptr_t)1; /* must stay untouched */
     rr_error err;
-    rad_ff_opts o = {RAD_FF_QUADRATURE, 0, 0, 0, 0, 0};
+    rad_ff_opts o = {.method = RAD_FF_QUADRATURE, .samples = 0, .seed = 0};
     assert_int_equal(rad_ff_compute(f.s, f.a, f.P, &o, &F, &err), RR_ERR_INVALID);
     o.samples = 4;
     o.method = (rad_ff_method)7;

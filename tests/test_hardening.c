@@ -220,6 +220,25 @@ static void cli_sigterm_writes_partial(void **state)
     signal_writes_partial(SIGTERM);
 }
 
+/* Ctrl-C during the radiosity pass stops its form factors (not the pass's
+ * end, as before): the message says so, exit 130, the partial image black. */
+static void cli_sigint_stops_radiosity_pass(void **state)
+{
+    (void)state;
+    char out[256], scene_path[512];
+    path_in(out, sizeof out, "pass.exr");
+    snprintf(scene_path, sizeof scene_path, "%s/scenes/cornell.json", RR_SOURCE_DIR);
+    const char *args[] = {"render", scene_path, "--patch-area", "100", "--width", "8", "-q", "-o", out, NULL};
+    pid_t pid = start(args);
+    while (!catches(pid, SIGINT))
+        usleep(1000);
+    kill(pid, SIGINT);
+    assert_int_equal(finish(pid), 130);
+    assert_non_null(strstr(g_out, "radiosity pass interrupted"));
+    assert_true(exists("pass.partial.exr"));
+    assert_false(exists("pass.exr"));
+}
+
 /* ---- outputs ---- */
 
 /* An output that names an input or another output is refused before any
@@ -543,7 +562,8 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(interrupt_flag_preset),       cmocka_unit_test(cli_sigint_writes_partial),
-        cmocka_unit_test(cli_sigterm_writes_partial),  cmocka_unit_test(cli_outputs_never_overwrite_inputs),
+        cmocka_unit_test(cli_sigterm_writes_partial),  cmocka_unit_test(cli_sigint_stops_radiosity_pass),
+        cmocka_unit_test(cli_outputs_never_overwrite_inputs),
         cmocka_unit_test(cli_cache_key_and_checksum), cmocka_unit_test(cli_concurrent_renders_leave_one_pair),
         cmocka_unit_test(cli_refuses_huge_resolution), cmocka_unit_test(cli_refuses_tiny_patches),
         cmocka_unit_test(scrub_nonfinite),             cmocka_unit_test(scale_invariance_whitted),
