@@ -304,6 +304,7 @@ static int prepare(job *j)
         app_error("%s", err.msg);
         return APP_EXIT_RUNTIME;
     }
+    app_diagnose_light(j->sc, j->accel);
     j->pl.sc = j->sc;
     j->pl.accel = j->accel;
     j->pl.quiet = j->quiet;

@@ -121,6 +121,10 @@ int app_cmd_info(int argc, char **argv)
         return APP_EXIT_USAGE;
     }
     app_diagnose_scene(s);
+    rt_accel *a = NULL;
+    if (rt_accel_build(s, &a, NULL) == RR_OK) /* for the light check only: info needs no BVH otherwise */
+        app_diagnose_light(s, a);
+    rt_accel_destroy(a);
     const rr_view *v = &s->view;
     printf("scene      %s (%s)\n", s->name, s->path);
     printf("camera     E (%g, %g, %g)  O (%g, %g, %g)  U (%g, %g, %g)  s %g\n", v->E.x, v->E.y, v->E.z, v->O.x,

@@ -322,6 +322,7 @@ int app_cmd_render(int argc, char **argv)
         rc = APP_EXIT_RUNTIME;
         goto done;
     }
+    app_diagnose_light(sc, accel);
 
     progress_state prog = {0};
     prog.enabled = !quiet && isatty(STDERR_FILENO);

@@ -1,7 +1,7 @@
 /* diagnose.c - warnings that name the cause of light that goes nowhere
  * (notes/energy.md, "Diagnostics"): an emitter inside a closed object whose
  * faces point outwards, and (from the light tracer's ledger) light that ends
- * on back faces. Printed by render, info and energy. */
+ * on back faces. Printed by render, info, compare and energy. */
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
@@ -96,4 +96,26 @@ size_t app_diagnose_ledger(const scene *s, const rt_particle_ledger *g, double s
         warned++;
     }
     return warned;
+}
+
+size_t app_diagnose_light(const scene *s, const rt_accel *a)
+{
+    if (!rt_scene_emits(s))
+        return 0;
+    rt_lights *L = NULL;
+    if (rt_lights_build(s, a, 0, &L, NULL) != RR_OK)
+        return 0;
+    rt_particle_opts o = {0};
+    o.particles = APP_DIAGNOSE_PARTICLES;
+    o.batches = 4;
+    o.seed = s->settings.seed;
+    o.threads = s->settings.threads;
+    rt_particle_ledger g;
+    size_t n = 0;
+    if (rt_lights_emitter_count(L) > 0 && rt_particles_trace(s, a, L, &o, &g, NULL) == RR_OK) {
+        n = app_diagnose_ledger(s, &g, 0.01);
+        rt_particle_ledger_free(&g);
+    }
+    rt_lights_destroy(L);
+    return n;
 }
