@@ -110,6 +110,11 @@ double rad_solid_patch_estimate(const scene *s, uint32_t obj, const rad_patch_op
  * rules (exact for triangles and spheres; solids by rad_solid_patch_estimate),
  * without building anything. */
 double rad_patches_estimate(const scene *s, const rad_patch_opts *o);
+/* Warns about every object whose level is set by a few outlying triangles
+ * (at most 8, and under 1 %, needing more than a quarter of the level the
+ * object gets): the patch count grows with the square of the level. Returns
+ * the count of objects named. */
+size_t rad_patches_level_outliers(const scene *s, const rad_patch_opts *o, const rr_warn_sink *warn);
 
 /* Barycentric coordinates of p in patch k (for interpolation). */
 void rad_patch_barycentric(const rad_patches *P, uint32_t k, rr_vec3 p, double b[3]);

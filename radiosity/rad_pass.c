@@ -173,6 +173,7 @@ rr_status rad_pass_run(const scene *s, const rt_accel *a, const rad_pass_opts *o
     double t0 = now_seconds();
     rad_patch_opts po = rad_pass_patch_limits(s, o);
     po.accel = a;
+    rad_patches_level_outliers(s, &po, &o->warn);
     if ((st = rad_patches_build(s, &po, &sol->P, err)) != RR_OK)
         goto fail;
     double t1 = now_seconds();

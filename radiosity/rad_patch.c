@@ -152,6 +152,51 @@ static uint32_t sphere_stacks(const scene *s, const rad_patch_opts *o)
     return need > 4096 ? 4096u : (uint32_t)ceil(need);
 }
 
+size_t rad_patches_level_outliers(const scene *s, const rad_patch_opts *o, const rr_warn_sink *warn)
+{
+    uint32_t *olevel = calloc(s->nobjects ? s->nobjects : 1, sizeof *olevel);
+    if (!olevel)
+        return 0;
+    object_levels(s, o, olevel);
+    size_t warned = 0;
+    for (size_t ob = 0; ob < s->nobjects; ob++) {
+        const scene_object *obj = &s->objects[ob];
+        uint32_t L = olevel[ob];
+        if (L < 4 || obj->tri_count < 100)
+            continue;
+        /* The triangles that need more than a quarter of the object's level,
+         * and the longest of them. */
+        size_t few = 0, worst = obj->tri_first;
+        uint32_t rest = 1;
+        for (size_t t = obj->tri_first; t < obj->tri_first + obj->tri_count; t++) {
+            const scene_tri *tr = &s->tris[t];
+            rr_vec3 A = s->verts[tr->v[0]], B = s->verts[tr->v[1]], C = s->verts[tr->v[2]];
+            double longest =
+                fmax(rr_v3_len(rr_v3_sub(B, A)), fmax(rr_v3_len(rr_v3_sub(C, B)), rr_v3_len(rr_v3_sub(A, C))));
+            uint32_t l = level_for(tri_area(A, B, C), longest, o);
+            if (4 * l > L) {
+                few++;
+                if (l == L)
+                    worst = t;
+            } else if (l > rest) {
+                rest = l;
+            }
+        }
+        if (few * 100 > obj->tri_count || few > 8)
+            continue; /* the object is large all over, not one outlier */
+        double n = (double)obj->tri_count;
+        rr_warn(warn,
+                "%s: radiosity: %zu of the %zu triangles of '%s' (e.g. triangle %zu of the scene) need subdivision "
+                "level %u, which every triangle of the object gets (one level per object): %.0f patches where "
+                "level %u would make %.0f. If they are modelling errors (faces across the object), fix them; "
+                "else put them in an object of their own",
+                s->path, few, obj->tri_count, obj->name, worst, L, n * L * L, rest, n * rest * rest);
+        warned++;
+    }
+    free(olevel);
+    return warned;
+}
+
 double rad_patches_estimate(const scene *s, const rad_patch_opts *o)
 {
     uint32_t *olevel = calloc(s->nobjects ? s->nobjects : 1, sizeof *olevel);

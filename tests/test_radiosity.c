@@ -85,6 +85,50 @@ static void limits_and_areas(void **state)
     scene_destroy(s);
 }
 
+/* One sliver across a fine grid sets the object's level: named by the
+ * warning (with the patch counts), and a grid without it is not. */
+static void warn_count(void *user, const char *msg)
+{
+    (void)msg;
+    ++*(int *)user;
+}
+
+static void level_outlier_named(void **state)
+{
+    (void)state;
+    static char json[65536];
+    for (int sliver = 0; sliver < 2; sliver++) {
+        size_t len = (size_t)snprintf(json, sizeof json,
+                                      "{\"format\":\"radray-scene/1\",\"camera\":{\"type\":\"lecture\",\"E\":[0,0,5],"
+                                      "\"O\":[0,0,4],\"U\":[0,1,0],\"s\":0.1,\"w\":2,\"h\":2},\"materials\":{\"w\":{}},"
+                                      "\"objects\":[{\"type\":\"triangles\",\"name\":\"grid\",\"material\":\"w\","
+                                      "\"vertices\":[");
+        for (int j = 0; j <= 10; j++)
+            for (int i = 0; i <= 10; i++)
+                len += (size_t)snprintf(json + len, sizeof json - len, "%s[%g,%g,0]", i || j ? "," : "", 0.1 * i, 0.1 * j);
+        len += (size_t)snprintf(json + len, sizeof json - len, ",[8,0,0]],\"indices\":[");
+        for (int j = 0; j < 10; j++)
+            for (int i = 0; i < 10; i++) {
+                int a = j * 11 + i;
+                len += (size_t)snprintf(json + len, sizeof json - len, "%s[%d,%d,%d],[%d,%d,%d]", i || j ? "," : "", a,
+                                        a + 1, a + 12, a, a + 12, a + 11);
+            }
+        if (sliver)
+            len += (size_t)snprintf(json + len, sizeof json - len, ",[0,121,120]");
+        snprintf(json + len, sizeof json - len, "]}]}");
+        scene *s = NULL;
+        rr_error err;
+        if (scene_load_string(json, "sliver", "", NULL, &s, &err) != RR_OK)
+            fail_msg("%s", err.msg);
+        int warned = 0;
+        rr_warn_sink w = {warn_count, &warned};
+        rad_patch_opts o = {0.01, 0.2, NULL};
+        assert_int_equal(rad_patches_level_outliers(s, &o, &w), (size_t)sliver);
+        assert_int_equal(warned, sliver);
+        scene_destroy(s);
+    }
+}
+
 /* No T-vertices: in the closed box every patch edge is shared by exactly two
  * patches (a T-vertex would leave an edge used once on each side). */
 static int cmp_u64(const void *a, const void *b)
@@ -503,6 +547,7 @@ int main(void)
         cmocka_unit_test(solid_patches_cover_the_final_surface),
         cmocka_unit_test(solid_bleeds_like_the_sphere),
         cmocka_unit_test(conforming_box),
+        cmocka_unit_test(level_outlier_named),
         cmocka_unit_test(locate_hits),
         cmocka_unit_test(bad_limits),
         cmocka_unit_test(furnace_pipeline),
