@@ -73,38 +73,8 @@ static volatile sig_atomic_t g_interrupted;
 /* SIGINT and SIGTERM: stop the same way (the flag says which). */
 static void on_sigint(int sig) { g_interrupted = sig; }
 
-typedef struct progress_state {
-    int enabled;
-    struct timespec start;
-    int last_pct;
-} progress_state;
-
-static double seconds_since(const struct timespec *t0)
-{
-    struct timespec t;
-    clock_gettime(CLOCK_MONOTONIC, &t);
-    return (double)(t.tv_sec - t0->tv_sec) + 1e-9 * (double)(t.tv_nsec - t0->tv_nsec);
-}
-
-static void draw_progress(void *user, int done, int total)
-{
-    progress_state *p = user;
-    if (!p->enabled)
-        return;
-    int pct = (int)(100.0 * done / total);
-    if (pct == p->last_pct && done != total)
-        return;
-    p->last_pct = pct;
-    char bar[41];
-    int filled = 40 * done / total;
-    for (int i = 0; i < 40; i++)
-        bar[i] = i < filled ? '#' : '.';
-    bar[40] = '\0';
-    fprintf(stderr, "\rrendering [%s] %3d%% %6.1f s", bar, pct, seconds_since(&p->start));
-    if (done == total)
-        fputc('\n', stderr);
-    fflush(stderr);
-}
+/* The tile progress of rt_render as the common progress line (with the time left). */
+static void draw_progress(void *user, int done, int total) { app_pass_progress(user, (size_t)done, (size_t)total); }
 
 
 enum {
@@ -324,10 +294,7 @@ int app_cmd_render(int argc, char **argv)
     }
     app_diagnose_light(sc, accel);
 
-    progress_state prog = {0};
-    prog.enabled = !quiet && isatty(STDERR_FILENO);
-    prog.last_pct = -1;
-    clock_gettime(CLOCK_MONOTONIC, &prog.start);
+    app_progress prog = {!quiet && isatty(STDERR_FILENO), -1, app_now_seconds(), "rendering"};
     rc = APP_EXIT_RUNTIME;
     pl.accel = accel;
     /* Ctrl-C: the handler only sets the flag; SA_RESETHAND makes a second one
@@ -382,7 +349,7 @@ int app_cmd_render(int argc, char **argv)
                         "(use --solver iterative)\n");
     }
     app_scrub_film(&film);
-    double secs = seconds_since(&prog.start);
+    double secs = app_now_seconds() - prog.t0;
     if (app_write_film(out_exr, no_png ? NULL : out_png, &film, sc->settings.half_float, sc->settings.exposure,
                        &err) != RR_OK) {
         app_error("%s", err.msg);
