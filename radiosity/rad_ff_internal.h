@@ -84,17 +84,8 @@ static inline void rad_ff_tri_stratum(uint32_t k, uint32_t n, rr_rng *rng, doubl
     }
 }
 
-/* Cosine-weighted direction about unit N from (u1, u2) (Malley's method,
- * Duff et al.'s branchless basis). */
-static inline rr_vec3 rad_ff_cosine_dir(rr_vec3 N, double u1, double u2)
-{
-    double r = sqrt(u1), phi = 2.0 * RR_PI * u2;
-    double x = r * cos(phi), y = r * sin(phi), z = sqrt(fmax(0.0, 1.0 - u1));
-    double sign = copysign(1.0, N.z);
-    double a = -1.0 / (sign + N.z), b = N.x * N.y * a;
-    rr_vec3 T = rr_v3(1.0 + sign * N.x * N.x * a, sign * b, -sign * N.x);
-    rr_vec3 B = rr_v3(b, sign + N.y * N.y * a, -N.y);
-    return rr_v3_add(rr_v3_add(rr_v3_scale(T, x), rr_v3_scale(B, y)), rr_v3_scale(N, z));
-}
+/* Cosine-weighted direction about unit N from (u1, u2): the light
+ * interface's (rt_cosine_dir, the same sampling the light tracer uses). */
+static inline rr_vec3 rad_ff_cosine_dir(rr_vec3 N, double u1, double u2) { return rt_cosine_dir(N, u1, u2); }
 
 #endif

@@ -1,5 +1,6 @@
 /* rt_light.c - the one light interface: every emitter of a scene, and its
- * virtual images in planar mirrors, for the ray tracer and the radiosity pass.
+ * virtual images in planar mirrors, for the ray tracer and the radiosity pass
+ * (the same table emits particles for the light tracer: rt_emit.c).
  *
  * Lights.
  *  - delta lights: point and directional lights (no area: evaluated one by
@@ -33,60 +34,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "rt_internal.h"
-
-#define RT_VIRTUAL_PER_LIGHT 64
-#define RT_VIRTUAL_MAX 65536
-#define RT_MIRROR_PLANES_MAX 256
-
-typedef enum light_kind { LK_POINT, LK_DIRECTIONAL, LK_TRIANGLE, LK_SPHERE } light_kind;
-
-typedef struct mplane {
-    rr_vec3 n;          /* unit normal */
-    double d;           /* n . x = d on the plane */
-    uint32_t object;
-    double reflectance; /* mean mirror reflectance of its (first) triangle's material */
-    rr_vec3 *verts;     /* corners of its triangles (for the pruning side tests) */
-    size_t nverts;
-} mplane;
-
-typedef struct light {
-    light_kind kind;
-    uint32_t index;     /* scene light (delta), triangle, or object (sphere: spheres and solids) */
-    int nchain;
-    uint32_t chain[RT_CHAIN_MAX]; /* mirror planes, c[0] first from the light */
-    rr_vec3 p;          /* point: (virtual) position; directional: (virtual) unit direction to the light;
-                           sphere, triangle: (virtual) centre of the bounding sphere */
-    double r;           /* sphere, triangle: bounding radius */
-    rr_vec3 tv[3], tn;  /* triangle: (virtual) corners and front normal */
-    double area;        /* triangle: area */
-    rr_rgb radiance;    /* triangle: Le; delta: intensity */
-    double weight;      /* pick weight (area lights) */
-    uint32_t vfirst, vcount; /* real area lights: their images are area[vfirst .. +vcount) */
-} light;
-
-struct rt_lights {
-    const scene *s;
-    const rt_accel *a;
-    double scale;
-    mplane *planes;
-    size_t nplanes;
-    int32_t *tri_plane;   /* scene triangle -> mirror plane, -1 */
-    light *delta;
-    size_t ndelta;
-    light *area;          /* real ones first (nreal), then images */
-    size_t narea, nreal;
-    double *cdf;          /* over area */
-    int32_t *tri_light;   /* scene triangle -> real area light, -1 */
-    int32_t *obj_light;   /* scene object -> real area light (spheres, solids), -1 */
-    int has_mirror;       /* any material with a mirror reflectance */
-    /* Emission (rt_lights_emit): the real delta lights, then the real area lights. */
-    uint32_t *emit_delta; /* index into delta of each real delta light */
-    size_t nemit_delta;
-    double *ecdf;         /* over the nemit_delta + nreal emitters, by power weight */
-    rr_vec3 scene_c;      /* bounding sphere of the scene (directional lights' disk) */
-    double scene_r;
-};
+#include "rt_light_internal.h"
 
 /* ---- the shadow-ray rule ---- */
 
@@ -300,58 +248,6 @@ static rr_status add_images(rt_lights *L, const light *base, int depth, light **
     return RR_OK;
 }
 
-static double scene_radius(const scene *s)
-{
-    double r = 0.5 * rr_v3_len(rr_v3_sub(s->bbox_max, s->bbox_min));
-    return r > 0.0 && isfinite(r) ? r : rt_scene_scale(s);
-}
-
-/* Power weight of a real emitter for rt_lights_emit (rt.h). */
-static double emit_weight(const rt_lights *L, const light *l)
-{
-    double e = rr_rgb_mean(l->radiance);
-    switch (l->kind) {
-    case LK_POINT:
-        return 4.0 * RR_PI * e;
-    case LK_DIRECTIONAL:
-        return RR_PI * L->scene_r * L->scene_r * e;
-    case LK_TRIANGLE:
-        return RR_PI * e * l->area;
-    default:
-        return RR_PI * l->weight; /* 4 pi r^2 times the (largest) radiance */
-    }
-}
-
-static rr_status build_emitters(rt_lights *L, rr_error *err)
-{
-    const scene *s = L->s;
-    L->scene_c = rr_v3_scale(rr_v3_add(s->bbox_min, s->bbox_max), 0.5);
-    L->scene_r = scene_radius(s);
-    size_t n = L->ndelta + L->nreal;
-    L->emit_delta = malloc((L->ndelta ? L->ndelta : 1) * sizeof *L->emit_delta);
-    L->ecdf = malloc((n ? n : 1) * sizeof *L->ecdf);
-    if (!L->emit_delta || !L->ecdf)
-        return rr_error_set(err, RR_ERR_NOMEM, "out of memory for the light table");
-    for (size_t i = 0; i < L->ndelta; i++)
-        if (L->delta[i].nchain == 0)
-            L->emit_delta[L->nemit_delta++] = (uint32_t)i;
-    double total = 0.0;
-    size_t k = 0;
-    for (size_t i = 0; i < L->nemit_delta; i++, k++) {
-        double w = emit_weight(L, &L->delta[L->emit_delta[i]]);
-        total += w > 0.0 && isfinite(w) ? w : 0.0;
-        L->ecdf[k] = total;
-    }
-    for (size_t i = 0; i < L->nreal; i++, k++) {
-        double w = emit_weight(L, &L->area[i]);
-        total += w > 0.0 && isfinite(w) ? w : 0.0;
-        L->ecdf[k] = total;
-    }
-    for (size_t i = 0; i < k; i++)
-        L->ecdf[i] = total > 0.0 ? L->ecdf[i] / total : 0.0;
-    return RR_OK;
-}
-
 static void light_init(light *l, light_kind kind, uint32_t index)
 {
     memset(l, 0, sizeof *l);
@@ -483,7 +379,7 @@ rr_status rt_lights_build(const scene *s, const rt_accel *a, int max_mirror_dept
             L->cdf[i] = total > 0 ? L->cdf[i] / total : (double)(i + 1) / (double)L->narea;
     }
     if (st == RR_OK)
-        st = build_emitters(L, err);
+        st = rt__lights_build_emitters(L, err);
     if (st != RR_OK) {
         rt_lights_destroy(L);
         return st;
@@ -524,12 +420,6 @@ size_t rt_lights_image_count(const rt_lights *L)
 size_t rt_lights_mirror_planes(const rt_lights *L) { return L ? L->nplanes : 0; }
 uint32_t rt_lights_delta_source(const rt_lights *L, size_t k) { return L->delta[k].index; }
 
-rr_rgb rt_light_power(const scene *s, size_t l)
-{
-    const scene_light *sl = &s->lights[l];
-    double R = scene_radius(s);
-    return rr_rgb_scale(sl->intensity, sl->type == SCENE_LIGHT_DIRECTIONAL ? RR_PI * R * R : 4.0 * RR_PI);
-}
 
 int rt_lights_mirror_plane(const rt_lights *L, const rt_hit *h)
 {
@@ -834,133 +724,4 @@ int rt_lights_near(const rt_lights *L, rr_vec3 x)
             return 1;
     }
     return 0;
-}
-
-/* ---- emission: lights as sources of particles (rt.h) ---- */
-
-rr_vec3 rt_cosine_dir(rr_vec3 N, double u1, double u2)
-{
-    double r = sqrt(u1), phi = 2.0 * RR_PI * u2;
-    double x = r * cos(phi), y = r * sin(phi), z = sqrt(fmax(0.0, 1.0 - u1));
-    double sign = copysign(1.0, N.z);
-    double a = -1.0 / (sign + N.z), b = N.x * N.y * a;
-    rr_vec3 T = rr_v3(1.0 + sign * N.x * N.x * a, sign * b, -sign * N.x);
-    rr_vec3 B = rr_v3(b, sign + N.y * N.y * a, -N.y);
-    return rr_v3_add(rr_v3_add(rr_v3_scale(T, x), rr_v3_scale(B, y)), rr_v3_scale(N, z));
-}
-
-size_t rt_lights_emitter_count(const rt_lights *L) { return L ? L->nemit_delta + L->nreal : 0; }
-
-static rr_vec3 uniform_sphere_dir(double u1, double u2)
-{
-    double z = 1.0 - 2.0 * u1, r = sqrt(fmax(0.0, 1.0 - z * z)), phi = 2.0 * RR_PI * u2;
-    return rr_v3(r * cos(phi), r * sin(phi), z);
-}
-
-/* A point on the disk of radius r about c facing unit w: c + r sqrt(u1) (cos, sin)(2 pi u2). */
-static rr_vec3 disk_point(rr_vec3 c, rr_vec3 w, double r, double u1, double u2)
-{
-    rr_vec3 d = rt_cosine_dir(w, u1, u2); /* its tangential part is uniform on the unit disk */
-    return rr_v3_add(c, rr_v3_scale(rr_v3_madd(d, w, -rr_v3_dot(d, w)), r));
-}
-
-/* A random line through the bounding sphere of solid l (uniform in the
- * measure of lines: direction w uniform, point uniform on the disk facing
- * it, pdf 1 / (4 pi * pi R^2)); its crossings out of the solid along w on an
- * emissive leaf are emission points. The ray runs against w from outside the
- * sphere, so those crossings are where its spans begin. One of them is
- * chosen with u[5], its weight times their count. */
-static int emit_solid(const rt_lights *L, const light *l, const double u[6], rt_emission *out)
-{
-    const scene *s = L->s;
-    rr_vec3 w = uniform_sphere_dir(u[1], u[2]);
-    rr_vec3 p = disk_point(l->p, w, l->r, u[3], u[4]);
-    rr_ray r = {rr_v3_madd(p, w, 2.0 * l->r), rr_v3_neg(w)};
-    rt_spans sp;
-    rt_solid_spans(s, L->a, l->index, r, 0.0, 4.0 * l->r, &sp);
-    int cand[RT_SPAN_MAX], nc = 0;
-    for (int i = 0; i < sp.n; i++)
-        if (rr_rgb_max(s->materials[s->csg[sp.s[i].in.leaf].material].emission) > 0.0)
-            cand[nc++] = i;
-    if (nc == 0)
-        return 0;
-    int k = (int)(u[5] * nc);
-    const rt_span_end *e = &sp.s[cand[k < nc ? k : nc - 1]].in;
-    rr_vec3 x = rr_v3_madd(r.o, r.d, e->t);
-    rr_vec3 n = rt_csg_leaf_normal(s, e->leaf, e->surface, x);
-    if (e->flip)
-        n = rr_v3_neg(n);
-    if (!(rr_v3_dot(n, w) > 0.0))
-        return 0;
-    double measure = 4.0 * RR_PI * RR_PI * l->r * l->r;
-    out->ray.o = rt_offset_origin(L->scale, x, n, w);
-    out->ray.d = w;
-    out->power = rr_rgb_scale(s->materials[s->csg[e->leaf].material].emission, measure * nc);
-    out->object = l->index;
-    return 1;
-}
-
-int rt_lights_emit(const rt_lights *L, const double u[6], rt_emission *out)
-{
-    size_t n = rt_lights_emitter_count(L);
-    if (n == 0 || !(L->ecdf[n - 1] > 0.0))
-        return 0;
-    size_t lo = 0, hi = n - 1;
-    while (lo < hi) {
-        size_t mid = (lo + hi) / 2;
-        if (L->ecdf[mid] > u[0])
-            hi = mid;
-        else
-            lo = mid + 1;
-    }
-    double pk = L->ecdf[lo] - (lo ? L->ecdf[lo - 1] : 0.0);
-    if (!(pk > 0.0))
-        return 0;
-    const scene *s = L->s;
-    out->object = UINT32_MAX;
-    out->light = UINT32_MAX;
-    if (lo < L->nemit_delta) {
-        const light *l = &L->delta[L->emit_delta[lo]];
-        out->light = l->index;
-        if (l->kind == LK_POINT) {
-            out->ray.o = l->p;
-            out->ray.d = uniform_sphere_dir(u[1], u[2]);
-            out->power = rr_rgb_scale(l->radiance, 4.0 * RR_PI / pk);
-        } else {
-            /* From the disk of the scene's bounding sphere facing the light, outside the scene. */
-            rr_vec3 p = disk_point(L->scene_c, l->p, L->scene_r, u[1], u[2]);
-            out->ray.o = rr_v3_madd(p, l->p, 2.0 * L->scene_r);
-            out->ray.d = rr_v3_neg(l->p);
-            out->power = rr_rgb_scale(l->radiance, RR_PI * L->scene_r * L->scene_r / pk);
-        }
-        return 1;
-    }
-    const light *l = &L->area[lo - L->nemit_delta];
-    if (l->kind == LK_TRIANGLE) {
-        double su = sqrt(u[1]), b0 = 1.0 - su, b1 = u[2] * su;
-        rr_vec3 x = rr_v3_add(rr_v3_add(rr_v3_scale(l->tv[0], b0), rr_v3_scale(l->tv[1], b1)),
-                              rr_v3_scale(l->tv[2], 1.0 - b0 - b1));
-        rr_vec3 d = rt_cosine_dir(l->tn, u[3], u[4]);
-        out->ray.o = rt_offset_origin(L->scale, x, l->tn, d);
-        out->ray.d = d;
-        out->power = rr_rgb_scale(l->radiance, RR_PI * l->area / pk);
-        out->object = s->tris[l->index].object;
-        return 1;
-    }
-    const scene_object *ob = &s->objects[l->index];
-    if (ob->kind == SCENE_OBJ_SPHERE) {
-        rr_vec3 n = uniform_sphere_dir(u[1], u[2]);
-        rr_vec3 x = rr_v3_madd(ob->center, n, ob->radius);
-        rr_vec3 d = rt_cosine_dir(n, u[3], u[4]);
-        out->ray.o = rt_offset_origin(L->scale, x, n, d);
-        out->ray.d = d;
-        double area = 4.0 * RR_PI * ob->radius * ob->radius;
-        out->power = rr_rgb_scale(s->materials[ob->material].emission, RR_PI * area / pk);
-        out->object = l->index;
-        return 1;
-    }
-    if (!emit_solid(L, l, u, out))
-        return 0;
-    out->power = rr_rgb_scale(out->power, 1.0 / pk);
-    return 1;
 }
