@@ -18,10 +18,10 @@
 #include "scene.h"
 
 enum { APP_EXIT_OK = 0, APP_EXIT_RUNTIME = 1, APP_EXIT_USAGE = 2 };
-/* `render` only: interrupted by SIGINT (128 + 2, the shells' convention); the
- * finished tiles were written to OUT.partial.exr. */
+/* `render` and `energy`: interrupted by SIGINT (128 + 2, the shells'
+ * convention); render wrote the finished tiles to OUT.partial.exr. */
 enum { APP_EXIT_INTERRUPTED = 130 };
-/* `render` only: the same for SIGTERM (128 + 15). */
+/* The same for SIGTERM (128 + 15). */
 enum { APP_EXIT_TERMINATED = 143 };
 
 int app_cmd_render(int argc, char **argv);
@@ -48,6 +48,17 @@ typedef struct app_pipeline {
     int quiet;
     const volatile sig_atomic_t *interrupt; /* passed to rt_render (NULL: none) */
 } app_pipeline;
+
+/* Ctrl-C and SIGTERM: the handler only sets app_stop to the signal's number
+ * (read by the passes before every pixel, row or particle); the second one
+ * ends the process the default way. Restore the old handlers when done. */
+extern volatile sig_atomic_t app_stop;
+typedef struct app_signals {
+    struct sigaction old_int, old_term;
+    int have_int, have_term;
+} app_signals;
+void app_signals_catch(app_signals *saved);
+void app_signals_restore(const app_signals *saved);
 
 /* A progress line on stderr ("what  45%  12.3 s, 15.0 s left"), drawn only
  * when enabled (a terminal, not --quiet), one update per percent. */

@@ -55,7 +55,7 @@ static const char energy_usage[] =
     "ending on back faces, power created by the form factors.\n"
     "\n"
     "Exit codes: 0 ok, 1 runtime error, balance broken or (with --check) the ledgers disagree,\n"
-    "2 usage error or bad input, 130 interrupted.\n";
+    "2 usage error or bad input, 130 interrupted (Ctrl-C), 143 terminated (SIGTERM).\n";
 
 typedef struct energy_args {
     const char *path;
@@ -67,14 +67,6 @@ typedef struct energy_args {
     double allowance;
     size_t max_memory;
 } energy_args;
-
-static volatile sig_atomic_t g_stop;
-
-static void on_sigint(int sig)
-{
-    (void)sig;
-    g_stop = 1;
-}
 
 static void json_rgb(const char *key, rr_rgb c, int last)
 {
@@ -394,13 +386,13 @@ static int run(const energy_args *A, scene *s, rt_accel *a, energy_result *R)
     rr_error err;
     app_progress pass = {!A->quiet && isatty(STDERR_FILENO), -1, app_now_seconds(), "radiosity: form factors"};
     rad_pass_opts po;
-    app_radiosity_opts(s, &g_stop, &pass, &po);
+    app_radiosity_opts(s, &app_stop, &pass, &po);
     rad_solution *sol = NULL;
     rr_status st = rad_pass_run(s, a, &po, &sol, &err);
     R->sol = sol;
     if (st == RR_ERR_INTERRUPTED) {
         app_error("%s", err.msg);
-        return APP_EXIT_INTERRUPTED;
+        return app_stop == SIGTERM ? APP_EXIT_TERMINATED : APP_EXIT_INTERRUPTED;
     }
     if (st == RR_OK)
         st = rad_energy_solution(sol, &R->rows, &R->nrows, &err);
@@ -429,14 +421,14 @@ static int run(const energy_args *A, scene *s, rt_accel *a, energy_result *R)
         fprintf(stderr, "light tracing %ld particles in %ld batches\n", A->particles, A->batches);
     o.progress = particle_progress;
     o.progress_user = &bar;
-    o.interrupt = &g_stop;
+    o.interrupt = &app_stop;
     st = rt_particles_trace(s, a, L, &o, &R->g, &err);
     rt_lights_destroy(L);
     if (st == RR_ERR_INTERRUPTED) {
         if (bar.enabled)
             fputc('\n', stderr);
         app_error("interrupted");
-        return APP_EXIT_INTERRUPTED;
+        return app_stop == SIGTERM ? APP_EXIT_TERMINATED : APP_EXIT_INTERRUPTED;
     }
     rad_energy_check_opts co = {4.0, R->allowance, 0.001};
     if (st == RR_OK)
@@ -462,8 +454,7 @@ int app_cmd_energy(int argc, char **argv)
     rt_accel *a = NULL;
     energy_result R;
     memset(&R, 0, sizeof R);
-    struct sigaction sa, old_int;
-    int handler = 0;
+    app_signals sig = {0};
     if (!A.sets) {
         app_error("out of memory");
         return APP_EXIT_RUNTIME;
@@ -499,12 +490,7 @@ int app_cmd_energy(int argc, char **argv)
         app_error("%s", err.msg);
         goto done;
     }
-    memset(&sa, 0, sizeof sa);
-    sa.sa_handler = on_sigint;
-    sigemptyset(&sa.sa_mask);
-    sa.sa_flags = SA_RESETHAND;
-    g_stop = 0;
-    handler = sigaction(SIGINT, &sa, &old_int) == 0;
+    app_signals_catch(&sig);
     if ((rc = run(&A, s, a, &R)) != 0)
         goto done;
     report_shares(&R);
@@ -515,8 +501,7 @@ int app_cmd_energy(int argc, char **argv)
         print_text(&R);
     rc = R.balance > R.balance_tol || (A.check && !agree) ? APP_EXIT_RUNTIME : APP_EXIT_OK;
 done:
-    if (handler)
-        sigaction(SIGINT, &old_int, NULL);
+    app_signals_restore(&sig);
     free(R.cmp);
     rt_particle_ledger_free(&R.g);
     free(R.rows);

@@ -67,12 +67,6 @@ static const char render_usage[] =
     "Exit codes: 0 ok, 1 runtime error, 2 usage error or bad input (a render over\n"
     "--max-memory included), 130 interrupted, 143 terminated.\n";
 
-/* Set by the SIGINT handler, read by rt_render before every pixel. */
-static volatile sig_atomic_t g_interrupted;
-
-/* SIGINT and SIGTERM: stop the same way (the flag says which). */
-static void on_sigint(int sig) { g_interrupted = sig; }
-
 /* The tile progress of rt_render as the common progress line (with the time left). */
 static void draw_progress(void *user, int done, int total) { app_pass_progress(user, (size_t)done, (size_t)total); }
 
@@ -134,8 +128,7 @@ int app_cmd_render(int argc, char **argv)
     memset(&film, 0, sizeof film);
     char exr_default[4200], png_default[4200], partial[4200];
     size_t max_memory = app_default_max_memory();
-    struct sigaction old_int, old_term;
-    int handler = 0, handler_term = 0;
+    app_signals sig = {0};
     if (!sets) {
         app_error("out of memory");
         return APP_EXIT_RUNTIME;
@@ -281,7 +274,7 @@ int app_cmd_render(int argc, char **argv)
     }
     pl.sc = sc;
     pl.quiet = quiet;
-    pl.interrupt = &g_interrupted;
+    pl.interrupt = &app_stop;
     if (app_check_memory(&pl, mode, indirect, max_memory, &err) != RR_OK) {
         app_error("%s", err.msg);
         goto done;
@@ -297,16 +290,7 @@ int app_cmd_render(int argc, char **argv)
     app_progress prog = {!quiet && isatty(STDERR_FILENO), -1, app_now_seconds(), "rendering"};
     rc = APP_EXIT_RUNTIME;
     pl.accel = accel;
-    /* Ctrl-C: the handler only sets the flag; SA_RESETHAND makes a second one
-     * end the process the default way. */
-    struct sigaction sa;
-    memset(&sa, 0, sizeof sa);
-    sa.sa_handler = on_sigint;
-    sigemptyset(&sa.sa_mask);
-    sa.sa_flags = SA_RESETHAND;
-    g_interrupted = 0;
-    handler = sigaction(SIGINT, &sa, &old_int) == 0;
-    handler_term = sigaction(SIGTERM, &sa, &old_term) == 0;
+    app_signals_catch(&sig); /* SIGINT and SIGTERM stop the same way (app_stop says which) */
     rr_status rst = app_render_mode(&pl, mode, indirect, filter, &film, NULL, draw_progress, &prog, &err);
     if (rst == RR_ERR_INTERRUPTED) {
         if (prog.enabled)
@@ -324,7 +308,7 @@ int app_cmd_render(int argc, char **argv)
             rc = APP_EXIT_RUNTIME;
         } else {
             app_error("%s; wrote the partial image (unfinished tiles black) to %s", err.msg, partial);
-            rc = g_interrupted == SIGTERM ? APP_EXIT_TERMINATED : APP_EXIT_INTERRUPTED;
+            rc = app_stop == SIGTERM ? APP_EXIT_TERMINATED : APP_EXIT_INTERRUPTED;
         }
         goto done;
     }
@@ -367,10 +351,7 @@ int app_cmd_render(int argc, char **argv)
     }
     rc = APP_EXIT_OK;
 done:
-    if (handler)
-        sigaction(SIGINT, &old_int, NULL);
-    if (handler_term)
-        sigaction(SIGTERM, &old_term, NULL);
+    app_signals_restore(&sig);
     rt_film_free(&film);
     rad_solution_destroy(pl.sol);
     rt_accel_destroy(accel);

@@ -44,6 +44,30 @@ rt_indirect app_mode_indirect(int mode, int indirect_override)
     return indirect_override >= 0 ? (rt_indirect)indirect_override : preset[mode];
 }
 
+volatile sig_atomic_t app_stop;
+
+static void on_stop(int sig) { app_stop = sig; }
+
+void app_signals_catch(app_signals *saved)
+{
+    struct sigaction sa;
+    memset(&sa, 0, sizeof sa);
+    sa.sa_handler = on_stop;
+    sigemptyset(&sa.sa_mask);
+    sa.sa_flags = SA_RESETHAND; /* a second signal ends the process the default way */
+    app_stop = 0;
+    saved->have_int = sigaction(SIGINT, &sa, &saved->old_int) == 0;
+    saved->have_term = sigaction(SIGTERM, &sa, &saved->old_term) == 0;
+}
+
+void app_signals_restore(const app_signals *saved)
+{
+    if (saved->have_int)
+        sigaction(SIGINT, &saved->old_int, NULL);
+    if (saved->have_term)
+        sigaction(SIGTERM, &saved->old_term, NULL);
+}
+
 void app_pass_progress(void *user, size_t done, size_t total)
 {
     app_progress *p = user;
