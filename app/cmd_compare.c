@@ -53,7 +53,8 @@ static const char compare_usage[] =
     "  -q, --quiet            print nothing but errors\n"
     "  -h, --help             show this help\n"
     "\n"
-    "Exit codes: 0 ok, 1 runtime error, 2 usage error or bad input.\n";
+    "Exit codes: 0 ok, 1 runtime error, 2 usage error or bad input, 130 interrupted (Ctrl-C:\n"
+    "no figure is written), 143 terminated (SIGTERM).\n";
 
 enum { MAX_PANELS = 8, MAX_ROWS = 16 };
 
@@ -98,6 +99,15 @@ static int parse_list(const char *arg, const char *opt, const char *what, const 
             return n;
         p += len + 1;
     }
+}
+
+/* A failed pass or render: bad input (a scene the pass cannot take), an
+ * interrupt (Ctrl-C, SIGTERM: no figure is written), or a runtime error. */
+static int exit_code(rr_status st)
+{
+    if (st == RR_ERR_INTERRUPTED)
+        return app_stop == SIGTERM ? APP_EXIT_TERMINATED : APP_EXIT_INTERRUPTED;
+    return st == RR_ERR_INVALID ? APP_EXIT_USAGE : APP_EXIT_RUNTIME;
 }
 
 /* Whether mode will run the radiosity pass: the same rule as app_render_mode
@@ -342,7 +352,7 @@ static int render_panels(job *j)
                 if (st != RR_OK) {
                     app_error("%s", err.msg);
                     /* A scene the pass cannot take is bad input, as in render. */
-                    return st == RR_ERR_INVALID ? APP_EXIT_USAGE : APP_EXIT_RUNTIME;
+                    return exit_code(st);
                 }
                 j->pass_secs = app_now_seconds() - t0;
             }
@@ -354,7 +364,7 @@ static int render_panels(job *j)
         sc->settings.spp = base_spp;
         if (st != RR_OK) {
             app_error("%s", err.msg);
-            return st == RR_ERR_INVALID ? APP_EXIT_USAGE : APP_EXIT_RUNTIME;
+            return exit_code(st);
         }
         if (!j->quiet)
             fprintf(stderr, "compare: %s, %d spp, %.2f s\n", app_mode_names[m], j->spp_of[m], j->secs[m]);
@@ -479,10 +489,13 @@ int app_cmd_compare(int argc, char **argv)
     fig_desc d;
     memset(&d, 0, sizeof d);
     int rc = APP_EXIT_RUNTIME;
+    app_signals sig = {0};
     if (!(j.sets = calloc((size_t)argc + 1, sizeof *j.sets))) {
         app_error("out of memory");
         goto done;
     }
+    app_signals_catch(&sig);
+    j.pl.interrupt = &app_stop;
     if ((rc = parse_options(&j, argc, argv)) >= 0 || (rc = prepare(&j)) >= 0 || (rc = render_panels(&j)) >= 0)
         goto done;
     rc = APP_EXIT_RUNTIME;
@@ -547,6 +560,7 @@ int app_cmd_compare(int argc, char **argv)
     }
     rc = APP_EXIT_OK;
 done:
+    app_signals_restore(&sig);
     for (int i = 0; i < MAX_PANELS; i++)
         free(diff[i]);
     free(ts.rows);
