@@ -237,6 +237,16 @@ static void cli_sigint_stops_radiosity_pass(void **state)
     assert_non_null(strstr(g_out, "radiosity pass interrupted"));
     assert_true(exists("pass.partial.exr"));
     assert_false(exists("pass.exr"));
+    /* compare the same way: exit 130 and no figure. */
+    char fig[256];
+    path_in(fig, sizeof fig, "pass-compare.png");
+    const char *cargs[] = {"compare", scene_path, "--patch-area", "100", "--width", "8", "-q", "-o", fig, NULL};
+    pid = start(cargs);
+    while (!catches(pid, SIGINT))
+        usleep(1000);
+    kill(pid, SIGINT);
+    assert_int_equal(finish(pid), 130);
+    assert_false(exists("pass-compare.png"));
 }
 
 /* ---- outputs ---- */
