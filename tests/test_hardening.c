@@ -74,6 +74,22 @@ static int catches(pid_t pid, int sig)
     return yes;
 }
 
+/* 1 when pid has ended (a zombie waiting for finish, or gone): /proc says so. */
+static int exited(pid_t pid)
+{
+    char path[64], line[256];
+    snprintf(path, sizeof path, "/proc/%d/status", (int)pid);
+    FILE *f = fopen(path, "r");
+    if (!f)
+        return 1;
+    int gone = 0;
+    while (fgets(line, sizeof line, f))
+        if (!strncmp(line, "State:", 6))
+            gone = strchr(line, 'Z') != NULL;
+    fclose(f);
+    return gone;
+}
+
 /* ---- a small scene at any scale ---- */
 
 /* Floor, a box on it, an area light above, a point light; all lengths times
@@ -195,7 +211,7 @@ static void signal_writes_partial(int sig)
     const char *args[] = {"render", scene_path, "--mode", "secondary", "--spp", "65536", "-q", "-o", out, NULL};
     pid_t pid = start(args);
     assert_true(pid > 0);
-    while (!catches(pid, SIGINT) || !catches(pid, SIGTERM))
+    while ((!catches(pid, SIGINT) || !catches(pid, SIGTERM)) && !exited(pid))
         usleep(10000);
     kill(pid, sig);
     int rc = finish(pid);
@@ -230,7 +246,7 @@ static void cli_sigint_stops_radiosity_pass(void **state)
     snprintf(scene_path, sizeof scene_path, "%s/scenes/cornell.json", RR_SOURCE_DIR);
     const char *args[] = {"render", scene_path, "--patch-area", "100", "--width", "8", "-q", "-o", out, NULL};
     pid_t pid = start(args);
-    while (!catches(pid, SIGINT))
+    while (!catches(pid, SIGINT) && !exited(pid))
         usleep(1000);
     kill(pid, SIGINT);
     assert_int_equal(finish(pid), 130);
@@ -240,9 +256,10 @@ static void cli_sigint_stops_radiosity_pass(void **state)
     /* compare the same way: exit 130 and no figure. */
     char fig[256];
     path_in(fig, sizeof fig, "pass-compare.png");
-    const char *cargs[] = {"compare", scene_path, "--patch-area", "100", "--width", "8", "-q", "-o", fig, NULL};
+    const char *cargs[] = {"compare", scene_path, "--set", "radiosity.patch_area=100", "--width", "8", "-q", "-o", fig,
+                           NULL};
     pid = start(cargs);
-    while (!catches(pid, SIGINT))
+    while (!catches(pid, SIGINT) && !exited(pid))
         usleep(1000);
     kill(pid, SIGINT);
     assert_int_equal(finish(pid), 130);
