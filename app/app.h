@@ -130,8 +130,6 @@ rr_warn_sink app_warn_sink(void);
  * or SVG by extension, atomically. 0 on success. */
 int app_plot_residuals(const char *path, const double *res, int n, const char *title, rr_error *err);
 
-/* Monotonic wall clock in seconds. */
-double app_now_seconds(void);
 /* s ends with suffix, ignoring case. */
 int app_ends_with(const char *s, const char *suffix);
 /* ---- output.c: outputs checked before any work, committed together ---- */

@@ -347,14 +347,14 @@ static int render_panels(job *j)
             snprintf(j->pass_users + strlen(j->pass_users), sizeof j->pass_users - strlen(j->pass_users), "%s%s",
                      j->pass_users[0] ? " and " : "", app_mode_names[m]);
             if (!j->pl.sol) {
-                double t0 = app_now_seconds();
+                double t0 = rr_now_seconds();
                 rr_status st = app_pipeline_radiosity(&j->pl, &err);
                 if (st != RR_OK) {
                     app_error("%s", err.msg);
                     /* A scene the pass cannot take is bad input, as in render. */
                     return exit_code(st);
                 }
-                j->pass_secs = app_now_seconds() - t0;
+                j->pass_secs = rr_now_seconds() - t0;
             }
         }
         if (m == APP_MODE_SECONDARY)

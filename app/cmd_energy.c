@@ -384,7 +384,7 @@ static void print_json(const energy_result *R, int agree)
 static int run(const energy_args *A, scene *s, rt_accel *a, energy_result *R)
 {
     rr_error err;
-    app_progress pass = {!A->quiet && isatty(STDERR_FILENO), -1, app_now_seconds(), "radiosity: form factors"};
+    app_progress pass = {!A->quiet && isatty(STDERR_FILENO), -1, rr_now_seconds(), "radiosity: form factors"};
     rad_pass_opts po;
     app_radiosity_opts(s, &app_stop, &pass, &po);
     rad_solution *sol = NULL;
@@ -416,7 +416,7 @@ static int run(const energy_args *A, scene *s, rt_accel *a, energy_result *R)
     o.batches = (int)A->batches;
     o.seed = A->seed >= 0 ? (uint64_t)A->seed : s->settings.seed;
     o.threads = A->threads > 0 ? (int)A->threads : s->settings.threads;
-    app_progress bar = {!A->quiet && isatty(STDERR_FILENO), -1, app_now_seconds(), "light tracing"};
+    app_progress bar = {!A->quiet && isatty(STDERR_FILENO), -1, rr_now_seconds(), "light tracing"};
     if (!A->quiet)
         fprintf(stderr, "light tracing %ld particles in %ld batches\n", A->particles, A->batches);
     o.progress = particle_progress;

@@ -287,7 +287,7 @@ int app_cmd_render(int argc, char **argv)
     }
     app_diagnose_light(sc, accel);
 
-    app_progress prog = {!quiet && isatty(STDERR_FILENO), -1, app_now_seconds(), "rendering"};
+    app_progress prog = {!quiet && isatty(STDERR_FILENO), -1, rr_now_seconds(), "rendering"};
     rc = APP_EXIT_RUNTIME;
     pl.accel = accel;
     app_signals_catch(&sig); /* SIGINT and SIGTERM stop the same way (app_stop says which) */
@@ -333,7 +333,7 @@ int app_cmd_render(int argc, char **argv)
                         "(use --solver iterative)\n");
     }
     app_scrub_film(&film);
-    double secs = app_now_seconds() - prog.t0;
+    double secs = rr_now_seconds() - prog.t0;
     if (app_write_film(out_exr, no_png ? NULL : out_png, &film, sc->settings.half_float, sc->settings.exposure,
                        &err) != RR_OK) {
         app_error("%s", err.msg);

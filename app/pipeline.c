@@ -24,13 +24,6 @@ int app_pick(const char *name, const char *const *names)
     return -1;
 }
 
-double app_now_seconds(void)
-{
-    struct timespec t;
-    clock_gettime(CLOCK_MONOTONIC, &t);
-    return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
-}
-
 int app_ends_with(const char *s, const char *suffix)
 {
     size_t n = strlen(s), m = strlen(suffix);
@@ -75,7 +68,7 @@ void app_pass_progress(void *user, size_t done, size_t total)
     if (!p->enabled || (pct == p->last && done != total))
         return;
     p->last = pct;
-    double t = app_now_seconds() - p->t0, left = done > 0 ? t * ((double)total / (double)done - 1.0) : 0.0;
+    double t = rr_now_seconds() - p->t0, left = done > 0 ? t * ((double)total / (double)done - 1.0) : 0.0;
     fprintf(stderr, "\r%s %3d%% %6.1f s, %5.1f s left", p->what, pct, t, left);
     if (done == total)
         fputs("\r\033[K", stderr); /* the summary line follows */
@@ -101,7 +94,7 @@ rr_status app_pipeline_radiosity(app_pipeline *p, rr_error *err)
 {
     if (p->sol)
         return RR_OK;
-    app_progress prog = {!p->quiet && isatty(STDERR_FILENO), -1, app_now_seconds(), "radiosity: form factors"};
+    app_progress prog = {!p->quiet && isatty(STDERR_FILENO), -1, rr_now_seconds(), "radiosity: form factors"};
     rad_pass_opts po;
     app_radiosity_opts(p->sc, p->interrupt, &prog, &po);
     int cached = 0;
@@ -262,7 +255,7 @@ rr_status app_render_mode(app_pipeline *p, int mode, int indirect_override, int 
                           double *seconds, void (*progress)(void *, int, int), void *progress_user, rr_error *err)
 {
     const scene *sc = p->sc;
-    double t0 = app_now_seconds();
+    double t0 = rr_now_seconds();
     rt_render_opts ro;
     memset(&ro, 0, sizeof ro);
     ro.spp = sc->settings.spp;
@@ -286,6 +279,6 @@ rr_status app_render_mode(app_pipeline *p, int mode, int indirect_override, int 
     }
     rr_status st = rt_render(sc, p->accel, &ro, film, err);
     if (seconds)
-        *seconds = app_now_seconds() - t0;
+        *seconds = rr_now_seconds() - t0;
     return st;
 }

@@ -7,6 +7,7 @@
  *   rr_image.h  rr_image: float linear RGB film
  *   rr_view.h   rr_view: the lecture's view (E, O, s, w, h, U) and look-at cameras
  *   rr_file.h   atomic output files, path helpers
+ *   rr_clock.h  the monotonic wall clock
  *
  * Depends on nothing but libc and libm. No globals: nothing here keeps state
  * between calls.
@@ -14,6 +15,7 @@
 #ifndef RR_CORE_H
 #define RR_CORE_H
 
+#include "rr_clock.h"
 #include "rr_error.h"
 #include "rr_file.h"
 #include "rr_image.h"

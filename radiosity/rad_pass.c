@@ -8,13 +8,6 @@
 
 #define FIRST_SHOT_CHUNK 256 /* patches per unit of the first shot's deterministic sums */
 
-static double now_seconds(void)
-{
-    struct timespec t;
-    clock_gettime(CLOCK_MONOTONIC, &t);
-    return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
-}
-
 rad_patch_opts rad_pass_patch_limits(const scene *s, const rad_pass_opts *o)
 {
     rad_patch_opts p;
@@ -170,13 +163,13 @@ rr_status rad_pass_run(const scene *s, const rt_accel *a, const rad_pass_opts *o
         return rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory", s->path);
     sol->scene = s;
     rr_status st;
-    double t0 = now_seconds();
+    double t0 = rr_now_seconds();
     rad_patch_opts po = rad_pass_patch_limits(s, o);
     po.accel = a;
     rad_patches_level_outliers(s, &po, &o->warn);
     if ((st = rad_patches_build(s, &po, &sol->P, err)) != RR_OK)
         goto fail;
-    double t1 = now_seconds();
+    double t1 = rr_now_seconds();
     rad_ff_opts fo = o->ff;
     if (o->use_scene_choices)
         fo.method = s->radiosity.form_factors == SCENE_FF_QUADRATURE ? RAD_FF_QUADRATURE : RAD_FF_MONTE_CARLO;
@@ -188,7 +181,7 @@ rr_status rad_pass_run(const scene *s, const rt_accel *a, const rad_pass_opts *o
     if ((st = rad_ff_compute(s, a, sol->P, &fo, &sol->F, err)) != RR_OK)
         goto fail;
     sol->nnz = sol->F->rowptr[sol->F->n];
-    double t2 = now_seconds();
+    double t2 = rr_now_seconds();
     rad_solve_opts so = o->solve;
     if (o->use_scene_choices)
         so.solver = (rad_solver)s->radiosity.solver;
@@ -243,7 +236,7 @@ rr_status rad_pass_run(const scene *s, const rt_accel *a, const rad_pass_opts *o
         rr_error_prefix(err, "%s: radiosity", s->path);
         goto fail;
     }
-    double t3 = now_seconds();
+    double t3 = rr_now_seconds();
     /* Indirect irradiance: what arrives from other patches, less what they
      * emit themselves (that is direct light, which the ray tracer computes). */
     const rad_ff *F = sol->F;

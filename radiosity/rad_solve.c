@@ -56,13 +56,6 @@
  * direct solver only loses. */
 #define RAD_DEFAULT_AUTO_DIRECT_MAX 2000
 
-static double now_seconds(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
-
 static int rgb_nonneg_finite(rr_rgb v) { return rr_rgb_isfinite(v) && v.r >= 0.0 && v.g >= 0.0 && v.b >= 0.0; }
 
 rr_status rad_system_check(const rad_patches *P, const rad_ff *F, rr_error *err)
@@ -482,7 +475,7 @@ done:
 rr_status rad_solve(const rad_patches *P, const rad_ff *F, const rad_solve_opts *o, rr_rgb *B, rad_solve_stats *stats,
                     rr_error *err)
 {
-    double t0 = now_seconds();
+    double t0 = rr_now_seconds();
     static const rad_solve_opts defaults = {RAD_SOLVER_AUTO, 0.0, 0, 0, 0};
     if (!o)
         o = &defaults;
@@ -524,7 +517,7 @@ rr_status rad_solve(const rad_patches *P, const rad_ff *F, const rad_solve_opts 
     }
     memcpy(B, X, P->n * sizeof *X);
     free(X);
-    s.seconds = now_seconds() - t0;
+    s.seconds = rr_now_seconds() - t0;
     if (stats)
         *stats = s;
     else

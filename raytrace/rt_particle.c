@@ -8,7 +8,6 @@
  */
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
 #include "rt_internal.h"
 
@@ -23,13 +22,6 @@ typedef struct tally {
     rr_rgb *v;
     uint64_t segments;
 } tally;
-
-static double now_seconds(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
 
 static size_t tally_len(size_t rows) { return rows * RT_LEDGER_COLUMNS + 3; }
 
@@ -171,7 +163,7 @@ rr_status rt_particles_trace(const scene *s, const rt_accel *a, const rt_lights 
     }
     for (int b = 0; b < nb; b++)
         t[b].v = store + (size_t)b * n;
-    double scale = rt_scene_scale(s), t0 = now_seconds();
+    double scale = rt_scene_scale(s), t0 = rr_now_seconds();
     uint64_t done = 0, total = o->particles;
     int stopped = 0;
 #ifdef _OPENMP
@@ -233,7 +225,7 @@ rr_status rt_particles_trace(const scene *s, const rt_accel *a, const rt_lights 
     g.nlights = s->nlights;
     g.particles = total;
     g.batches = nb;
-    g.seconds = now_seconds() - t0;
+    g.seconds = rr_now_seconds() - t0;
     free(t);
     free(store);
     *out = g;
