@@ -12,6 +12,7 @@
 #include <signal.h>
 #include <stddef.h>
 
+#include "ig.h"
 #include "rad.h"
 #include "rr_core.h"
 #include "rt.h"
@@ -29,25 +30,12 @@ int app_cmd_info(int argc, char **argv);
 int app_cmd_energy(int argc, char **argv);
 int app_cmd_compare(int argc, char **argv);
 
-/* ---- pipeline.c: shared by render and compare ---- */
+/* ---- pipeline.c: shared by render, compare and energy ---- */
 
-/* Modes are presets of what supplies the diffuse interreflection. */
-enum { APP_MODE_WHITTED, APP_MODE_SECONDARY, APP_MODE_RADIOSITY, APP_MODE_HYBRID, APP_MODE_COUNT };
-extern const char *const app_mode_names[];     /* NULL-terminated, indexed by mode */
-extern const char *const app_indirect_names[]; /* NULL-terminated, indexed by rt_indirect */
+/* The names of rt_indirect's values (--indirect), NULL-terminated. */
+extern const char *const app_indirect_names[];
 /* Index of name in a NULL-terminated list, or -1. */
 int app_pick(const char *name, const char *const *names);
-/* The indirect term of a mode, unless indirect_override >= 0. */
-rt_indirect app_mode_indirect(int mode, int indirect_override);
-
-typedef struct app_pipeline {
-    scene *sc;
-    rt_accel *accel;
-    rad_solution *sol; /* made on first need, shared by every mode */
-    const char *cache_path; /* --radiosity-cache, or NULL */
-    int quiet;
-    const volatile sig_atomic_t *interrupt; /* passed to rt_render (NULL: none) */
-} app_pipeline;
 
 /* Ctrl-C and SIGTERM: the handler only sets app_stop to the signal's number
  * (read by the passes before every pixel, row or particle); the second one
@@ -73,13 +61,14 @@ void app_pass_progress(void *user, size_t done, size_t total);
  * NULL) as the form factors' progress line. */
 void app_radiosity_opts(const scene *sc, const volatile sig_atomic_t *interrupt, app_progress *prog,
                         rad_pass_opts *po);
-/* Runs the radiosity pass once (no-op when done). Ctrl-C stops its form
- * factors within a row (RR_ERR_INTERRUPTED). */
-rr_status app_pipeline_radiosity(app_pipeline *p, rr_error *err);
-/* Renders mode into film (sized to the view); *seconds = wall time including
- * the radiosity pass when this call ran it. */
-rr_status app_render_mode(app_pipeline *p, int mode, int indirect_override, int filter, rt_film *film,
-                          double *seconds, void (*progress)(void *, int, int), void *progress_user, rr_error *err);
+/* A session (integrator/ig.h) as every command uses it: the pass options of
+ * app_radiosity_opts (no progress line), app_stop as the interrupt, and
+ * cache_path (may be NULL). */
+void app_session_init(ig_session *s, const scene *sc, const rt_accel *a, const char *cache_path);
+/* ig_session_field with a progress line for the form factors (unless quiet
+ * or not a terminal) and a summary line after it (unless quiet); a no-op
+ * when the pass has run. Ctrl-C stops the form factors within a row. */
+rr_status app_session_field(ig_session *s, int quiet, rr_error *err);
 
 /* ---- pipeline.c: resource limits and output checks (notes/hardening.md) ---- */
 
@@ -91,13 +80,12 @@ size_t app_default_max_memory(void);
 int app_parse_size(const char *s, size_t *out);
 /* "6.1 GiB", "512.0 MiB", "12.0 KiB", "100 bytes". */
 const char *app_size_text(double bytes, char *buf, size_t n);
-/* The radiosity pass runs for this mode (and the scene emits). */
-int app_needs_radiosity(const scene *sc, int mode, int indirect_override);
-/* Estimates what a render of mode needs (film, BVH, and for modes that run the
- * radiosity pass, patches and form factors) and fails with RR_ERR_LIMIT and a
- * message giving the estimate, the limit and what to change when it exceeds
- * limit. Counts only: nothing is built. */
-rr_status app_check_memory(const app_pipeline *p, int mode, int indirect_override, size_t limit, rr_error *err);
+/* Estimates what a render of sc by ig needs (film, BVH, and when ig runs the
+ * radiosity pass, patches and form factors, fewer when cache_path exists) and
+ * fails with RR_ERR_LIMIT and a message giving the estimate, the limit and
+ * what to change when it exceeds limit. Counts only: nothing is built. */
+rr_status app_check_memory(const scene *sc, const ig_integrator *ig, const char *cache_path, size_t limit,
+                           rr_error *err);
 /* Sets every non-finite pixel of the film to 0 (rt_film_scrub_nonfinite) and
  * warns on stderr with the count and the first coordinates. Returns the count. */
 size_t app_scrub_film(rt_film *film);

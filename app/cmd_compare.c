@@ -32,7 +32,7 @@ static const char compare_usage[] =
     "options:\n"
     "  -o, --output FILE      the figure: .png, .pdf or .svg (default out/<scene>-compare.png)\n"
     "      --modes LIST       comma-separated modes from whitted, secondary, radiosity,\n"
-    "                         hybrid (default: all four, in that order)\n"
+    "                         hybrid, direct (default: the first four, in that order)\n"
     "      --reference MODE   the mode the others are compared to (default: secondary\n"
     "                         when compared, else the last mode)\n"
     "      --layers LIST      instead of modes: panels for the layers of one render,\n"
@@ -56,16 +56,29 @@ static const char compare_usage[] =
     "Exit codes: 0 ok, 1 runtime error, 2 usage error or bad input, 130 interrupted (Ctrl-C:\n"
     "no figure is written), 143 terminated (SIGTERM).\n";
 
-enum { MAX_PANELS = 8, MAX_ROWS = 16 };
+enum { MAX_PANELS = 8, MAX_ROWS = 16, MAX_MODES = 16 };
 
-/* The layers --layers offers, their film index (-1: the beauty image) and the
- * mode whose render holds them. */
+/* The layers --layers offers and their film index (-1: the beauty image). */
 static const char *const layer_names[] = {"ambient",  "diffuse",   "specular", "mirror", "indirect",
                                           "emission", "radiosity", "beauty",   NULL};
 static const int layer_index[] = {RT_LAYER_AMBIENT,  RT_LAYER_DIFFUSE,   RT_LAYER_SPECULAR, RT_LAYER_MIRROR,
                                   RT_LAYER_INDIRECT, RT_LAYER_EMISSION, RT_LAYER_RADIOSITY, -1};
-static const int layer_mode[] = {APP_MODE_WHITTED, APP_MODE_HYBRID, APP_MODE_HYBRID,    APP_MODE_HYBRID,
-                                 APP_MODE_HYBRID,  APP_MODE_HYBRID, APP_MODE_RADIOSITY, APP_MODE_HYBRID};
+
+/* The integrator (row of ig_table) whose render holds layer l: the default
+ * mode when it writes it, else the first row that does. */
+static int layer_mode(int l)
+{
+    int def = (int)(ig_default() - ig_table);
+    if (layer_index[l] < 0 || ig_default()->layers & (1u << layer_index[l]))
+        return def;
+    for (size_t m = 0; m < ig_count(); m++)
+        if (ig_table[m].layers & (1u << layer_index[l]))
+            return (int)m;
+    return def;
+}
+
+/* The integrators' names, NULL-terminated, for parse_list. */
+static const char *mode_names[MAX_MODES + 1];
 
 /* Parses a comma-separated list of names into out[] (indices into names).
  * Returns the count, or -1 after a one-line error naming the bad item. */
@@ -110,9 +123,6 @@ static int exit_code(rr_status st)
     return st == RR_ERR_INVALID ? APP_EXIT_USAGE : APP_EXIT_RUNTIME;
 }
 
-/* Whether mode will run the radiosity pass: the same rule as app_render_mode
- * (the hybrid skips it when nothing emits), so that the pass can be run and
- * timed on its own before the first mode that needs it. */
 static int object_hit(const scene *sc, const rt_accel *a, int col, int row, double dx, double dy)
 {
     rt_hit hit;
@@ -161,11 +171,11 @@ typedef struct job {
     int npanels, ref; /* ref: panel index of the reference, -1 for layers */
     scene *sc;
     rt_accel *accel;
-    app_pipeline pl;
+    ig_session ses;
     rt_film film;
     rr_image img[MAX_PANELS]; /* what each panel shows, linear */
-    double secs[APP_MODE_COUNT], pass_secs;
-    int spp_of[APP_MODE_COUNT];
+    double secs[MAX_MODES], pass_secs;
+    int spp_of[MAX_MODES];
     char pass_users[64];      /* the modes that use the radiosity pass */
 } job;
 
@@ -192,7 +202,7 @@ static int parse_options(job *j, int argc, char **argv)
         case 'q': j->quiet = 1; break;
         case 'h': fputs(compare_usage, stdout); return APP_EXIT_OK;
         case OPT_MODES:
-            if ((j->nmodes = parse_list(optarg, "--modes", "mode", app_mode_names, j->modes)) < 0)
+            if ((j->nmodes = parse_list(optarg, "--modes", "mode", mode_names, j->modes)) < 0)
                 return APP_EXIT_USAGE;
             break;
         case OPT_LAYERS:
@@ -200,8 +210,9 @@ static int parse_options(job *j, int argc, char **argv)
                 return APP_EXIT_USAGE;
             break;
         case OPT_REFERENCE:
-            if (app_pick(optarg, app_mode_names) < 0) {
-                app_error("--reference: unknown mode '%s' (expected whitted, secondary, radiosity, hybrid)", optarg);
+            if (!ig_find(optarg)) {
+                char names[128];
+                app_error("--reference: unknown mode '%s' (expected %s)", optarg, ig_names(names, sizeof names));
                 return APP_EXIT_USAGE;
             }
             j->ref_name = optarg;
@@ -253,13 +264,14 @@ static int parse_options(job *j, int argc, char **argv)
         return APP_EXIT_USAGE;
     }
     if (!j->nlayers && !j->nmodes)
-        for (j->nmodes = 0; j->nmodes < APP_MODE_COUNT; j->nmodes++)
-            j->modes[j->nmodes] = j->nmodes;
+        for (size_t m = 0; m < ig_count(); m++)
+            if (ig_table[m].in_figures)
+                j->modes[j->nmodes++] = (int)m;
     j->npanels = j->nlayers ? j->nlayers : j->nmodes;
     j->ref = -1;
     if (!j->nlayers) {
         /* Secondary rays are the unbiased estimate: the natural reference. */
-        int want = j->ref_name ? app_pick(j->ref_name, app_mode_names) : APP_MODE_SECONDARY;
+        int want = (int)((j->ref_name ? ig_find(j->ref_name) : ig_find("secondary")) - ig_table);
         for (int i = 0; i < j->nmodes; i++)
             if (j->modes[i] == want)
                 j->ref = i;
@@ -315,9 +327,7 @@ static int prepare(job *j)
         return APP_EXIT_RUNTIME;
     }
     app_diagnose_light(j->sc, j->accel);
-    j->pl.sc = j->sc;
-    j->pl.accel = j->accel;
-    j->pl.quiet = j->quiet;
+    app_session_init(&j->ses, j->sc, j->accel, NULL);
     return -1;
 }
 
@@ -327,15 +337,20 @@ static int render_panels(job *j)
 {
     scene *sc = j->sc;
     int W = sc->view.width, H = sc->view.height, base_spp = sc->settings.spp;
-    int order[APP_MODE_COUNT], nrender = 0;
+    int order[MAX_MODES], nrender = 0;
     if (j->nlayers) {
-        static const int by_mode[] = {APP_MODE_HYBRID, APP_MODE_WHITTED, APP_MODE_RADIOSITY};
-        for (int m = 0; m < 3; m++)
+        /* Each render once, the default mode's first. */
+        int def = (int)(ig_default() - ig_table);
+        for (int k = -1; k < (int)ig_count(); k++) {
+            int m = k < 0 ? def : k;
+            if (k == def)
+                continue;
             for (int i = 0; i < j->nlayers; i++)
-                if (layer_mode[j->layers[i]] == by_mode[m]) {
-                    order[nrender++] = by_mode[m];
+                if (layer_mode(j->layers[i]) == m) {
+                    order[nrender++] = m;
                     break;
                 }
+        }
     } else {
         memcpy(order, j->modes, sizeof(int) * (size_t)j->nmodes);
         nrender = j->nmodes;
@@ -343,12 +358,13 @@ static int render_panels(job *j)
     rr_error err;
     for (int r = 0; r < nrender; r++) {
         int m = order[r];
-        if (app_needs_radiosity(sc, m, -1)) {
+        const ig_integrator *ig = &ig_table[m];
+        if (ig_uses_pass(ig, sc)) {
             snprintf(j->pass_users + strlen(j->pass_users), sizeof j->pass_users - strlen(j->pass_users), "%s%s",
-                     j->pass_users[0] ? " and " : "", app_mode_names[m]);
-            if (!j->pl.sol) {
+                     j->pass_users[0] ? " and " : "", ig->name);
+            if (!j->ses.sol) {
                 double t0 = rr_now_seconds();
-                rr_status st = app_pipeline_radiosity(&j->pl, &err);
+                rr_status st = app_session_field(&j->ses, j->quiet, &err);
                 if (st != RR_OK) {
                     app_error("%s", err.msg);
                     /* A scene the pass cannot take is bad input, as in render. */
@@ -357,22 +373,22 @@ static int render_panels(job *j)
                 j->pass_secs = rr_now_seconds() - t0;
             }
         }
-        if (m == APP_MODE_SECONDARY)
+        if (ig->indirect == RT_INDIRECT_SECONDARY)
             sc->settings.spp = (int)(j->secondary_spp ? j->secondary_spp : fmin(16.0 * base_spp, 1 << 20));
         j->spp_of[m] = sc->settings.spp;
-        rr_status st = app_render_mode(&j->pl, m, -1, RT_FILTER_BOX, &j->film, &j->secs[m], NULL, NULL, &err);
+        rr_status st = ig_render(&j->ses, ig, NULL, &j->film, &j->secs[m], &err);
         sc->settings.spp = base_spp;
         if (st != RR_OK) {
             app_error("%s", err.msg);
             return exit_code(st);
         }
         if (!j->quiet)
-            fprintf(stderr, "compare: %s, %d spp, %.2f s\n", app_mode_names[m], j->spp_of[m], j->secs[m]);
+            fprintf(stderr, "compare: %s, %d spp, %.2f s\n", ig->name, j->spp_of[m], j->secs[m]);
         for (int i = 0; i < j->npanels; i++) {
             const rr_image *src = NULL;
             if (!j->nlayers && j->modes[i] == m)
                 src = &j->film.beauty;
-            else if (j->nlayers && layer_mode[j->layers[i]] == m)
+            else if (j->nlayers && layer_mode(j->layers[i]) == m)
                 src = layer_index[j->layers[i]] < 0 ? &j->film.beauty : &j->film.layer[layer_index[j->layers[i]]];
             if (!src)
                 continue;
@@ -470,7 +486,7 @@ static void free_job(job *j)
     for (int i = 0; i < MAX_PANELS; i++)
         rr_image_free(&j->img[i]);
     rt_film_free(&j->film);
-    rad_solution_destroy(j->pl.sol);
+    ig_session_free(&j->ses);
     rt_accel_destroy(j->accel);
     scene_destroy(j->sc);
     for (size_t i = 0; i < j->nsets; i++)
@@ -494,19 +510,20 @@ int app_cmd_compare(int argc, char **argv)
         app_error("out of memory");
         goto done;
     }
+    for (size_t m = 0; m < ig_count() && m < MAX_MODES; m++)
+        mode_names[m] = ig_table[m].name;
     app_signals_catch(&sig);
-    j.pl.interrupt = &app_stop;
     if ((rc = parse_options(&j, argc, argv)) >= 0 || (rc = prepare(&j)) >= 0 || (rc = render_panels(&j)) >= 0)
         goto done;
     rc = APP_EXIT_RUNTIME;
 
     for (int i = 0; i < j.npanels; i++) {
-        int m = j.nlayers ? layer_mode[j.layers[i]] : j.modes[i];
+        int m = j.nlayers ? layer_mode(j.layers[i]) : j.modes[i];
         snprintf(panels[i].title, sizeof panels[i].title, "%s",
-                 j.nlayers ? layer_names[j.layers[i]] : app_mode_names[m]);
+                 j.nlayers ? layer_names[j.layers[i]] : ig_table[m].name);
         if (j.nlayers)
-            snprintf(panels[i].caption, sizeof panels[i].caption, "%s %s, %d spp, %.2f s", app_mode_names[m],
-                     m == APP_MODE_RADIOSITY ? "display" : "render", j.spp_of[m], j.secs[m]);
+            snprintf(panels[i].caption, sizeof panels[i].caption, "%s %s, %d spp, %.2f s", ig_table[m].name,
+                     ig_table[m].shows_field ? "display" : "render", j.spp_of[m], j.secs[m]);
         else
             snprintf(panels[i].caption, sizeof panels[i].caption, "%d spp, %.2f s", j.spp_of[m], j.secs[m]);
         panels[i].img = &j.img[i];
@@ -530,8 +547,8 @@ int app_cmd_compare(int argc, char **argv)
     snprintf(d.title, sizeof d.title, "%s: %s", sc->name[0] ? sc->name : base,
              j.nlayers ? "the layers of one render" : "modes compared");
     char pass[160] = "no radiosity pass";
-    if (j.pl.sol)
-        snprintf(pass, sizeof pass, "radiosity pass %zu patches, %.2f s, shared by %s", j.pl.sol->P->n, j.pass_secs,
+    if (j.ses.sol)
+        snprintf(pass, sizeof pass, "radiosity pass %zu patches, %.2f s, shared by %s", j.ses.sol->P->n, j.pass_secs,
                  j.pass_users);
     snprintf(d.subtitle, sizeof d.subtitle, "%s, %d x %d px, exposure %+g EV; %s", base, sc->view.width,
              sc->view.height, sc->settings.exposure, pass);

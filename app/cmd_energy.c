@@ -197,7 +197,8 @@ static double balance_error(const rad_energy_row *t)
 
 typedef struct energy_result {
     const scene *s;
-    const rad_solution *sol;
+    ig_session ses;          /* the radiosity pass, as render runs it */
+    const rad_solution *sol; /* ses.sol */
     rad_energy_row *rows;
     size_t nrows;
     rt_particle_ledger g; /* g.row NULL: no light tracing */
@@ -384,12 +385,9 @@ static void print_json(const energy_result *R, int agree)
 static int run(const energy_args *A, scene *s, rt_accel *a, energy_result *R)
 {
     rr_error err;
-    app_progress pass = {!A->quiet && isatty(STDERR_FILENO), -1, rr_now_seconds(), "radiosity: form factors"};
-    rad_pass_opts po;
-    app_radiosity_opts(s, &app_stop, &pass, &po);
-    rad_solution *sol = NULL;
-    rr_status st = rad_pass_run(s, a, &po, &sol, &err);
-    R->sol = sol;
+    app_session_init(&R->ses, s, a, NULL);
+    rr_status st = app_session_field(&R->ses, A->quiet, &err);
+    const rad_solution *sol = R->sol = R->ses.sol;
     if (st == RR_ERR_INTERRUPTED) {
         app_error("%s", err.msg);
         return app_stop == SIGTERM ? APP_EXIT_TERMINATED : APP_EXIT_INTERRUPTED;
@@ -477,10 +475,7 @@ int app_cmd_energy(int argc, char **argv)
         goto done;
     }
     R.s = s;
-    app_pipeline mem;
-    memset(&mem, 0, sizeof mem);
-    mem.sc = s;
-    if (app_check_memory(&mem, APP_MODE_RADIOSITY, -1, A.max_memory, &err) != RR_OK) {
+    if (app_check_memory(s, ig_find("radiosity"), NULL, A.max_memory, &err) != RR_OK) {
         app_error("%s", err.msg);
         goto done;
     }
@@ -505,7 +500,7 @@ done:
     free(R.cmp);
     rt_particle_ledger_free(&R.g);
     free(R.rows);
-    rad_solution_destroy((rad_solution *)R.sol);
+    ig_session_free(&R.ses);
     rt_accel_destroy(a);
     scene_destroy(s);
     for (size_t i = 0; i < A.nsets; i++)

@@ -35,9 +35,10 @@ static const char render_usage[] =
     "                         whitted: the same with the lecture's ambient term instead\n"
     "                         secondary: interreflection by Monte Carlo secondary rays instead\n"
     "                         radiosity: the radiosity solution alone, Gouraud-shaded\n"
+    "                         direct: emission and direct light only, no interreflection\n"
     "      --indirect KIND    what supplies diffuse interreflection, everything else equal:\n"
-    "                         radiosity|secondary|ambient|none\n"
-    "                         (overrides the mode's choice)\n"
+    "                         radiosity (= --mode hybrid), secondary, ambient (= whitted) or\n"
+    "                         none (= direct); overrides --mode\n"
     "      --filter F         pixel filter for supersampling: box (default) or tent\n"
     "radiosity options (override the scene's \"radiosity\" block):\n"
     "      --patch-area A     largest patch area (scene units squared)\n"
@@ -94,7 +95,95 @@ enum {
     OPT_MAX_MEMORY
 };
 
-int app_cmd_render(int argc, char **argv)
+/* The command line, parsed. */
+typedef struct render_args {
+    const char *scene_path, *out_exr, *out_png, *plot, *cache_path;
+    int no_png, quiet, filter;
+    long width;
+    const ig_integrator *ig;
+    size_t max_memory;
+    char **sets; /* one per --set, plus those the shorthand options expand to */
+    size_t nsets;
+    char exr_default[4200], png_default[4200], partial[4200];
+} render_args;
+
+/* The scene key a shorthand option sets, or NULL. */
+static const char *shorthand_key(int c)
+{
+    switch (c) {
+    case OPT_PATCH_AREA: return "radiosity.patch_area";
+    case OPT_PATCH_EDGE: return "radiosity.patch_edge";
+    case OPT_SOLVER: return "radiosity.solver";
+    case OPT_FF: return "radiosity.form_factors";
+    case OPT_FF_SAMPLES: return "radiosity.ff_samples";
+    case OPT_SPP: return "render.spp";
+    case OPT_SEED: return "render.seed";
+    case OPT_THREADS: return "render.threads";
+    case OPT_EXPOSURE: return "render.exposure";
+    case OPT_HALF: return "render.half_float";
+    default: return NULL;
+    }
+}
+
+/* One option into A; returns -1 to go on, or the exit code. */
+static int parse_option(render_args *A, int c, const char *arg, const char *name, const ig_integrator **by_indirect)
+{
+    static const char *const filters[] = {"box", "tent", NULL};
+    char names[128];
+    switch (c) {
+    case 'o': A->out_exr = arg; return -1;
+    case OPT_PNG: A->out_png = arg; return -1;
+    case OPT_NO_PNG: A->no_png = 1; return -1;
+    case OPT_PLOT: A->plot = arg; return -1;
+    case OPT_CACHE: A->cache_path = arg; return -1;
+    case 'q': A->quiet = 1; return -1;
+    case 'h': fputs(render_usage, stdout); return APP_EXIT_OK;
+    case OPT_SET: A->sets[A->nsets++] = strdup(arg); return -1;
+    case ':': app_error("option '%s' needs a value (try 'radray render --help')", name); return APP_EXIT_USAGE;
+    case OPT_WIDTH:
+        if (!app_parse_int(arg, 1, 1 << 21, &A->width))
+            return -1;
+        app_error("--width: expected an integer in [1, %d], got '%s'", 1 << 21, arg);
+        return APP_EXIT_USAGE;
+    case OPT_MAX_MEMORY:
+        if (!app_parse_size(arg, &A->max_memory))
+            return -1;
+        app_error("--max-memory: expected a size such as 512M or 4G, got '%s'", arg);
+        return APP_EXIT_USAGE;
+    case OPT_MODE:
+        if ((A->ig = ig_find(arg)))
+            return -1;
+        app_error("--mode: expected %s, got '%s'", ig_names(names, sizeof names), arg);
+        return APP_EXIT_USAGE;
+    case OPT_INDIRECT: {
+        int k = app_pick(arg, app_indirect_names);
+        if (k >= 0 && (*by_indirect = ig_with_indirect((rt_indirect)k)))
+            return -1;
+        app_error("--indirect: expected radiosity, secondary, ambient or none, got '%s'", arg);
+        return APP_EXIT_USAGE;
+    }
+    case OPT_FILTER:
+        if ((A->filter = app_pick(arg, filters)) >= 0)
+            return -1;
+        app_error("--filter: expected box or tent, got '%s'", arg);
+        return APP_EXIT_USAGE;
+    default: break;
+    }
+    const char *key = shorthand_key(c);
+    if (!key) {
+        app_error("unknown option '%s' (try 'radray render --help')", name);
+        return APP_EXIT_USAGE;
+    }
+    const char *val = c == OPT_HALF ? "true" : arg;
+    size_t n = strlen(key) + strlen(val) + 2;
+    if ((A->sets[A->nsets] = malloc(n)))
+        snprintf(A->sets[A->nsets], n, "%s=%s", key, val);
+    A->nsets++;
+    return -1;
+}
+
+/* Reads the command line into A; returns -1 to go on, or the exit code. */
+static int parse_args(render_args *A, int argc, char **argv)
 {
     static const struct option longopts[] = {
         {"output", required_argument, NULL, 'o'},     {"png", required_argument, NULL, OPT_PNG},
@@ -111,253 +200,227 @@ int app_cmd_render(int argc, char **argv)
         {"radiosity-cache", required_argument, NULL, OPT_CACHE},
         {"max-memory", required_argument, NULL, OPT_MAX_MEMORY},
         {NULL, 0, NULL, 0}};
-    const char *out_exr = NULL, *out_png = NULL, *plot = NULL;
-    int no_png = 0, quiet = 0;
-    long width = 0;
-    static const char *const filters[] = {"box", "tent", NULL};
-    int mode = APP_MODE_HYBRID, indirect = -1, filter = RT_FILTER_BOX;
-    /* Overrides: one per --set, plus those the shorthand options expand to. */
-    char **sets = calloc((size_t)argc + 1, sizeof *sets);
-    size_t nsets = 0;
-    int rc = APP_EXIT_USAGE;
-    scene *sc = NULL;
-    rt_film film;
-    rt_accel *accel = NULL;
-    app_pipeline pl;
-    memset(&pl, 0, sizeof pl);
-    memset(&film, 0, sizeof film);
-    char exr_default[4200], png_default[4200], partial[4200];
-    size_t max_memory = app_default_max_memory();
-    app_signals sig = {0};
-    if (!sets) {
-        app_error("out of memory");
-        return APP_EXIT_RUNTIME;
-    }
-
+    const ig_integrator *by_indirect = NULL;
+    A->ig = ig_default();
+    A->filter = RT_FILTER_BOX;
+    A->max_memory = app_default_max_memory();
     optind = 1;
     opterr = 0;
     int c;
     while ((c = getopt_long(argc, argv, ":o:qh", longopts, NULL)) != -1) {
-        const char *key = NULL;
-        switch (c) {
-        case 'o': out_exr = optarg; break;
-        case OPT_PNG: out_png = optarg; break;
-        case OPT_NO_PNG: no_png = 1; break;
-        case OPT_PLOT: plot = optarg; break;
-        case OPT_CACHE: pl.cache_path = optarg; break;
-        case 'q': quiet = 1; break;
-        case 'h':
-            fputs(render_usage, stdout);
-            rc = APP_EXIT_OK;
-            goto done;
-        case OPT_WIDTH:
-            if (app_parse_int(optarg, 1, 1 << 21, &width)) {
-                app_error("--width: expected an integer in [1, %d], got '%s'", 1 << 21, optarg);
-                goto done;
-            }
-            break;
-        case OPT_MAX_MEMORY:
-            if (app_parse_size(optarg, &max_memory)) {
-                app_error("--max-memory: expected a size such as 512M or 4G, got '%s'", optarg);
-                goto done;
-            }
-            break;
-        case OPT_MODE:
-            if ((mode = app_pick(optarg, app_mode_names)) < 0) {
-                app_error("--mode: expected hybrid, whitted, secondary or radiosity, got '%s'", optarg);
-                goto done;
-            }
-            break;
-        case OPT_INDIRECT:
-            if ((indirect = app_pick(optarg, app_indirect_names)) < 0) {
-                app_error("--indirect: expected radiosity, secondary, ambient or none, got '%s'", optarg);
-                goto done;
-            }
-            break;
-        case OPT_FILTER:
-            if ((filter = app_pick(optarg, filters)) < 0) {
-                app_error("--filter: expected box or tent, got '%s'", optarg);
-                goto done;
-            }
-            break;
-        case OPT_PATCH_AREA: key = "radiosity.patch_area"; break;
-        case OPT_PATCH_EDGE: key = "radiosity.patch_edge"; break;
-        case OPT_SOLVER: key = "radiosity.solver"; break;
-        case OPT_FF: key = "radiosity.form_factors"; break;
-        case OPT_FF_SAMPLES: key = "radiosity.ff_samples"; break;
-        case OPT_SPP: key = "render.spp"; break;
-        case OPT_SEED: key = "render.seed"; break;
-        case OPT_THREADS: key = "render.threads"; break;
-        case OPT_EXPOSURE: key = "render.exposure"; break;
-        case OPT_HALF: key = "render.half_float"; break;
-        case OPT_SET:
-            sets[nsets++] = strdup(optarg);
-            break;
-        case ':':
-            app_error("option '%s' needs a value (try 'radray render --help')", argv[optind - 1]);
-            goto done;
-        default:
-            app_error("unknown option '%s' (try 'radray render --help')", argv[optind - 1]);
-            goto done;
-        }
-        if (key) {
-            const char *val = c == OPT_HALF ? "true" : optarg;
-            size_t n = strlen(key) + strlen(val) + 2;
-            sets[nsets] = malloc(n);
-            if (sets[nsets])
-                snprintf(sets[nsets], n, "%s=%s", key, val);
-            nsets++;
-        }
+        int rc = parse_option(A, c, optarg, argv[optind - 1], &by_indirect);
+        if (rc >= 0)
+            return rc;
     }
-    for (size_t i = 0; i < nsets; i++)
-        if (!sets[i]) {
+    if (by_indirect)
+        A->ig = by_indirect;
+    for (size_t i = 0; i < A->nsets; i++)
+        if (!A->sets[i]) {
             app_error("out of memory");
-            rc = APP_EXIT_RUNTIME;
-            goto done;
+            return APP_EXIT_RUNTIME;
         }
     if (optind != argc - 1) {
         app_error(optind >= argc ? "render: missing SCENE (try 'radray render --help')"
                                  : "render: expected one SCENE, got extra arguments (try 'radray render --help')");
-        goto done;
+        return APP_EXIT_USAGE;
     }
-    const char *scene_path = argv[optind];
+    A->scene_path = argv[optind];
+    return -1;
+}
 
+/* Output names (out/<scene name>.exr by default, the PNG beside the EXR),
+ * checked against each other and the inputs; 0, or -1 after the error. */
+static int settle_outputs(render_args *A, const scene *sc)
+{
+    if (!A->out_exr) {
+        const char *base = strrchr(A->scene_path, '/');
+        base = base ? base + 1 : A->scene_path;
+        size_t n = strcspn(base, ".");
+        snprintf(A->exr_default, sizeof A->exr_default, "out/%.*s.exr", (int)n, base);
+        A->out_exr = A->exr_default;
+    }
+    if (!app_ends_with(A->out_exr, ".exr")) {
+        app_error("-o %s: the output must end in .exr (the PNG preview is written beside it)", A->out_exr);
+        return -1;
+    }
+    if (!A->out_png && !A->no_png) {
+        snprintf(A->png_default, sizeof A->png_default, "%.*s.png", (int)(strlen(A->out_exr) - 4), A->out_exr);
+        A->out_png = A->png_default;
+    }
+    snprintf(A->partial, sizeof A->partial, "%.*s.partial.exr", (int)(strlen(A->out_exr) - 4), A->out_exr);
+    const char *ins[64];
+    size_t nin = app_scene_inputs(sc, ins, 63);
+    ins[nin++] = A->cache_path;
+    const char *outs[4] = {A->out_exr, A->no_png ? NULL : A->out_png, A->plot, A->partial};
+    const char *what[4] = {"-o", "--png", "--plot", "the partial image"};
+    if (app_check_outputs(outs, what, 4, ins, nin))
+        return -1;
+    if (A->plot && !A->ig->uses_field) {
+        app_error("--plot: the convergence plot belongs to the radiosity pass: use it with --mode radiosity");
+        return -1;
+    }
+    return 0;
+}
+
+/* Loads the scene with the overrides, resized to --width; NULL after the error. */
+static scene *load_scene(const render_args *A)
+{
     rr_error err;
     scene_load_opts lo = {0};
-    lo.overrides = (const char *const *)sets;
-    lo.noverrides = nsets;
+    lo.overrides = (const char *const *)A->sets;
+    lo.noverrides = A->nsets;
     lo.warn = app_warn_sink();
-    lo.max_image_bytes = max_memory;
-    if (scene_load(scene_path, &lo, &sc, &err) != RR_OK) {
+    lo.max_image_bytes = A->max_memory;
+    scene *sc = NULL;
+    if (scene_load(A->scene_path, &lo, &sc, &err) != RR_OK) {
         app_error("%s", err.msg);
-        goto done;
+        return NULL;
     }
     app_diagnose_scene(sc);
-    if (width > 0) {
+    if (A->width > 0) {
         rr_view v;
-        if (rr_view_resize(&sc->view, (int)width, &v, &err) != RR_OK) {
+        if (rr_view_resize(&sc->view, (int)A->width, &v, &err) != RR_OK) {
             app_error("--width: %s", err.msg);
-            goto done;
+            scene_destroy(sc);
+            return NULL;
         }
         sc->view = v;
     }
+    return sc;
+}
 
-    /* Output names: out/<scene name>.exr by default, PNG beside the EXR. */
-    if (!out_exr) {
-        const char *base = strrchr(scene_path, '/');
-        base = base ? base + 1 : scene_path;
-        size_t n = strcspn(base, ".");
-        snprintf(exr_default, sizeof exr_default, "out/%.*s.exr", (int)n, base);
-        out_exr = exr_default;
+/* An interrupted render: the finished tiles to A->partial; the exit code. */
+static int write_partial(const render_args *A, const scene *sc, rt_film *film, const rr_error *why)
+{
+    app_scrub_film(film);
+    img_layer layers[RT_LAYER_COUNT];
+    for (int i = 0; i < RT_LAYER_COUNT; i++) {
+        layers[i].name = rt_layer_name(i);
+        layers[i].image = &film->layer[i];
     }
-    if (!app_ends_with(out_exr, ".exr")) {
-        app_error("-o %s: the output must end in .exr (the PNG preview is written beside it)", out_exr);
-        goto done;
+    rr_error werr;
+    if (img_write_exr(A->partial, &film->beauty, layers, RT_LAYER_COUNT,
+                      sc->settings.half_float ? IMG_HALF : IMG_FLOAT, &werr) != RR_OK) {
+        app_error("%s; the partial image could not be written either: %s", why->msg, werr.msg);
+        return APP_EXIT_RUNTIME;
     }
-    if (!out_png && !no_png) {
-        snprintf(png_default, sizeof png_default, "%.*s.png", (int)(strlen(out_exr) - 4), out_exr);
-        out_png = png_default;
-    }
-    snprintf(partial, sizeof partial, "%.*s.partial.exr", (int)(strlen(out_exr) - 4), out_exr);
-    {
-        const char *ins[64];
-        size_t nin = app_scene_inputs(sc, ins, 63);
-        ins[nin++] = pl.cache_path;
-        const char *outs[4] = {out_exr, no_png ? NULL : out_png, plot, partial};
-        const char *what[4] = {"-o", "--png", "--plot", "the partial image"};
-        if (app_check_outputs(outs, what, 4, ins, nin))
-            goto done;
-    }
-    if (plot && mode != APP_MODE_RADIOSITY && app_mode_indirect(mode, indirect) != RT_INDIRECT_RADIOSITY) {
-        app_error("--plot: the convergence plot belongs to the radiosity pass: use it with --mode radiosity");
-        goto done;
-    }
-    pl.sc = sc;
-    pl.quiet = quiet;
-    pl.interrupt = &app_stop;
-    if (app_check_memory(&pl, mode, indirect, max_memory, &err) != RR_OK) {
-        app_error("%s", err.msg);
-        goto done;
-    }
-    if (rt_film_init(&film, sc->view.width, sc->view.height, &err) != RR_OK ||
-        rt_accel_build(sc, &accel, &err) != RR_OK) {
-        app_error("%s", err.msg);
-        rc = APP_EXIT_RUNTIME;
-        goto done;
-    }
-    app_diagnose_light(sc, accel);
+    app_error("%s; wrote the partial image (unfinished tiles black) to %s", why->msg, A->partial);
+    return app_stop == SIGTERM ? APP_EXIT_TERMINATED : APP_EXIT_INTERRUPTED;
+}
 
-    app_progress prog = {!quiet && isatty(STDERR_FILENO), -1, rr_now_seconds(), "rendering"};
-    rc = APP_EXIT_RUNTIME;
-    pl.accel = accel;
-    app_signals_catch(&sig); /* SIGINT and SIGTERM stop the same way (app_stop says which) */
-    rr_status rst = app_render_mode(&pl, mode, indirect, filter, &film, NULL, draw_progress, &prog, &err);
-    if (rst == RR_ERR_INTERRUPTED) {
+/* The solver's convergence plot (--plot); 0, or -1 after the error. */
+static int write_plot(const render_args *A, const rad_solution *sol)
+{
+    if (!sol || sol->stats.nhistory <= 0) {
+        fprintf(stderr, "radray: warning: --plot: the direct solver has no iterations to plot "
+                        "(use --solver iterative)\n");
+        return 0;
+    }
+    char title[128];
+    rr_error err;
+    snprintf(title, sizeof title, "Gauss-Seidel residual, %zu patches", sol->P->n);
+    if (app_plot_residuals(A->plot, sol->stats.history, sol->stats.nhistory, title, &err) != 0) {
+        app_error("%s", err.msg);
+        return -1;
+    }
+    if (!A->quiet)
+        printf("wrote %s (convergence plot)\n", A->plot);
+    return 0;
+}
+
+static void print_summary(const render_args *A, const scene *sc, const rt_film *film, double secs)
+{
+    printf("rendered %s: %d x %d, %d spp, mode %s, %.2f s\n", A->scene_path, film->beauty.width,
+           film->beauty.height, sc->settings.spp, A->ig->name, secs);
+    printf("wrote %s (linear %s RGB; layers", A->out_exr, sc->settings.half_float ? "half" : "float");
+    for (int i = 0; i < RT_LAYER_COUNT; i++)
+        printf(" %s", rt_layer_name(i));
+    printf(")\n");
+    if (!A->no_png)
+        printf("wrote %s (sRGB preview, exposure %+g)\n", A->out_png, sc->settings.exposure);
+}
+
+/* The radiosity pass (when the mode runs it), the render, the outputs; the exit code. */
+static int render_and_write(const render_args *A, scene *sc, ig_session *ses, rt_film *film)
+{
+    rr_error err;
+    double t0 = rr_now_seconds();
+    app_progress prog = {!A->quiet && isatty(STDERR_FILENO), -1, t0, "rendering"};
+    rr_status st = ig_uses_pass(A->ig, sc) ? app_session_field(ses, A->quiet, &err) : RR_OK;
+    if (st == RR_OK) {
+        ig_render_opts ro = {(rt_filter)A->filter, draw_progress, &prog};
+        prog.t0 = rr_now_seconds();
+        st = ig_render(ses, A->ig, &ro, film, NULL, &err);
+    }
+    if (st == RR_ERR_INTERRUPTED) {
         if (prog.enabled)
             fputc('\n', stderr);
-        app_scrub_film(&film);
-        img_layer pl_layers[RT_LAYER_COUNT];
-        for (int i = 0; i < RT_LAYER_COUNT; i++) {
-            pl_layers[i].name = rt_layer_name(i);
-            pl_layers[i].image = &film.layer[i];
-        }
-        rr_error werr;
-        if (img_write_exr(partial, &film.beauty, pl_layers, RT_LAYER_COUNT,
-                          sc->settings.half_float ? IMG_HALF : IMG_FLOAT, &werr) != RR_OK) {
-            app_error("%s; the partial image could not be written either: %s", err.msg, werr.msg);
-            rc = APP_EXIT_RUNTIME;
-        } else {
-            app_error("%s; wrote the partial image (unfinished tiles black) to %s", err.msg, partial);
-            rc = app_stop == SIGTERM ? APP_EXIT_TERMINATED : APP_EXIT_INTERRUPTED;
-        }
-        goto done;
+        return write_partial(A, sc, film, &err);
     }
-    if (rst != RR_OK) {
+    if (st != RR_OK) {
         app_error("%s", err.msg);
         /* A scene the radiosity pass cannot take (reflectance >= 1, no
          * emitter) is bad input; running out of memory is not. */
-        rc = rst == RR_ERR_INVALID ? APP_EXIT_USAGE : APP_EXIT_RUNTIME;
+        return st == RR_ERR_INVALID ? APP_EXIT_USAGE : APP_EXIT_RUNTIME;
+    }
+    if (A->plot && write_plot(A, ses->sol) != 0)
+        return APP_EXIT_RUNTIME;
+    app_scrub_film(film);
+    double secs = rr_now_seconds() - t0;
+    if (app_write_film(A->out_exr, A->no_png ? NULL : A->out_png, film, sc->settings.half_float,
+                       sc->settings.exposure, &err) != RR_OK) {
+        app_error("%s", err.msg);
+        return APP_EXIT_RUNTIME;
+    }
+    if (!A->quiet)
+        print_summary(A, sc, film, secs);
+    return APP_EXIT_OK;
+}
+
+int app_cmd_render(int argc, char **argv)
+{
+    render_args A;
+    memset(&A, 0, sizeof A);
+    scene *sc = NULL;
+    rt_film film;
+    rt_accel *accel = NULL;
+    ig_session ses;
+    memset(&ses, 0, sizeof ses);
+    memset(&film, 0, sizeof film);
+    app_signals sig = {0};
+    int rc = APP_EXIT_RUNTIME;
+    rr_error err;
+    if (!(A.sets = calloc((size_t)argc + 1, sizeof *A.sets))) {
+        app_error("out of memory");
+        return APP_EXIT_RUNTIME;
+    }
+    if ((rc = parse_args(&A, argc, argv)) >= 0)
         goto done;
-    }
-    if (plot && pl.sol && pl.sol->stats.nhistory > 0) {
-        char title[128];
-        snprintf(title, sizeof title, "Gauss-Seidel residual, %zu patches", pl.sol->P->n);
-        if (app_plot_residuals(plot, pl.sol->stats.history, pl.sol->stats.nhistory, title, &err) != 0) {
-            app_error("%s", err.msg);
-            goto done;
-        }
-        if (!quiet)
-            printf("wrote %s (convergence plot)\n", plot);
-    } else if (plot) {
-        fprintf(stderr, "radray: warning: --plot: the direct solver has no iterations to plot "
-                        "(use --solver iterative)\n");
-    }
-    app_scrub_film(&film);
-    double secs = rr_now_seconds() - prog.t0;
-    if (app_write_film(out_exr, no_png ? NULL : out_png, &film, sc->settings.half_float, sc->settings.exposure,
-                       &err) != RR_OK) {
+    rc = APP_EXIT_USAGE;
+    if (!(sc = load_scene(&A)) || settle_outputs(&A, sc) != 0)
+        goto done;
+    if (app_check_memory(sc, A.ig, A.cache_path, A.max_memory, &err) != RR_OK) {
         app_error("%s", err.msg);
         goto done;
     }
-    if (!quiet) {
-        printf("rendered %s: %d x %d, %d spp, indirect %s, %.2f s\n", scene_path, film.beauty.width,
-               film.beauty.height, sc->settings.spp, mode == APP_MODE_RADIOSITY ? "radiosity display" : app_indirect_names[app_mode_indirect(mode, indirect)], secs);
-        printf("wrote %s (linear %s RGB; layers", out_exr, sc->settings.half_float ? "half" : "float");
-        for (int i = 0; i < RT_LAYER_COUNT; i++)
-            printf(" %s", rt_layer_name(i));
-        printf(")\n");
-        if (!no_png)
-            printf("wrote %s (sRGB preview, exposure %+g)\n", out_png, sc->settings.exposure);
+    rc = APP_EXIT_RUNTIME;
+    if (rt_film_init(&film, sc->view.width, sc->view.height, &err) != RR_OK ||
+        rt_accel_build(sc, &accel, &err) != RR_OK) {
+        app_error("%s", err.msg);
+        goto done;
     }
-    rc = APP_EXIT_OK;
+    app_diagnose_light(sc, accel);
+    app_session_init(&ses, sc, accel, A.cache_path);
+    app_signals_catch(&sig); /* SIGINT and SIGTERM stop the same way (app_stop says which) */
+    rc = render_and_write(&A, sc, &ses, &film);
 done:
     app_signals_restore(&sig);
     rt_film_free(&film);
-    rad_solution_destroy(pl.sol);
+    ig_session_free(&ses);
     rt_accel_destroy(accel);
     scene_destroy(sc);
-    for (size_t i = 0; i < nsets; i++)
-        free(sets[i]);
-    free(sets);
+    for (size_t i = 0; i < A.nsets; i++)
+        free(A.sets[i]);
+    free(A.sets);
     return rc;
 }

@@ -1,6 +1,6 @@
-/* pipeline.c - what every rendering subcommand shares: the modes (presets of
- * the indirect term), the radiosity pass run at most once per scene, and one
- * render of one mode into a film. */
+/* pipeline.c - what every rendering subcommand shares around the integrator
+ * table (integrator/ig.h): signals, progress lines, the radiosity pass's
+ * options and summary, resource limits. */
 #include <ctype.h>
 #include <math.h>
 #include <stdint.h>
@@ -13,7 +13,6 @@
 
 #include "app.h"
 
-const char *const app_mode_names[] = {"whitted", "secondary", "radiosity", "hybrid", NULL};
 const char *const app_indirect_names[] = {"none", "ambient", "secondary", "radiosity", NULL};
 
 int app_pick(const char *name, const char *const *names)
@@ -28,13 +27,6 @@ int app_ends_with(const char *s, const char *suffix)
 {
     size_t n = strlen(s), m = strlen(suffix);
     return n >= m && strcasecmp(s + n - m, suffix) == 0;
-}
-
-rt_indirect app_mode_indirect(int mode, int indirect_override)
-{
-    static const rt_indirect preset[APP_MODE_COUNT] = {RT_INDIRECT_AMBIENT, RT_INDIRECT_SECONDARY, RT_INDIRECT_NONE,
-                                                       RT_INDIRECT_RADIOSITY};
-    return indirect_override >= 0 ? (rt_indirect)indirect_override : preset[mode];
 }
 
 volatile sig_atomic_t app_stop;
@@ -90,33 +82,37 @@ void app_radiosity_opts(const scene *sc, const volatile sig_atomic_t *interrupt,
     }
 }
 
-rr_status app_pipeline_radiosity(app_pipeline *p, rr_error *err)
+void app_session_init(ig_session *s, const scene *sc, const rt_accel *a, const char *cache_path)
 {
-    if (p->sol)
-        return RR_OK;
-    app_progress prog = {!p->quiet && isatty(STDERR_FILENO), -1, rr_now_seconds(), "radiosity: form factors"};
-    rad_pass_opts po;
-    app_radiosity_opts(p->sc, p->interrupt, &prog, &po);
-    int cached = 0;
-    rr_status st = rad_pass_run_cached(p->sc, p->accel, &po, p->cache_path, &cached, &p->sol, err);
-    if (st != RR_OK)
-        return st;
-    if (cached && !p->quiet)
-        fprintf(stderr, "radiosity: %zu patches, solution read from %s\n", p->sol->P->n, p->cache_path);
-    else if (!p->quiet)
-        fprintf(stderr,
-                "radiosity: %zu patches, %zu form factors (%.2f s), %s solver %d iteration(s), residual %.2g (%.2f s)\n",
-                p->sol->P->n, p->sol->nnz, p->sol->seconds_ff,
-                p->sol->stats.used == RAD_SOLVER_DIRECT ? "direct" : "iterative", p->sol->stats.iterations,
-                p->sol->stats.residual, p->sol->seconds_solve);
-    return RR_OK;
+    ig_session_init(s, sc, a);
+    app_radiosity_opts(sc, &app_stop, NULL, &s->pass);
+    s->interrupt = &app_stop;
+    s->cache_path = cache_path;
 }
 
-int app_needs_radiosity(const scene *sc, int mode, int indirect_override)
+rr_status app_session_field(ig_session *s, int quiet, rr_error *err)
 {
-    if (mode == APP_MODE_RADIOSITY)
-        return 1;
-    return app_mode_indirect(mode, indirect_override) == RT_INDIRECT_RADIOSITY && rt_scene_emits(sc);
+    if (s->sol)
+        return RR_OK;
+    app_progress prog = {!quiet && isatty(STDERR_FILENO), -1, rr_now_seconds(), "radiosity: form factors"};
+    if (prog.enabled) {
+        s->pass.ff.progress = app_pass_progress;
+        s->pass.ff.progress_user = &prog;
+    }
+    rr_status st = ig_session_field(s, err);
+    s->pass.ff.progress = NULL; /* prog ends here */
+    s->pass.ff.progress_user = NULL;
+    if (st != RR_OK)
+        return st;
+    const rad_solution *sol = s->sol;
+    if (s->sol_cached && !quiet)
+        fprintf(stderr, "radiosity: %zu patches, solution read from %s\n", sol->P->n, s->cache_path);
+    else if (!quiet)
+        fprintf(stderr,
+                "radiosity: %zu patches, %zu form factors (%.2f s), %s solver %d iteration(s), residual %.2g (%.2f s)\n",
+                sol->P->n, sol->nnz, sol->seconds_ff, sol->stats.used == RAD_SOLVER_DIRECT ? "direct" : "iterative",
+                sol->stats.iterations, sol->stats.residual, sol->seconds_solve);
+    return RR_OK;
 }
 
 /* ---- resource limits ---- */
@@ -193,9 +189,9 @@ static const char *count_text(double v, char *buf, size_t n)
 /* A BVH node pair and an index per primitive. */
 #define APP_BVH_BYTES_PER_PRIM 48.0
 
-rr_status app_check_memory(const app_pipeline *p, int mode, int indirect_override, size_t limit, rr_error *err)
+rr_status app_check_memory(const scene *sc, const ig_integrator *ig, const char *cache_path, size_t limit,
+                           rr_error *err)
 {
-    const scene *sc = p->sc;
     char a[32], b[32], c[32], d[32];
     double film = 8.0 * (double)sc->view.width * (double)sc->view.height * 3.0 * sizeof(float);
     /* Solids count one primitive each, plus their mesh leaves' triangles
@@ -205,12 +201,12 @@ rr_status app_check_memory(const app_pipeline *p, int mode, int indirect_overrid
         prims += sc->objects[i].kind == SCENE_OBJ_SPHERE || sc->objects[i].kind == SCENE_OBJ_CSG;
     double bvh = APP_BVH_BYTES_PER_PRIM * prims;
     double patches = 0, rad = 0;
-    if (app_needs_radiosity(sc, mode, indirect_override)) {
+    if (ig_uses_pass(ig, sc)) {
         rad_pass_opts po;
         memset(&po, 0, sizeof po);
         po.use_scene_choices = 1;
         /* A cache that exists is read instead of computing form factors. */
-        int cached = p->cache_path && access(p->cache_path, F_OK) == 0;
+        int cached = cache_path && access(cache_path, F_OK) == 0;
         rad = rad_pass_memory_estimate(sc, &po, cached, &patches);
     }
     double total = film + bvh + rad;
@@ -249,36 +245,4 @@ size_t app_scrub_film(rt_film *film)
     fprintf(stderr, "radray: warning: %zu pixel(s) had NaN or infinite values, written as 0: %s%s\n", n, list,
             n > SHOW ? ", ..." : "");
     return n;
-}
-
-rr_status app_render_mode(app_pipeline *p, int mode, int indirect_override, int filter, rt_film *film,
-                          double *seconds, void (*progress)(void *, int, int), void *progress_user, rr_error *err)
-{
-    const scene *sc = p->sc;
-    double t0 = rr_now_seconds();
-    rt_render_opts ro;
-    memset(&ro, 0, sizeof ro);
-    ro.spp = sc->settings.spp;
-    ro.seed = sc->settings.seed;
-    ro.threads = sc->settings.threads;
-    ro.max_depth = sc->settings.max_depth;
-    ro.light_samples = sc->settings.light_samples;
-    ro.indirect = app_mode_indirect(mode, indirect_override);
-    ro.filter = (rt_filter)filter;
-    ro.progress = progress;
-    ro.progress_user = progress_user;
-    ro.interrupt = p->interrupt;
-    int need = app_needs_radiosity(sc, mode, indirect_override);
-    if (!need && ro.indirect == RT_INDIRECT_RADIOSITY)
-        ro.indirect = RT_INDIRECT_NONE; /* nothing emits: there is no interreflection to compute */
-    if (need) {
-        rr_status st = app_pipeline_radiosity(p, err);
-        if (st != RR_OK)
-            return st;
-        rad_bind_render(p->sol, mode == APP_MODE_RADIOSITY, &ro);
-    }
-    rr_status st = rt_render(sc, p->accel, &ro, film, err);
-    if (seconds)
-        *seconds = rr_now_seconds() - t0;
-    return st;
 }

@@ -264,6 +264,7 @@ typedef struct rad_pass_opts {
 } rad_pass_opts;
 
 typedef struct rad_solution {
+    rt_field field;      /* how the ray tracer reads it (rad_solution_field) */
     const scene *scene;  /* the scene it was computed for (not owned) */
     rad_patches *P;
     rad_ff *F;
@@ -317,10 +318,9 @@ rr_rgb rad_radiance_at(const rad_solution *sol, const scene *s, const rt_hit *h)
  * the ray tracer's direct light (all lights, shadow rays) is not counted twice. */
 rr_rgb rad_indirect_at(const rad_solution *sol, const scene *s, const rt_hit *h, rr_rgb rho);
 
-/* The one way the solution reaches the ray tracer: sets ro's hooks so that
- * rt_render shows the radiosity display (display = 1) or takes its indirect
- * term from sol (ro->indirect = RT_INDIRECT_RADIOSITY, the hybrid). sol (and
- * its scene) must outlive the render. */
-void rad_bind_render(const rad_solution *sol, int display, rt_render_opts *ro);
+/* The one way the solution reaches the ray tracer (rt_render_opts.field):
+ * radiance = rad_radiance_at, indirect = rad_indirect_at, on the solution's
+ * scene. sol (and its scene) must outlive the renders that use it. */
+const rt_field *rad_solution_field(const rad_solution *sol);
 
 #endif

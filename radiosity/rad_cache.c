@@ -17,7 +17,7 @@
 #include <string.h>
 #include <sys/stat.h>
 
-#include "rad.h"
+#include "rad_pass_internal.h"
 
 #define CACHE_MAGIC "RADRAYRC"
 #define CACHE_VERSION 3u /* 2: mirrors in the key; 3: the key in named parts, culling, a payload checksum */
@@ -279,9 +279,7 @@ rr_status rad_pass_run_cached(const scene *s, const rt_accel *a, const rad_pass_
         }
         return st;
     }
-    rad_solution *sol = calloc(1, sizeof *sol);
-    if (sol)
-        sol->scene = s;
+    rad_solution *sol = rad__solution_new(s);
     if (!sol)
         return rr_error_set(err, RR_ERR_NOMEM, "out of memory");
     rad_patch_opts po = rad_pass_patch_limits(s, o);

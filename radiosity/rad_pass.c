@@ -1,10 +1,11 @@
 /* rad_pass.c - the radiosity pass end to end, and its display: radiosity at
  * vertices (area-weighted), Gouraud-interpolated across each patch. */
+#include <stddef.h>
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
 
-#include "rad.h"
+#include "rad_pass_internal.h"
 
 #define FIRST_SHOT_CHUNK 256 /* patches per unit of the first shot's deterministic sums */
 
@@ -158,10 +159,9 @@ rr_status rad_pass_run(const scene *s, const rt_accel *a, const rad_pass_opts *o
     def.use_scene_choices = 1;
     if (!o)
         o = &def;
-    rad_solution *sol = calloc(1, sizeof *sol);
+    rad_solution *sol = rad__solution_new(s);
     if (!sol)
         return rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory", s->path);
-    sol->scene = s;
     rr_status st;
     double t0 = rr_now_seconds();
     rad_patch_opts po = rad_pass_patch_limits(s, o);
@@ -304,21 +304,33 @@ rr_rgb rad_indirect_at(const rad_solution *sol, const scene *s, const rt_hit *h,
     return rr_rgb_scale(rr_rgb_mul(rho, interpolate(sol, s, h, sol->vertex_Hind)), 1.0 / RR_PI);
 }
 
-static rr_rgb display_hook(void *user, const rt_hit *hit)
+/* The solution that embeds field f. */
+static const rad_solution *field_owner(const rt_field *f)
 {
-    const rad_solution *sol = user;
+    return (const rad_solution *)(const void *)((const char *)f - offsetof(rad_solution, field));
+}
+
+static rr_rgb field_radiance(const rt_field *f, const rt_hit *hit)
+{
+    const rad_solution *sol = field_owner(f);
     return rad_radiance_at(sol, sol->scene, hit);
 }
 
-static rr_rgb indirect_hook(void *user, const rt_hit *hit, rr_rgb rho)
+static rr_rgb field_indirect(const rt_field *f, const rt_hit *hit, rr_rgb rho)
 {
-    const rad_solution *sol = user;
+    const rad_solution *sol = field_owner(f);
     return rad_indirect_at(sol, sol->scene, hit, rho);
 }
 
-void rad_bind_render(const rad_solution *sol, int display, rt_render_opts *ro)
+const rt_field *rad_solution_field(const rad_solution *sol) { return &sol->field; }
+
+rad_solution *rad__solution_new(const scene *s)
 {
-    ro->radiosity = display ? display_hook : NULL;
-    ro->radiosity_indirect = indirect_hook;
-    ro->radiosity_user = (void *)sol;
+    rad_solution *sol = calloc(1, sizeof *sol);
+    if (!sol)
+        return NULL;
+    sol->field.radiance = field_radiance;
+    sol->field.indirect = field_indirect;
+    sol->scene = s;
+    return sol;
 }

@@ -337,12 +337,27 @@ int rt_lights_mirror_plane(const rt_lights *L, const rt_hit *h);
  * direction); 0 when no light (image) of the table covers that path. */
 double rt_lights_pdf(const rt_lights *L, const rt_mirror_path *path, const rt_hit *h, rr_vec3 last_dir);
 
+/* The radiosity pass's solution as the ray tracer reads it: the one typed
+ * interface through which it reaches rt_render (radiosity/ implements it,
+ * rad_solution_field; raytrace cannot include radiosity). An implementation
+ * embeds this struct and finds itself from the pointer. Both functions are
+ * called from many threads at once. */
+typedef struct rt_field rt_field;
+struct rt_field {
+    /* Radiance B/pi leaving the hit, emitters included (the display). */
+    rr_rgb (*radiance)(const rt_field *f, const rt_hit *hit);
+    /* Indirect diffuse radiance leaving a hit on a surface of reflectance
+     * rho: light after at least one diffuse reflection, so that the ray
+     * tracer's direct light is not counted twice (the hybrid). */
+    rr_rgb (*indirect)(const rt_field *f, const rt_hit *hit, rr_rgb rho);
+};
+
 /* What supplies the diffuse interreflection. */
 typedef enum rt_indirect {
     RT_INDIRECT_NONE = 0,      /* direct light only */
     RT_INDIRECT_AMBIENT = 1,   /* the lecture's a * A * rho (Whitted) */
     RT_INDIRECT_SECONDARY = 2, /* Monte Carlo secondary rays (unbiased reference) */
-    RT_INDIRECT_RADIOSITY = 3  /* the radiosity pass, through radiosity_indirect (the hybrid) */
+    RT_INDIRECT_RADIOSITY = 3  /* the radiosity pass, through field->indirect (the hybrid) */
 } rt_indirect;
 
 typedef enum rt_filter { RT_FILTER_BOX = 0, RT_FILTER_TENT = 1 } rt_filter;
@@ -361,14 +376,13 @@ typedef struct rt_render_opts {
     int light_samples; /* shadow rays per hit for the area lights */
     rt_indirect indirect;
     rt_filter filter;
-    /* Radiosity display: when set, every camera-ray hit shows this radiance
-     * (the radiosity pass's B/pi, interpolated) and nothing else is shaded.
-     * A hook, so that raytrace does not depend on radiosity. */
-    rr_rgb (*radiosity)(void *user, const rt_hit *hit);
-    /* The hybrid: indirect diffuse radiance at a hit on a surface of
-     * reflectance rho, used when indirect is RT_INDIRECT_RADIOSITY. */
-    rr_rgb (*radiosity_indirect)(void *user, const rt_hit *hit, rr_rgb rho);
-    void *radiosity_user;
+    /* The radiosity solution (NULL: none), needed by RT_INDIRECT_RADIOSITY
+     * and by show_field (rt_render refuses either without it). */
+    const rt_field *field;
+    /* Radiosity display: every camera-ray hit shows the field's radiance
+     * (emitters included) and what mirrors show of it; nothing else is
+     * shaded and indirect is not used. */
+    int show_field;
     /* Progress, called from one thread at a time with the work units (tiles)
      * finished so far. */
     void (*progress)(void *user, int done, int total);

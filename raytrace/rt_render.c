@@ -235,6 +235,72 @@ static rr_rgb mirror_term(const render_ctx *c, const rt_hit *h, rr_vec3 V, const
     return rr_rgb_mul(m->mirror, radiance(c, mr, depth + 1, bounce, mis ? &mm : NULL, rng, NULL));
 }
 
+/* The radiosity display at hit h: the view-independent solution, emitters
+ * included, and what mirrors show of it. */
+static void shade_field(const render_ctx *c, const rt_hit *h, rr_vec3 V, int depth, int bounce, rr_rng *rng,
+                        shade_out *local)
+{
+    const scene_material *m = &c->s->materials[h->material];
+    local->c[RT_LAYER_RADIOSITY] = c->o->field->radiance(c->o->field, h);
+    local->c[RT_LAYER_MIRROR] = mirror_term(c, h, V, m, depth, bounce, NULL, rng);
+}
+
+/* The diffuse bounce of the secondary mode: rho/pi * L * cos / (cos/pi) =
+ * rho * L, Russian roulette past 3 bounces. */
+static rr_rgb bounce_term(const render_ctx *c, const rt_hit *h, const scene_material *m, int depth, int bounce,
+                          int nlight, rr_rng *rng)
+{
+    rr_rgb weight = m->diffuse;
+    if (bounce >= 3) {
+        double q = fmin(0.95, rr_rgb_max(m->diffuse));
+        if (rr_rng_uniform(rng) >= q)
+            return rr_rgb_make(0, 0, 0);
+        weight = rr_rgb_scale(weight, 1.0 / q);
+    }
+    rr_vec3 dir = cosine_dir(h->normal, rng);
+    rr_ray br = {rt_offset_origin(c->eps_scale, h->point, h->normal, dir), dir};
+    mis_state bm;
+    memset(&bm, 0, sizeof bm);
+    bm.pb = rr_v3_dot(h->normal, dir) / RR_PI;
+    bm.nl = nlight;
+    bm.path.origin = h->point;
+    return rr_rgb_mul(weight, radiance(c, br, depth, bounce + 1, &bm, rng, NULL));
+}
+
+/* The lecture's shading at hit h seen along -V: emission, direct light with
+ * shadow rays, Phong, mirrors, and the indirect term the options name. */
+static void shade_surface(const render_ctx *c, const rt_hit *h, rr_vec3 dir, rr_vec3 V, int depth, int bounce,
+                          const mis_state *mis, rr_rng *rng, shade_out *local)
+{
+    const scene *s = c->s;
+    const scene_material *m = &s->materials[h->material];
+    rr_vec3 N = h->normal; /* faces the incoming ray */
+    if (h->front && rr_rgb_max(m->emission) > 0.0)
+        local->c[RT_LAYER_EMISSION] = rr_rgb_scale(m->emission, bsdf_weight(c, mis, h, dir));
+    int diffuse = rr_rgb_max(m->diffuse) > 0.0;
+    rt_indirect indirect = diffuse ? c->o->indirect : RT_INDIRECT_NONE;
+    int bounces = indirect == RT_INDIRECT_SECONDARY && bounce < RT_MAX_BOUNCES;
+    /* Soft shadows get light_samples at the points the eye sees (and mirrors
+     * show); deeper diffuse bounces take one sample each, as their noise
+     * averages out over the many paths through a pixel. */
+    int nlight = bounce == 0 ? c->o->light_samples : 1;
+    if (nlight < 1)
+        nlight = 1;
+    /* BSDF rays for the direct term where no bounce ray is taken (multiple
+     * importance sampling in every mode, not only with secondary rays). */
+    int nbsdf = bounces || !rt_lights_near(c->lights, h->point) ? 0 : (nlight + 3) / 4;
+    if (diffuse || rr_rgb_max(m->specular) > 0.0)
+        direct_light(c, h->point, N, V, m, nlight, nbsdf, bounces ? 1 : nbsdf, depth, rng,
+                     &local->c[RT_LAYER_DIFFUSE], &local->c[RT_LAYER_SPECULAR]);
+    if (indirect == RT_INDIRECT_AMBIENT)
+        local->c[RT_LAYER_AMBIENT] = rr_rgb_scale(rr_rgb_mul(m->diffuse, s->settings.ambient), m->ambient);
+    local->c[RT_LAYER_MIRROR] = mirror_term(c, h, V, m, depth, bounce, mis, rng);
+    if (indirect == RT_INDIRECT_RADIOSITY)
+        local->c[RT_LAYER_INDIRECT] = c->o->field->indirect(c->o->field, h, m->diffuse);
+    if (bounces)
+        local->c[RT_LAYER_INDIRECT] = bounce_term(c, h, m, depth, bounce, nlight, rng);
+}
+
 static rr_rgb radiance(const render_ctx *c, rr_ray ray, int depth, int bounce, const mis_state *mis, rr_rng *rng,
                        shade_out *out)
 {
@@ -247,64 +313,13 @@ static rr_rgb radiance(const render_ctx *c, rr_ray ray, int depth, int bounce, c
         }
         return s->settings.background;
     }
-    const scene_material *m = &s->materials[h.material];
-    rr_vec3 N = h.normal; /* faces the incoming ray */
     rr_vec3 V = rr_v3_norm(rr_v3_neg(ray.d));
     shade_out local;
     memset(&local, 0, sizeof local);
-    if (c->o->radiosity) {
-        /* Radiosity display: the view-independent solution, emitters
-         * included, and what mirrors show of it. */
-        local.c[RT_LAYER_RADIOSITY] = c->o->radiosity(c->o->radiosity_user, &h);
-        local.c[RT_LAYER_MIRROR] = mirror_term(c, &h, V, m, depth, bounce, NULL, rng);
-        if (out)
-            *out = local;
-        return rr_rgb_add(local.c[RT_LAYER_RADIOSITY], local.c[RT_LAYER_MIRROR]);
-    }
-    if (h.front && rr_rgb_max(m->emission) > 0.0)
-        local.c[RT_LAYER_EMISSION] = rr_rgb_scale(m->emission, bsdf_weight(c, mis, &h, ray.d));
-    int diffuse = rr_rgb_max(m->diffuse) > 0.0;
-    int bounces = diffuse && c->o->indirect == RT_INDIRECT_SECONDARY && bounce < RT_MAX_BOUNCES;
-    /* Soft shadows get light_samples at the points the eye sees (and mirrors
-     * show); deeper diffuse bounces take one sample each, as their noise
-     * averages out over the many paths through a pixel. */
-    int nlight = bounce == 0 ? c->o->light_samples : 1;
-    if (nlight < 1)
-        nlight = 1;
-    /* BSDF rays for the direct term where no bounce ray is taken (multiple
-     * importance sampling in every mode, not only with secondary rays). */
-    int nbsdf = bounces || !rt_lights_near(c->lights, h.point) ? 0 : (nlight + 3) / 4;
-    if (diffuse || rr_rgb_max(m->specular) > 0.0)
-        direct_light(c, h.point, N, V, m, nlight, nbsdf, bounces ? 1 : nbsdf, depth, rng, &local.c[RT_LAYER_DIFFUSE],
-                     &local.c[RT_LAYER_SPECULAR]);
-    if (diffuse && c->o->indirect == RT_INDIRECT_AMBIENT)
-        local.c[RT_LAYER_AMBIENT] = rr_rgb_scale(rr_rgb_mul(m->diffuse, s->settings.ambient), m->ambient);
-    local.c[RT_LAYER_MIRROR] = mirror_term(c, &h, V, m, depth, bounce, mis, rng);
-    if (diffuse && c->o->indirect == RT_INDIRECT_RADIOSITY && c->o->radiosity_indirect)
-        local.c[RT_LAYER_INDIRECT] = c->o->radiosity_indirect(c->o->radiosity_user, &h, m->diffuse);
-    if (bounces) {
-        /* rho/pi * L * cos / (cos/pi) = rho * L; Russian roulette past 3 bounces. */
-        rr_rgb weight = m->diffuse;
-        int go = 1;
-        if (bounce >= 3) {
-            double q = fmin(0.95, rr_rgb_max(m->diffuse));
-            if (rr_rng_uniform(rng) >= q)
-                go = 0;
-            else
-                weight = rr_rgb_scale(weight, 1.0 / q);
-        }
-        if (go) {
-            rr_vec3 dir = cosine_dir(N, rng);
-            rr_ray br = {rt_offset_origin(c->eps_scale, h.point, N, dir), dir};
-            mis_state bm;
-            memset(&bm, 0, sizeof bm);
-            bm.pb = rr_v3_dot(N, dir) / RR_PI;
-            bm.nl = nlight;
-            bm.path.origin = h.point;
-            rr_rgb Li = radiance(c, br, depth, bounce + 1, &bm, rng, NULL);
-            local.c[RT_LAYER_INDIRECT] = rr_rgb_mul(weight, Li);
-        }
-    }
+    if (c->o->show_field)
+        shade_field(c, &h, V, depth, bounce, rng, &local);
+    else
+        shade_surface(c, &h, ray.d, V, depth, bounce, mis, rng, &local);
     rr_rgb sum = rr_rgb_make(0, 0, 0);
     for (int i = 0; i < RT_LAYER_COUNT; i++)
         sum = rr_rgb_add(sum, local.c[i]);
@@ -346,6 +361,9 @@ rr_status rt_render(const scene *s, const rt_accel *a, const rt_render_opts *o, 
     if (film->beauty.width != v->width || film->beauty.height != v->height)
         return rr_error_set(err, RR_ERR_INTERNAL, "film is %d x %d but the view is %d x %d", film->beauty.width,
                             film->beauty.height, v->width, v->height);
+    if ((o->show_field || o->indirect == RT_INDIRECT_RADIOSITY) && !(o->field && o->field->radiance && o->field->indirect))
+        return rr_error_set(err, RR_ERR_INTERNAL, "%s needs the radiosity solution (rt_render_opts.field)",
+                            o->show_field ? "the radiosity display" : "the radiosity indirect term");
     render_ctx c;
     c.s = s;
     c.a = a;

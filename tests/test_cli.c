@@ -254,6 +254,54 @@ static void render_reads_back_and_is_thread_independent(void **state)
     assert_non_null(strstr(g_out, "sphere"));
 }
 
+/* --mode names a row of the integrator table; --indirect K picks the
+ * ray-traced row with that term, whatever --mode says: the same image. */
+static void modes_and_indirect(void **state)
+{
+    (void)state;
+    char objs[512];
+    snprintf(objs, sizeof objs,
+             "%s,{\"type\":\"sphere\",\"material\":\"glow\",\"center\":[0,0,0],\"radius\":0.5}", k_quad);
+    const char *sc = scene_file("modes.json", "4", objs);
+    static const char *const pairs[][2] = {
+        {"direct", "none"}, {"whitted", "ambient"}, {"secondary", "secondary"}, {"hybrid", "radiosity"}};
+    for (int i = 0; i < 4; i++) {
+        char o1[256], o2[256];
+        snprintf(o1, sizeof o1, "%s/m1.exr", g_dir);
+        snprintf(o2, sizeof o2, "%s/m2.exr", g_dir);
+        const char *a[] = {"render", sc, "-o", o1, "--no-png", "--spp", "2", "--mode", pairs[i][0], NULL};
+        assert_int_equal(run(a), 0);
+        char want[64];
+        snprintf(want, sizeof want, "mode %s,", pairs[i][0]);
+        assert_non_null(strstr(g_out, want));
+        const char *b[] = {"render", sc, "-o", o2, "--no-png", "--spp", "2", "--mode", "radiosity", "--indirect",
+                           pairs[i][1], "-q", NULL};
+        assert_int_equal(run(b), 0);
+        rr_image i1 = {0}, i2 = {0};
+        assert_int_equal(img_read_exr(o1, NULL, &i1, NULL), RR_OK);
+        assert_int_equal(img_read_exr(o2, NULL, &i2, NULL), RR_OK);
+        assert_memory_equal(i1.px, i2.px, sizeof(float) * 3 * (size_t)i1.width * (size_t)i1.height);
+        rr_image_free(&i1);
+        rr_image_free(&i2);
+    }
+    /* The direct mode has no interreflection: its indirect layer is zero. */
+    char od[256];
+    snprintf(od, sizeof od, "%s/d.exr", g_dir);
+    const char *d[] = {"render", sc, "-o", od, "--no-png", "--mode", "direct", "-q", NULL};
+    assert_int_equal(run(d), 0);
+    rr_image ind = {0};
+    assert_int_equal(img_read_exr(od, "indirect", &ind, NULL), RR_OK);
+    for (int k = 0; k < 3 * ind.width * ind.height; k++)
+        assert_true(ind.px[k] == 0.0f);
+    rr_image_free(&ind);
+    const char *e[] = {"render", sc, "--indirect", "bounce", NULL};
+    assert_int_equal(run(e), 2);
+    assert_non_null(strstr(g_out, "--indirect"));
+    const char *f[] = {"render", sc, "--mode", "path", NULL};
+    assert_int_equal(run(f), 2);
+    assert_non_null(strstr(g_out, "whitted, secondary, radiosity, hybrid or direct"));
+}
+
 /* radray energy: the ledger balances on the Cornell box, in text and JSON;
  * scenes the radiosity pass cannot take are bad input (exit 2). */
 static void energy_ledger(void **state)
@@ -357,6 +405,7 @@ int main(void)
         cmocka_unit_test(unwritable_output),
         cmocka_unit_test(zero_area_warning),
         cmocka_unit_test(render_reads_back_and_is_thread_independent),
+        cmocka_unit_test(modes_and_indirect),
         cmocka_unit_test(energy_ledger),
         cmocka_unit_test(radiosity_cache),
     };

@@ -26,6 +26,7 @@
 #include <stdio.h>
 #include <string.h>
 
+#include "ig.h"
 #include "rad.h"
 
 static scene *load_scene(const char *file)
@@ -52,6 +53,7 @@ static int find_object(const scene *s, const char *name)
 typedef struct renders {
     scene *s;
     rt_accel *a;
+    ig_session ses; /* its sol: the radiosity pass shared by the renders */
     rad_solution *sol;
     rr_view v;
     rt_film hybrid, whitted, secondary;
@@ -66,37 +68,28 @@ static void render_all(renders *r, const char *file)
     assert_int_equal(rt_accel_build(r->s, &r->a, NULL), RR_OK);
 
     /* Coarser than the file's patches (which are sized for the full image). */
-    rad_pass_opts po;
-    memset(&po, 0, sizeof po);
-    po.use_scene_choices = 1;
-    po.patch.max_area = 0.02;
-    po.ff.samples = 1024;
-    po.ff.seed = 1;
+    ig_session_init(&r->ses, r->s, r->a);
+    r->ses.pass.patch.max_area = 0.02;
+    r->ses.pass.ff.samples = 1024;
+    r->ses.pass.ff.seed = 1;
     rr_error err;
-    if (rad_pass_run(r->s, r->a, &po, &r->sol, &err) != RR_OK)
+    if (ig_session_field(&r->ses, &err) != RR_OK)
         fail_msg("%s", err.msg);
+    r->sol = r->ses.sol;
 
     int w = r->v.width, h = r->v.height;
     assert_int_equal(rt_film_init(&r->hybrid, w, h, NULL), RR_OK);
     assert_int_equal(rt_film_init(&r->whitted, w, h, NULL), RR_OK);
     assert_int_equal(rt_film_init(&r->secondary, w, h, NULL), RR_OK);
-    rt_render_opts o;
-    memset(&o, 0, sizeof o);
-    o.spp = 4;
-    o.seed = 3;
-    o.max_depth = 5;
-    o.light_samples = 4;
-    o.threads = 2;
-    o.indirect = RT_INDIRECT_RADIOSITY;
-    rad_bind_render(r->sol, 0, &o);
-    assert_int_equal(rt_render(r->s, r->a, &o, &r->hybrid, NULL), RR_OK);
-    o.radiosity_indirect = NULL;
-    o.radiosity_user = NULL;
-    o.indirect = RT_INDIRECT_AMBIENT;
-    assert_int_equal(rt_render(r->s, r->a, &o, &r->whitted, NULL), RR_OK);
-    o.indirect = RT_INDIRECT_SECONDARY;
-    o.spp = 64;
-    assert_int_equal(rt_render(r->s, r->a, &o, &r->secondary, NULL), RR_OK);
+    r->s->settings.spp = 4;
+    r->s->settings.seed = 3;
+    r->s->settings.max_depth = 5;
+    r->s->settings.light_samples = 4;
+    r->s->settings.threads = 2;
+    assert_int_equal(ig_render(&r->ses, ig_find("hybrid"), NULL, &r->hybrid, NULL, NULL), RR_OK);
+    assert_int_equal(ig_render(&r->ses, ig_find("whitted"), NULL, &r->whitted, NULL, NULL), RR_OK);
+    r->s->settings.spp = 64;
+    assert_int_equal(ig_render(&r->ses, ig_find("secondary"), NULL, &r->secondary, NULL, NULL), RR_OK);
 }
 
 static void free_all(renders *r)
@@ -104,7 +97,7 @@ static void free_all(renders *r)
     rt_film_free(&r->hybrid);
     rt_film_free(&r->whitted);
     rt_film_free(&r->secondary);
-    rad_solution_destroy(r->sol);
+    ig_session_free(&r->ses);
     rt_accel_destroy(r->a);
     scene_destroy(r->s);
 }

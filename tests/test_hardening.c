@@ -19,6 +19,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "ig.h"
 #include "img.h"
 #include "rad.h"
 #include "rr_core.h"
@@ -129,29 +130,20 @@ static scene *scaled_scene(double k, const char *mode_extra, const char *ff)
     return s;
 }
 
-static void render_scene(scene *s, rt_indirect indirect, rt_film *film)
+static void render_scene(scene *s, const char *mode, rt_film *film)
 {
     rr_error err;
     rt_accel *a = NULL;
     assert_int_equal(rt_accel_build(s, &a, &err), RR_OK);
     assert_int_equal(rt_film_init(film, s->view.width, s->view.height, &err), RR_OK);
-    rt_render_opts o;
-    memset(&o, 0, sizeof o);
-    o.spp = 1;
-    o.threads = 2;
-    o.max_depth = 5;
-    o.light_samples = s->settings.light_samples;
-    o.indirect = indirect;
-    rad_solution *sol = NULL;
-    if (indirect == RT_INDIRECT_RADIOSITY) {
-        rad_pass_opts po;
-        memset(&po, 0, sizeof po);
-        po.use_scene_choices = 1;
-        assert_int_equal(rad_pass_run(s, a, &po, &sol, &err), RR_OK);
-        rad_bind_render(sol, 0, &o);
-    }
-    assert_int_equal(rt_render(s, a, &o, film, &err), RR_OK);
-    rad_solution_destroy(sol);
+    s->settings.spp = 1;
+    s->settings.threads = 2;
+    s->settings.max_depth = 5;
+    s->settings.seed = 0;
+    ig_session ses;
+    ig_session_init(&ses, s, a);
+    assert_int_equal(ig_render(&ses, ig_find(mode), NULL, film, NULL, &err), RR_OK);
+    ig_session_free(&ses);
     rt_accel_destroy(a);
 }
 
@@ -513,12 +505,12 @@ static void scrub_nonfinite(void **state)
 
 /* ---- scale invariance ---- */
 
-static void compare_scales(rt_indirect indirect, const char *ff, double tol)
+static void compare_scales(const char *mode, const char *ff, double tol)
 {
     static const double scales[] = {1e-3, 1e4};
     rt_film ref;
     scene *s = scaled_scene(1.0, "", ff);
-    render_scene(s, indirect, &ref);
+    render_scene(s, mode, &ref);
     scene_destroy(s);
     double mean = 0;
     int w = ref.beauty.width, h = ref.beauty.height;
@@ -530,7 +522,7 @@ static void compare_scales(rt_indirect indirect, const char *ff, double tol)
     for (int i = 0; i < 2; i++) {
         rt_film f;
         s = scaled_scene(scales[i], "", ff);
-        render_scene(s, indirect, &f);
+        render_scene(s, mode, &f);
         scene_destroy(s);
         double worst = 0;
         for (int y = 0; y < h; y++)
@@ -539,7 +531,7 @@ static void compare_scales(rt_indirect indirect, const char *ff, double tol)
                     worst = fmax(worst, fabs((double)rr_image_at(&f.beauty, x, y)[c] -
                                              (double)rr_image_at(&ref.beauty, x, y)[c]));
         if (worst > tol * mean)
-            fprintf(stderr, "scale %g, indirect %d: max |diff| %g, mean %g\n", scales[i], (int)indirect, worst, mean);
+            fprintf(stderr, "scale %g, %s: max |diff| %g, mean %g\n", scales[i], mode, worst, mean);
         assert_true(worst <= tol * mean);
         rt_film_free(&f);
     }
@@ -549,7 +541,7 @@ static void compare_scales(rt_indirect indirect, const char *ff, double tol)
 static void scale_invariance_whitted(void **state)
 {
     (void)state;
-    compare_scales(RT_INDIRECT_AMBIENT, "quadrature", 1e-4);
+    compare_scales("whitted", "quadrature", 1e-4);
 }
 
 /* Quadrature form factors are continuous in the geometry: as tight as
@@ -560,8 +552,8 @@ static void scale_invariance_whitted(void **state)
 static void scale_invariance_hybrid(void **state)
 {
     (void)state;
-    compare_scales(RT_INDIRECT_RADIOSITY, "quadrature", 1e-4);
-    compare_scales(RT_INDIRECT_RADIOSITY, "montecarlo", 2e-2);
+    compare_scales("hybrid", "quadrature", 1e-4);
+    compare_scales("hybrid", "montecarlo", 2e-2);
 }
 
 static int setup(void **state)

@@ -10,6 +10,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "ig.h"
 #include "rad.h"
 #include "test_scenes.h"
 
@@ -253,30 +254,23 @@ static void cornell_radiosity_vs_secondary(void **state)
     s->view = v;
     rt_accel *a = NULL;
     assert_int_equal(rt_accel_build(s, &a, NULL), RR_OK);
-    rad_solution *sol = NULL;
-    if (rad_pass_run(s, a, NULL, &sol, &err) != RR_OK)
-        fail_msg("%s", err.msg);
+    ig_session ses;
+    ig_session_init(&ses, s, a);
     rt_film fr, fs, fh;
     assert_int_equal(rt_film_init(&fr, v.width, v.height, NULL), RR_OK);
     assert_int_equal(rt_film_init(&fh, v.width, v.height, NULL), RR_OK);
     assert_int_equal(rt_film_init(&fs, v.width, v.height, NULL), RR_OK);
-    rt_render_opts o;
-    memset(&o, 0, sizeof o);
-    o.spp = 1;
-    o.seed = 4;
-    o.max_depth = 5;
-    o.light_samples = 4;
-    o.threads = 2;
-    rad_bind_render(sol, 1, &o);
-    assert_int_equal(rt_render(s, a, &o, &fr, NULL), RR_OK);
-    rad_bind_render(sol, 0, &o);
-    o.indirect = RT_INDIRECT_RADIOSITY;
-    o.spp = 16;
-    assert_int_equal(rt_render(s, a, &o, &fh, NULL), RR_OK);
-    o.radiosity_indirect = NULL;
-    o.spp = 256;
-    o.indirect = RT_INDIRECT_SECONDARY;
-    assert_int_equal(rt_render(s, a, &o, &fs, NULL), RR_OK);
+    s->settings.seed = 4;
+    s->settings.max_depth = 5;
+    s->settings.light_samples = 4;
+    s->settings.threads = 2;
+    s->settings.spp = 1;
+    if (ig_render(&ses, ig_find("radiosity"), NULL, &fr, NULL, &err) != RR_OK)
+        fail_msg("%s", err.msg);
+    s->settings.spp = 16;
+    assert_int_equal(ig_render(&ses, ig_find("hybrid"), NULL, &fh, NULL, NULL), RR_OK);
+    s->settings.spp = 256;
+    assert_int_equal(ig_render(&ses, ig_find("secondary"), NULL, &fs, NULL, NULL), RR_OK);
     enum { MAXO = 16 };
     double sr[MAXO] = {0}, sh[MAXO] = {0}, ss[MAXO] = {0}, ss2[MAXO] = {0};
     int n[MAXO] = {0};
@@ -320,7 +314,7 @@ static void cornell_radiosity_vs_secondary(void **state)
     rt_film_free(&fr);
     rt_film_free(&fh);
     rt_film_free(&fs);
-    rad_solution_destroy(sol);
+    ig_session_free(&ses);
     rt_accel_destroy(a);
     scene_destroy(s);
 }

@@ -35,15 +35,22 @@
 #include <stdio.h>
 #include <string.h>
 
+#include "ig.h"
 #include "rad.h"
 
-enum { M_WHITTED, M_SECONDARY, M_RADIOSITY, M_HYBRID, M_COUNT };
-static const char *const mode_name[M_COUNT] = {"whitted", "secondary", "radiosity", "hybrid"};
+/* An integrator of the table (integrator/ig.h) by name. */
+static const ig_integrator *mode(const char *name)
+{
+    const ig_integrator *ig = ig_find(name);
+    if (!ig)
+        fail_msg("no integrator %s", name);
+    return ig;
+}
 
 typedef struct world {
     scene *s;
     rt_accel *a;
-    rad_solution *sol;
+    ig_session ses; /* the radiosity pass, shared by the renders of one world */
 } world;
 
 static void world_load(world *w, const char *json)
@@ -53,42 +60,25 @@ static void world_load(world *w, const char *json)
     if (scene_load_string(json, "transport", "", NULL, &w->s, &err) != RR_OK)
         fail_msg("%s", err.msg);
     assert_int_equal(rt_accel_build(w->s, &w->a, NULL), RR_OK);
+    ig_session_init(&w->ses, w->s, w->a);
+    w->ses.pass.ff.seed = 3;
 }
 
 static void world_free(world *w)
 {
-    rad_solution_destroy(w->sol);
+    ig_session_free(&w->ses);
     rt_accel_destroy(w->a);
     scene_destroy(w->s);
 }
 
-/* One render of mode m (the presets of app/pipeline.c). */
-static void render(world *w, int m, int spp, rt_film *film)
+/* One render by integrator ig at spp, seed 7, as `radray render` makes it. */
+static void render(world *w, const ig_integrator *ig, int spp, rt_film *film)
 {
-    rt_render_opts o;
-    memset(&o, 0, sizeof o);
-    o.spp = spp;
-    o.seed = 7;
-    o.max_depth = w->s->settings.max_depth;
-    o.light_samples = w->s->settings.light_samples;
-    static const rt_indirect preset[M_COUNT] = {RT_INDIRECT_AMBIENT, RT_INDIRECT_SECONDARY, RT_INDIRECT_NONE,
-                                                RT_INDIRECT_RADIOSITY};
-    o.indirect = preset[m];
-    if (m == M_RADIOSITY || m == M_HYBRID) {
-        if (!w->sol) {
-            rad_pass_opts po;
-            memset(&po, 0, sizeof po);
-            po.use_scene_choices = 1;
-            po.ff.seed = 3;
-            rr_error err;
-            if (rad_pass_run(w->s, w->a, &po, &w->sol, &err) != RR_OK)
-                fail_msg("%s", err.msg);
-        }
-        rad_bind_render(w->sol, m == M_RADIOSITY, &o);
-    }
+    w->s->settings.spp = spp;
+    w->s->settings.seed = 7;
     assert_int_equal(rt_film_init(film, w->s->view.width, w->s->view.height, NULL), RR_OK);
     rr_error err;
-    if (rt_render(w->s, w->a, &o, film, &err) != RR_OK)
+    if (ig_render(&w->ses, ig, NULL, film, NULL, &err) != RR_OK)
         fail_msg("%s", err.msg);
 }
 
@@ -190,15 +180,16 @@ static void test_floor_under_sphere_lamp(void **state)
         }
     want /= n;
     assert_true(n > 250);
-    for (int m = 0; m < M_COUNT; m++) {
+    for (size_t m = 0; m < ig_count(); m++) {
+        const ig_integrator *ig = &ig_table[m];
         rt_film f;
-        render(&w, m, m == M_SECONDARY ? 64 : 16, &f);
+        render(&w, ig, ig->indirect == RT_INDIRECT_SECONDARY ? 64 : 16, &f);
         int cnt;
         double got = object_mean(&w, &f.beauty, floor, &cnt);
         assert_int_equal(cnt, n);
         /* Radiosity: Gouraud over patches of ~0.018 (scene area / 2000), a
          * percent or two from the smooth closed form. */
-        expect_rel("floor under a sphere lamp", mode_name[m], got, want, m == M_RADIOSITY ? 0.03 : 0.02);
+        expect_rel("floor under a sphere lamp", ig->name, got, want, ig->shows_field ? 0.03 : 0.02);
         rt_film_free(&f);
     }
     world_free(&w);
@@ -249,11 +240,12 @@ static void test_point_light_planar_mirror(void **state)
     assert_int_equal(rt_lights_delta_count(L), 2);
     assert_int_equal(rt_lights_image_count(L), 1);
     rt_lights_destroy(L);
-    for (int m = 0; m < M_COUNT; m++) {
-        if (m == M_RADIOSITY)
+    for (size_t m = 0; m < ig_count(); m++) {
+        const ig_integrator *ig = &ig_table[m];
+        if (ig->shows_field)
             continue; /* below, against the ray tracer */
         rt_film f;
-        render(&w, m, 1, &f);
+        render(&w, ig, 1, &f);
         int in = 0, out = 0;
         double worst = 0;
         for (int y = 0; y < f.beauty.height; y++)
@@ -272,7 +264,7 @@ static void test_point_light_planar_mirror(void **state)
                 worst = fmax(worst, fabs(got - want) / want);
             }
         print_message("  point light + mirror      %-9s %d px in the image's footprint, %d out, worst %.2g\n",
-                      mode_name[m], in, out, worst);
+                      ig->name, in, out, worst);
         assert_true(in > 50 && out > 50);
         /* float film: 1e-6 relative */
         assert_true(worst < 1e-5);
@@ -282,8 +274,8 @@ static void test_point_light_planar_mirror(void **state)
      * display of the floor (direct + its small interreflection through the
      * mirror) against the hybrid's. */
     rt_film fr, fh;
-    render(&w, M_RADIOSITY, 4, &fr);
-    render(&w, M_HYBRID, 4, &fh);
+    render(&w, mode("radiosity"), 4, &fr);
+    render(&w, mode("hybrid"), 4, &fh);
     expect_rel("floor, point light + mirror", "radiosity", object_mean(&w, &fr.beauty, floor, NULL),
                object_mean(&w, &fh.beauty, floor, NULL), 0.02);
     rt_film_free(&fr);
@@ -331,25 +323,29 @@ static const char *const k_two_mirrors =
     "{\"name\":\"lamp\",\"type\":\"quad\",\"material\":\"lamp\","
     "\"vertices\":[[0.3,1.4,0.8],[0.7,1.4,0.8],[0.7,1.4,1.2],[0.3,1.4,1.2]]}],\"render\":{\"max_depth\":6}}";
 
-/* Hybrid and radiosity against secondary rays: the object's mean and the
- * image's. tol_r: the radiosity display's own tolerance. */
+/* Every integrator that takes light from the radiosity pass (hybrid and the
+ * radiosity display) against secondary rays: the object's mean and the
+ * image's. tol_r: the display's own tolerance, tol_h the others'. */
 static void against_secondary(const char *json, const char *label, const char *obj, double tol_h, double tol_r)
 {
     world w;
     world_load(&w, json);
     int o = obj ? object_index(w.s, obj) : -1;
     rt_film ref;
-    render(&w, M_SECONDARY, 256, &ref);
+    render(&w, mode("secondary"), 256, &ref);
     double want = object_mean(&w, &ref.beauty, o, NULL), want_all = object_mean(&w, &ref.beauty, -1, NULL);
-    for (int m = M_RADIOSITY; m <= M_HYBRID; m++) {
+    for (size_t m = 0; m < ig_count(); m++) {
+        const ig_integrator *ig = &ig_table[m];
+        if (!ig->uses_field)
+            continue;
         rt_film f;
-        render(&w, m, 16, &f);
-        double tol = m == M_HYBRID ? tol_h : tol_r;
+        render(&w, ig, 16, &f);
+        double tol = ig->shows_field ? tol_r : tol_h;
         char what[96];
         snprintf(what, sizeof what, "%s: %s", label, obj ? obj : "image");
-        expect_rel(what, mode_name[m], object_mean(&w, &f.beauty, o, NULL), want, tol);
+        expect_rel(what, ig->name, object_mean(&w, &f.beauty, o, NULL), want, tol);
         snprintf(what, sizeof what, "%s: image", label);
-        expect_rel(what, mode_name[m], object_mean(&w, &f.beauty, -1, NULL), want_all, tol);
+        expect_rel(what, ig->name, object_mean(&w, &f.beauty, -1, NULL), want_all, tol);
         rt_film_free(&f);
     }
     rt_film_free(&ref);
@@ -402,12 +398,13 @@ static void test_max_depth_bounds_mirror_reflections(void **state)
         snprintf(buf, sizeof buf, json, depth);
         world w;
         world_load(&w, buf);
-        for (int m = 0; m < M_COUNT; m++) {
+        for (size_t m = 0; m < ig_count(); m++) {
+            const ig_integrator *ig = &ig_table[m];
             rt_film f;
-            render(&w, m, 1, &f);
+            render(&w, ig, 1, &f);
             double v = rr_rgb_mean(px(&f.beauty, 4, 4));
-            print_message("  max_depth %d, %-9s mirror pixel %g\n", depth, mode_name[m], v);
-            if (m == M_RADIOSITY)
+            print_message("  max_depth %d, %-9s mirror pixel %g\n", depth, ig->name, v);
+            if (ig->shows_field)
                 assert_true(depth == 0 ? v == 0.0 : v > 0.0); /* the lamp's patches, B/pi, via the mirror */
             else
                 assert_true(depth == 0 ? v == 0.0 : fabs(v - 2.0) < 1e-6);
@@ -426,8 +423,8 @@ static void test_max_depth_bounds_mirror_reflections(void **state)
     world_load(&wa, a);
     world_load(&wb, b);
     rt_film fa, fb;
-    render(&wa, M_SECONDARY, 4, &fa);
-    render(&wb, M_SECONDARY, 4, &fb);
+    render(&wa, mode("secondary"), 4, &fa);
+    render(&wb, mode("secondary"), 4, &fb);
     assert_memory_equal(fa.beauty.px, fb.beauty.px, sizeof(float) * 3 * (size_t)fa.beauty.width * fa.beauty.height);
     rt_film_free(&fa);
     rt_film_free(&fb);
@@ -458,13 +455,76 @@ static void test_scene_emits_through_csg_leaf(void **state)
     rt_lights_destroy(L);
     int floor = object_index(w.s, "floor");
     rt_film fs, fh;
-    render(&w, M_SECONDARY, 64, &fs);
-    render(&w, M_HYBRID, 16, &fh);
+    render(&w, mode("secondary"), 64, &fs);
+    render(&w, mode("hybrid"), 16, &fh);
     double ref = object_mean(&w, &fs.beauty, floor, NULL);
     assert_true(ref > 0.01);
     expect_rel("floor under a CSG lamp", "hybrid", object_mean(&w, &fh.beauty, floor, NULL), ref, 0.03);
     rt_film_free(&fs);
     rt_film_free(&fh);
+    world_free(&w);
+}
+
+/* ---- the table's contract: each integrator writes only the layers it names ---- */
+
+/* A scene with a bit of everything each layer shows: a lamp seen directly,
+ * a Phong floor with the lecture's ambient term, a half-diffuse mirror (the
+ * floor's interreflection partner), a background. */
+static const char *k_all_layers =
+    "{\"format\":\"radray-scene/1\",\"camera\":{\"type\":\"lookat\",\"eye\":[1,1.2,3.2],\"target\":[1,0.6,0],"
+    "\"up\":[0,1,0],\"fov\":70,\"width\":24,\"height\":24},"
+    "\"materials\":{\"floor\":{\"diffuse\":0.5,\"specular\":0.3,\"k\":20,\"ambient\":1},"
+    "\"mirror\":{\"diffuse\":0.3,\"mirror\":[0.6,0.6,0.6]},\"lamp\":{\"diffuse\":0,\"emission\":[4,4,4]}},"
+    "\"objects\":[{\"name\":\"floor\",\"type\":\"quad\",\"material\":\"floor\","
+    "\"vertices\":[[-1,0,-1],[-1,0,3],[3,0,3],[3,0,-1]]},"
+    "{\"name\":\"mirror\",\"type\":\"quad\",\"material\":\"mirror\","
+    "\"vertices\":[[0,0,-0.5],[2,0,-0.5],[2,1.5,-0.5],[0,1.5,-0.5]]},"
+    "{\"name\":\"lamp\",\"type\":\"quad\",\"material\":\"lamp\","
+    "\"vertices\":[[0.6,1.4,0.6],[1.4,1.4,0.6],[1.4,1.4,1.2],[0.6,1.4,1.2]]}],"
+    "\"render\":{\"ambient\":[0.2,0.2,0.2],\"background\":[0.05,0.05,0.05],\"max_depth\":2}}";
+
+static double layer_max(const rr_image *im)
+{
+    double m = 0;
+    for (size_t k = 0; k < 3 * (size_t)im->width * (size_t)im->height; k++)
+        m = fmax(m, fabs(im->px[k]));
+    return m;
+}
+
+static void test_integrators_write_their_layers(void **state)
+{
+    (void)state;
+    world w;
+    world_load(&w, k_all_layers);
+    for (size_t m = 0; m < ig_count(); m++) {
+        const ig_integrator *ig = &ig_table[m];
+        rt_film f;
+        render(&w, ig, 2, &f);
+        for (int l = 0; l < RT_LAYER_COUNT; l++) {
+            double v = layer_max(&f.layer[l]);
+            int named = (ig->layers >> l) & 1u;
+            print_message("  %-9s %-9s max %.4g%s\n", ig->name, rt_layer_name(l), v, named ? "" : " (not its)");
+            if (!named && v != 0.0)
+                fail_msg("%s writes the %s layer, which its row does not name", ig->name, rt_layer_name(l));
+            /* The scene exercises every layer a row names. */
+            if (named && !(v > 0.0))
+                fail_msg("%s names the %s layer but wrote nothing there", ig->name, rt_layer_name(l));
+        }
+        /* The beauty image is the sum of the layers. */
+        for (size_t k = 0; k < 3 * (size_t)f.beauty.width * (size_t)f.beauty.height; k++) {
+            double sum = 0;
+            for (int l = 0; l < RT_LAYER_COUNT; l++)
+                sum += f.layer[l].px[k];
+            assert_true(fabs(sum - f.beauty.px[k]) <= 1e-5 * (1.0 + fabs(sum)));
+        }
+        rt_film_free(&f);
+    }
+    /* --indirect K picks the ray-traced row with that term. */
+    assert_string_equal(ig_with_indirect(RT_INDIRECT_AMBIENT)->name, "whitted");
+    assert_string_equal(ig_with_indirect(RT_INDIRECT_SECONDARY)->name, "secondary");
+    assert_string_equal(ig_with_indirect(RT_INDIRECT_RADIOSITY)->name, "hybrid");
+    assert_string_equal(ig_with_indirect(RT_INDIRECT_NONE)->name, "direct");
+    assert_null(ig_find("path"));
     world_free(&w);
 }
 
@@ -479,6 +539,7 @@ int main(void)
         cmocka_unit_test(test_room_with_mirror),
         cmocka_unit_test(test_max_depth_bounds_mirror_reflections),
         cmocka_unit_test(test_scene_emits_through_csg_leaf),
+        cmocka_unit_test(test_integrators_write_their_layers),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
