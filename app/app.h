@@ -78,8 +78,6 @@ size_t app_default_max_memory(void);
  * (optionally followed by "B" or "iB"), e.g. 512M, 4G, 1.5GiB, 1000000; 0 on
  * success. */
 int app_parse_size(const char *s, size_t *out);
-/* "6.1 GiB", "512.0 MiB", "12.0 KiB", "100 bytes". */
-const char *app_size_text(double bytes, char *buf, size_t n);
 /* Estimates what a render of sc by ig needs (film, BVH, and when ig runs the
  * radiosity pass, patches and form factors, fewer when cache_path exists) and
  * fails with RR_ERR_LIMIT and a message giving the estimate, the limit and

@@ -151,22 +151,6 @@ int app_parse_size(const char *s, size_t *out)
     return 0;
 }
 
-const char *app_size_text(double bytes, char *buf, size_t n)
-{
-    const double kib = 1024.0, mib = kib * kib, gib = mib * kib, tib = gib * kib;
-    if (bytes >= 10.0 * tib)
-        snprintf(buf, n, "%.3g TiB", bytes / tib);
-    else if (bytes >= 0.1 * gib)
-        snprintf(buf, n, "%.1f GiB", bytes / gib);
-    else if (bytes >= mib)
-        snprintf(buf, n, "%.1f MiB", bytes / mib);
-    else if (bytes >= kib)
-        snprintf(buf, n, "%.1f KiB", bytes / kib);
-    else
-        snprintf(buf, n, "%.0f bytes", bytes);
-    return buf;
-}
-
 /* 334000 -> "334,000"; counts beyond 10^15 in scientific notation. */
 static const char *count_text(double v, char *buf, size_t n)
 {
@@ -212,22 +196,22 @@ rr_status app_check_memory(const scene *sc, const ig_integrator *ig, const char 
     double total = film + bvh + rad;
     if (total <= (double)limit)
         return RR_OK;
-    app_size_text(total, c, sizeof c);
-    app_size_text((double)limit, d, sizeof d);
+    rr_size_text(total, c, sizeof c);
+    rr_size_text((double)limit, d, sizeof d);
     if (rad >= film && rad >= bvh)
         return rr_error_set(err, RR_ERR_LIMIT,
                             "%s: radiosity: %s patches need about %s of form factors (%s in all), over the limit of "
                             "%s (--max-memory); raise --patch-area",
-                            sc->path, count_text(patches, a, sizeof a), app_size_text(rad, b, sizeof b), c, d);
+                            sc->path, count_text(patches, a, sizeof a), rr_size_text(rad, b, sizeof b), c, d);
     if (film >= bvh)
         return rr_error_set(err, RR_ERR_LIMIT,
                             "%s: a %d x %d image needs about %s of film (%s in all), over the limit of %s "
                             "(--max-memory); lower --width",
-                            sc->path, sc->view.width, sc->view.height, app_size_text(film, b, sizeof b), c, d);
+                            sc->path, sc->view.width, sc->view.height, rr_size_text(film, b, sizeof b), c, d);
     return rr_error_set(err, RR_ERR_LIMIT,
                         "%s: %s triangles and spheres need about %s for the BVH (%s in all), over the limit of %s "
                         "(--max-memory)",
-                        sc->path, count_text(prims, a, sizeof a), app_size_text(bvh, b, sizeof b), c, d);
+                        sc->path, count_text(prims, a, sizeof a), rr_size_text(bvh, b, sizeof b), c, d);
 }
 
 size_t app_scrub_film(rt_film *film)

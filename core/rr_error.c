@@ -74,3 +74,19 @@ void rr_warn(const rr_warn_sink *sink, const char *fmt, ...)
     va_end(ap);
     sink->fn(sink->user, msg);
 }
+
+const char *rr_size_text(double bytes, char *buf, size_t n)
+{
+    const double kib = 1024.0, mib = kib * kib, gib = mib * kib, tib = gib * kib;
+    if (bytes >= 10.0 * tib)
+        snprintf(buf, n, "%.3g TiB", bytes / tib);
+    else if (bytes >= 0.1 * gib)
+        snprintf(buf, n, "%.1f GiB", bytes / gib);
+    else if (bytes >= mib)
+        snprintf(buf, n, "%.1f MiB", bytes / mib);
+    else if (bytes >= kib)
+        snprintf(buf, n, "%.1f KiB", bytes / kib);
+    else
+        snprintf(buf, n, "%.0f bytes", bytes);
+    return buf;
+}

@@ -231,14 +231,8 @@ static rr_status cache_load(const char *path, const uint64_t *key, rad_solution 
                           "another --radiosity-cache file)",
                           path, what[0] ? what : "patches");
     } else {
-        size_t n = sol->P->n, nv = sol->P->nverts ? sol->P->nverts : 1;
-        sol->B = malloc(n * sizeof *sol->B);
-        sol->emitted = malloc(n * sizeof *sol->emitted);
-        sol->first_shot = malloc(n * sizeof *sol->first_shot);
-        sol->vertex_B = malloc(nv * sizeof *sol->vertex_B);
-        sol->vertex_Hind = malloc(nv * sizeof *sol->vertex_Hind);
+        int ok = rad__solution_arrays(sol) == 0;
         payload d = payload_of(sol);
-        int ok = sol->B && sol->emitted && sol->first_shot && sol->vertex_B && sol->vertex_Hind;
         if (!ok)
             st = rr_error_set(err, RR_ERR_NOMEM, "%s: out of memory reading the radiosity cache", path);
         for (int i = 0; i < 5 && ok; i++)

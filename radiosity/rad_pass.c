@@ -187,14 +187,9 @@ rr_status rad_pass_run(const scene *s, const rt_accel *a, const rad_pass_opts *o
         so.solver = (rad_solver)s->radiosity.solver;
     if (!(so.tolerance > 0))
         so.tolerance = s->radiosity.tolerance;
-    size_t n = sol->P->n, nv = sol->P->nverts ? sol->P->nverts : 1;
-    sol->B = malloc(n * sizeof *sol->B);
-    sol->emitted = malloc(n * sizeof *sol->emitted);
-    sol->first_shot = malloc(n * sizeof *sol->first_shot);
-    sol->vertex_B = malloc(nv * sizeof *sol->vertex_B);
-    sol->vertex_Hind = malloc(nv * sizeof *sol->vertex_Hind);
+    size_t n = sol->P->n;
     rr_rgb *Hind = malloc(n * sizeof *Hind);
-    if (!sol->B || !sol->emitted || !sol->first_shot || !sol->vertex_B || !sol->vertex_Hind || !Hind) {
+    if (rad__solution_arrays(sol) != 0 || !Hind) {
         free(Hind);
         st = rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory for %zu patches", s->path, n);
         goto fail;
@@ -323,6 +318,17 @@ static rr_rgb field_indirect(const rt_field *f, const rt_hit *hit, rr_rgb rho)
 }
 
 const rt_field *rad_solution_field(const rad_solution *sol) { return &sol->field; }
+
+int rad__solution_arrays(rad_solution *sol)
+{
+    size_t n = sol->P->n, nv = sol->P->nverts ? sol->P->nverts : 1;
+    sol->B = malloc(n * sizeof *sol->B);
+    sol->emitted = malloc(n * sizeof *sol->emitted);
+    sol->first_shot = malloc(n * sizeof *sol->first_shot);
+    sol->vertex_B = malloc(nv * sizeof *sol->vertex_B);
+    sol->vertex_Hind = malloc(nv * sizeof *sol->vertex_Hind);
+    return sol->B && sol->emitted && sol->first_shot && sol->vertex_B && sol->vertex_Hind ? 0 : -1;
+}
 
 rad_solution *rad__solution_new(const scene *s)
 {

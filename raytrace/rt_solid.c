@@ -23,16 +23,6 @@
 
 #include "rt_solid_internal.h"
 
-static rt_span_end end_make(double t, uint32_t leaf, int32_t surface)
-{
-    rt_span_end e;
-    e.t = t;
-    e.leaf = leaf;
-    e.surface = surface;
-    e.flip = 0;
-    return e;
-}
-
 void rt__spans_push(rt_spans *l, rt_span_end a, rt_span_end b)
 {
     if (!(a.t < b.t))
@@ -88,7 +78,7 @@ static void sphere_spans(const scene_csg_node *n, uint32_t leaf, rr_ray lr, doub
         t0 = t1;
         t1 = t;
     }
-    push_clipped(out, end_make(t0, leaf, -1), end_make(t1, leaf, -1), tmin, tmax);
+    push_clipped(out, rt__span_end(t0, leaf, -1), rt__span_end(t1, leaf, -1), tmin, tmax);
 }
 
 /* Slab test of the line o + s d against the box [lo, hi]: the parameter
@@ -140,7 +130,7 @@ static void box_spans(const scene_csg_node *n, uint32_t leaf, rr_ray lr, double 
     int f0, f1;
     if (!box_slab(lr.o, lr.d, n->clip_lo, n->clip_hi, &s0, &f0, &s1, &f1))
         return;
-    push_clipped(out, end_make(s0, leaf, f0), end_make(s1, leaf, f1), tmin, tmax);
+    push_clipped(out, rt__span_end(s0, leaf, f0), rt__span_end(s1, leaf, f1), tmin, tmax);
 }
 
 /* Q x for x = (p, w). */
@@ -157,8 +147,8 @@ static void quad_apply(const double q[4][4], rr_vec3 p, double w, double r[4])
 static void quadric_piece(uint32_t leaf, double t0, double a, double b, double s0, int f0, double s1, int f1,
                           double tmin, double tmax, rt_spans *out)
 {
-    rt_span_end e0 = a >= s0 ? end_make(t0 + a, leaf, -1) : end_make(t0 + s0, leaf, f0);
-    rt_span_end e1 = b <= s1 ? end_make(t0 + b, leaf, -1) : end_make(t0 + s1, leaf, f1);
+    rt_span_end e0 = a >= s0 ? rt__span_end(t0 + a, leaf, -1) : rt__span_end(t0 + s0, leaf, f0);
+    rt_span_end e1 = b <= s1 ? rt__span_end(t0 + b, leaf, -1) : rt__span_end(t0 + s1, leaf, f1);
     if (!(fmax(a, s0) < fmin(b, s1)))
         return;
     push_clipped(out, e0, e1, tmin, tmax);

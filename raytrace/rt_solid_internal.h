@@ -9,6 +9,18 @@
 
 #include "rt_internal.h"
 
+/* A span end at t on surface `surface` of leaf `leaf` (-1: a clip plane or
+ * the ray's own limit), not flipped. */
+static inline rt_span_end rt__span_end(double t, uint32_t leaf, int32_t surface)
+{
+    rt_span_end e;
+    e.t = t;
+    e.leaf = leaf;
+    e.surface = surface;
+    e.flip = 0;
+    return e;
+}
+
 /* Appends the span [a, b] to a sorted list whose last span ends at or before
  * a.t. Zero-length (or NaN) spans are dropped; a span that touches or overlaps
  * the last one is merged into it (so no list ever holds two touching spans:

@@ -490,16 +490,6 @@ static void collect(const scene *s, const struct rt_solid_accel *sa, uint32_t le
     }
 }
 
-static rt_span_end mesh_end(double t, uint32_t leaf, int32_t tri)
-{
-    rt_span_end e;
-    e.t = t;
-    e.leaf = leaf;
-    e.surface = tri;
-    e.flip = 0;
-    return e;
-}
-
 void rt__mesh_spans(const scene *s, const struct rt_solid_accel *sa, uint32_t leaf, rr_ray ray, double tmin,
                     double tmax, rt_spans *out)
 {
@@ -520,17 +510,17 @@ void rt__mesh_spans(const scene *s, const struct rt_solid_accel *sa, uint32_t le
      * normal is defined; they are never reported (see rt_solid.c). */
     int32_t any = (int32_t)n->tri_first;
     int w = b.before;
-    rt_span_end start = mesh_end(tmin, leaf, any);
+    rt_span_end start = rt__span_end(tmin, leaf, any);
     for (int i = 0; i < b.n; i++) {
         int w1 = w + b.x[i].dir;
         if (w <= 0 && w1 > 0)
-            start = mesh_end(b.x[i].t, leaf, b.x[i].tri);
+            start = rt__span_end(b.x[i].t, leaf, b.x[i].tri);
         else if (w > 0 && w1 <= 0)
-            rt__spans_push(out, start, mesh_end(b.x[i].t, leaf, b.x[i].tri));
+            rt__spans_push(out, start, rt__span_end(b.x[i].t, leaf, b.x[i].tri));
         w = w1;
     }
     if (w > 0)
-        rt__spans_push(out, start, b.dropped ? mesh_end(b.drop.t, leaf, b.drop.tri) : mesh_end(tmax, leaf, any));
+        rt__spans_push(out, start, b.dropped ? rt__span_end(b.drop.t, leaf, b.drop.tri) : rt__span_end(tmax, leaf, any));
 }
 
 int rt__mesh_contains(const scene *s, const struct rt_solid_accel *sa, uint32_t leaf, rr_vec3 p)

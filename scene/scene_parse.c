@@ -27,22 +27,6 @@ static size_t default_film_limit(void)
     return half >= (double)SIZE_MAX ? SIZE_MAX : (size_t)half;
 }
 
-/* GiB for realistic film sizes, smaller units for the small limits of tests
- * and embedded callers (so that no size prints as "0.0 GiB"). */
-static const char *size_text(double bytes, char *buf, size_t n)
-{
-    const double kib = 1024.0, mib = kib * kib, gib = mib * kib;
-    if (bytes >= 0.1 * gib)
-        snprintf(buf, n, "%.1f GiB", bytes / gib);
-    else if (bytes >= mib)
-        snprintf(buf, n, "%.1f MiB", bytes / mib);
-    else if (bytes >= kib)
-        snprintf(buf, n, "%.1f KiB", bytes / kib);
-    else
-        snprintf(buf, n, "%.0f bytes", bytes);
-    return buf;
-}
-
 /* A render holds the beauty image and up to 7 same-sized layers (AOVs), so
  * the film needs 8 images' worth of memory. Refusing here, at load, beats
  * failing (or swapping) after the scene and its acceleration structure are
@@ -56,8 +40,8 @@ static rr_status check_film(const sp_ctx *c, long width, long height)
         return RR_OK;
     char a[32], b[32];
     return sp_fail(c, RR_ERR_LIMIT, "camera", "a %ld x %ld image needs %s of film, over the limit of %s", width, height,
-                   size_text(8.0 * 3.0 * sizeof(float) * (double)width * (double)height, a, sizeof a),
-                   size_text((double)limit, b, sizeof b));
+                   rr_size_text(8.0 * 3.0 * sizeof(float) * (double)width * (double)height, a, sizeof a),
+                   rr_size_text((double)limit, b, sizeof b));
 }
 
 /* rr_view's messages start with "view: "; in a scene the place is "camera". */
