@@ -350,7 +350,7 @@ static void resolution_limits(void **state)
     /* 2000001 x 2000001 pixels: about 357 TiB of film. */
     expect_fail(make_scene("{\"type\":\"lecture\",\"E\":[0,0,5],\"O\":[0,0,4],\"U\":[0,1,0],\"s\":0.5,\"w\":1000000,\"h\":1000000}",
                            NULL, "", NULL, ""),
-                RR_ERR_LIMIT, "bad.json: camera: a 2000001 x 2000001 image needs 357628.2 GiB of film, over the limit of");
+                RR_ERR_LIMIT, "bad.json: camera: a 2000001 x 2000001 image needs 349 TiB of film, over the limit of");
     /* So large that the byte count overflows size_t. */
     expect_fail(make_scene("{\"type\":\"lookat\",\"eye\":[0,0,5],\"target\":[0,0,0],\"up\":[0,1,0],\"fov\":60,"
                            "\"width\":2147483647,\"height\":2147483647}",
