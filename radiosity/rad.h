@@ -139,10 +139,12 @@ typedef struct rad_ff_opts {
     rad_ff_method method;
     int samples;       /* Monte Carlo: rays per patch; quadrature: points per patch */
     uint64_t seed;
-    int threads;       /* 0 = OpenMP default */
+    int threads;       /* rows in parallel; 0 = OpenMP default (the result does not depend on it) */
     int raw;           /* 1: keep the estimates as computed (for tests of reciprocity);
                           0 (default): make them reciprocal, F_ij := (A_i F_ij + A_j F_ji) / (2 A_i),
-                          so the solved system conserves energy exactly */
+                          so the solved system conserves energy exactly, and (Monte Carlo) rebalance
+                          the rows, A_i F_ij := s_i s_j A_i F_ij, so that each effective row sum is
+                          the raw row's again (rad_ff.c, "Row sums") */
     int mirror_depth;  /* Monte Carlo: reflections a form-factor ray follows off mirrors
                           (extended form factors; 0 = mirrors end rays like any surface) */
     /* Progress: rows done of all, called from one thread at a time (NULL: none). */
@@ -210,13 +212,16 @@ typedef struct rad_energy_row {
 
 /* One row per object that has patches, then a "total" row (rows[*nrows-1]).
  * In the total, emitted = absorbed + escaped up to the solver tolerance.
- * Without a solution, patch emission counts as emitted (no lights). */
+ * Without a solution, patch emission counts as emitted (no lights). *rows is
+ * one malloc'd array that the caller owns and frees with free(); on failure
+ * *rows is NULL (when rows and nrows are given). */
 rr_status rad_energy(const scene *s, const rad_patches *P, const rad_ff *F, const rr_rgb *B, rad_energy_row **rows,
                      size_t *nrows, rr_error *err);
 /* The ledger of a solution (needs its form factors: not one read from a
  * cache): rows per object with patches, then one per scene light (point and
  * directional lights as themselves: emitted = their power; their light
- * enters the patches as the first shot H0), then "total". */
+ * enters the patches as the first shot H0), then "total". Ownership as for
+ * rad_energy: the caller frees *rows with free(). */
 struct rad_solution;
 rr_status rad_energy_solution(const struct rad_solution *sol, rad_energy_row **rows, size_t *nrows, rr_error *err);
 

@@ -99,6 +99,8 @@ static rr_status ledger(const ledger_in *in, rad_energy_row **rows, size_t *nrow
     const rad_patches *P = in->P;
     if (!rows || !nrows || !in->B)
         return rr_error_set(err, RR_ERR_INVALID, "energy ledger: missing radiosities or output");
+    *rows = NULL;
+    *nrows = 0;
     rr_status st = rad_system_check(P, in->F, err);
     if (st != RR_OK) {
         rr_error_prefix(err, "energy ledger");

@@ -372,7 +372,7 @@ typedef struct rt_render_opts {
     int spp;          /* samples per pixel, stratified over the pixel filter */
     uint64_t seed;
     int threads;      /* 0 = OpenMP default */
-    int max_depth;    /* mirror recursion limit */
+    int max_depth;    /* the most mirror reflections on any path (scene render.max_depth) */
     int light_samples; /* shadow rays per hit for the area lights */
     rt_indirect indirect;
     rt_filter filter;

@@ -137,7 +137,9 @@ typedef struct scene_tri {
 typedef struct scene_settings {
     int spp;                /* samples per pixel, >= 1 (default 1) */
     uint64_t seed;          /* default 0 */
-    int max_depth;          /* mirror / secondary recursion limit, >= 0 (default 5) */
+    int max_depth;          /* the most mirror reflections on any path, in every mode and pass (camera,
+                               mirror, BSDF, secondary and form-factor rays, the lights' mirror images),
+                               >= 0 (default 5); diffuse bounces are not bounded by it */
     int threads;            /* 0 = all cores (default) */
     double exposure;        /* PNG preview exposure in stops (default 0) */
     rr_rgb background;      /* radiance of rays that hit nothing (default black) */
@@ -172,7 +174,10 @@ typedef struct scene {
     scene_object *objects;
     size_t nobjects;
     rr_vec3 *verts;         /* world space */
-    rr_vec3 *normals;       /* per vertex, unit, or zero vector where the source had none; NULL if none at all */
+    rr_vec3 *normals;       /* per vertex as the mesh file gave them, unit, or zero vector where it had none;
+                               NULL if none at all. No pass reads them yet: every pass shades with the
+                               face normal (scene_tri_normal), so that the ray tracer and the radiosity
+                               patches agree on which side a surface faces */
     size_t nverts;
     scene_tri *tris;
     size_t ntris;
