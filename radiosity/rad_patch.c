@@ -226,174 +226,192 @@ static void free_solid_meshes(rad__solid_mesh *sm, size_t n)
     free(sm);
 }
 
-rr_status rad_patches_build(const scene *s, const rad_patch_opts *o, rad_patches **out, rr_error *err)
+/* What rad_patches_build carries from one kind of primitive to the next:
+ * patches and vertices are appended in the order triangles, spheres, solids. */
+typedef struct build_ctx {
+    const scene *s;
+    const rad_patch_opts *o;
+    rad_patches *P;
+    uint32_t *olevel;     /* subdivision level per object (triangles) */
+    uint32_t S;           /* sphere stacks */
+    rad__solid_mesh *sm;  /* per object: the tessellated solid (CSG objects) */
+    size_t nv, np;        /* vertices and patches written so far */
+} build_ctx;
+
+/* Patch and (upper bound of) vertex counts; solids are tessellated here, as
+ * their counts are known only then. */
+static rr_status count_patches(build_ctx *c, double *npatch, double *nvert, rr_error *err)
 {
-    if (!(o->max_area > 0) || !(o->max_edge > 0) || !isfinite(o->max_area) || !isfinite(o->max_edge))
-        return rr_error_set(err, RR_ERR_INVALID, "%s: radiosity: patch area and edge limits must be > 0 (got %g, %g)",
-                            s->path, o->max_area, o->max_edge);
-    rad__solid_mesh *sm = NULL;
-    rad_patches *P = calloc(1, sizeof *P);
-    uint32_t *olevel = calloc(s->nobjects ? s->nobjects : 1, sizeof *olevel);
-    if (!P || !olevel)
-        goto nomem;
-    /* Levels per object, and the counts. */
-    double npatch = 0, nvert = 0;
-    object_levels(s, o, olevel);
-    uint32_t S = sphere_stacks(s, o);
+    const scene *s = c->s;
+    *npatch = *nvert = 0;
     for (size_t t = 0; t < s->ntris; t++) {
-        double l = olevel[s->tris[t].object];
-        npatch += l * l;
-        nvert += (l + 1) * (l + 2) / 2; /* upper bound before sharing */
+        double l = c->olevel[s->tris[t].object];
+        *npatch += l * l;
+        *nvert += (l + 1) * (l + 2) / 2; /* upper bound before sharing */
     }
     for (size_t i = 0; i < s->nobjects; i++)
         if (s->objects[i].kind == SCENE_OBJ_SPHERE) {
-            npatch += (double)sphere_patch_count(S);
-            nvert += (double)(S - 1) * (2.0 * S) + 2;
+            *npatch += (double)sphere_patch_count(c->S);
+            *nvert += (double)(c->S - 1) * (2.0 * c->S) + 2;
         }
-    /* Solids are tessellated first (their counts are known only then). */
-    sm = calloc(s->nobjects ? s->nobjects : 1, sizeof *sm);
-    if (!sm)
-        goto nomem;
     for (size_t i = 0; i < s->nobjects; i++)
         if (s->objects[i].kind == SCENE_OBJ_CSG) {
-            rr_status st = rad__solid_tessellate(s, o->accel, (uint32_t)i, o, &sm[i], err);
-            if (st != RR_OK) {
-                free_solid_meshes(sm, s->nobjects);
-                free(olevel);
-                free(P);
+            rr_status st = rad__solid_tessellate(s, c->o->accel, (uint32_t)i, c->o, &c->sm[i], err);
+            if (st != RR_OK)
                 return st;
-            }
-            npatch += (double)sm[i].ntris;
-            nvert += (double)sm[i].nverts;
+            *npatch += (double)c->sm[i].ntris;
+            *nvert += (double)c->sm[i].nverts;
         }
-    if (npatch > (double)(1u << 31) || nvert > (double)(1u << 31)) {
-        free_solid_meshes(sm, s->nobjects);
-        free(olevel);
-        free(P);
+    if (*npatch > (double)(1u << 31) || *nvert > (double)(1u << 31))
         return rr_error_set(err, RR_ERR_LIMIT,
                             "%s: radiosity: the patch limits would make %.3g patches (more than 2^31); "
                             "raise the patch area/edge limits",
-                            s->path, npatch);
-    }
-    P->n = (size_t)npatch;
+                            s->path, *npatch);
+    return RR_OK;
+}
+
+/* P's arrays for npatch patches and nvert vertices; 0, or -1 when out of memory. */
+static int allocate(build_ctx *c, size_t npatch, size_t nvert)
+{
+    const scene *s = c->s;
+    rad_patches *P = c->P;
+    P->n = npatch;
     P->ntris = s->ntris;
     P->p = calloc(P->n ? P->n : 1, sizeof *P->p);
-    P->verts = malloc(((size_t)nvert ? (size_t)nvert : 1) * sizeof *P->verts);
+    P->verts = malloc((nvert ? nvert : 1) * sizeof *P->verts);
     P->tri_first = malloc((s->ntris ? s->ntris : 1) * sizeof *P->tri_first);
     P->tri_level = malloc((s->ntris ? s->ntris : 1) * sizeof *P->tri_level);
     P->sphere_first = malloc((s->nobjects ? s->nobjects : 1) * sizeof *P->sphere_first);
     P->solid = calloc(s->nobjects ? s->nobjects : 1, sizeof *P->solid);
     P->nsolid = P->solid ? s->nobjects : 0;
+    return P->p && P->verts && P->tri_first && P->tri_level && P->sphere_first && P->solid ? 0 : -1;
+}
+
+/* Grid point (i, j) of triangle t at level n (i along AB, j along AC): the
+ * index of its vertex, shared with the neighbours through the corner table
+ * (scene vertices) and the edge map (points on an edge); UINT32_MAX when out
+ * of memory. */
+static uint32_t grid_vertex(build_ctx *c, const uint32_t vid[3], uint32_t n, uint32_t i, uint32_t j,
+                            uint32_t *corner, rad__edge_map *em)
+{
+    const scene *s = c->s;
+    rad_patches *P = c->P;
+    int corner_id = (i == 0 && j == 0) ? 0 : (i == n ? 1 : (j == n ? 2 : -1));
+    if (corner_id >= 0) {
+        uint32_t sv = vid[corner_id];
+        if (corner[sv] == UINT32_MAX) {
+            corner[sv] = (uint32_t)c->nv;
+            P->verts[c->nv++] = s->verts[sv];
+        }
+        return corner[sv];
+    }
+    rr_vec3 A = s->verts[vid[0]], B = s->verts[vid[1]], C = s->verts[vid[2]];
+    rr_vec3 p = rr_v3_add(A, rr_v3_add(rr_v3_scale(rr_v3_sub(B, A), (double)i / n),
+                                       rr_v3_scale(rr_v3_sub(C, A), (double)j / n)));
+    /* On an edge: identify it by its two scene vertices and the step counted
+     * from the smaller one, which both triangles agree on. */
+    uint32_t ea, eb, step;
+    if (j == 0) { /* AB, step i from A */
+        ea = vid[0], eb = vid[1], step = i;
+    } else if (i == 0) { /* AC, step j from A */
+        ea = vid[0], eb = vid[2], step = j;
+    } else if (i + j == n) { /* BC, step j from B */
+        ea = vid[1], eb = vid[2], step = j;
+    } else {
+        P->verts[c->nv] = p;
+        return (uint32_t)c->nv++;
+    }
+    if (ea > eb) {
+        uint32_t tmp = ea;
+        ea = eb;
+        eb = tmp;
+        step = n - step;
+    }
+    uint32_t got = rad__edge_get(em, ea, eb, step, (uint32_t)c->nv);
+    if (got != UINT32_MAX && got == c->nv)
+        P->verts[c->nv++] = p;
+    return got;
+}
+
+/* Every scene triangle split into n^2 patches on a regular grid, n its
+ * object's level; vertices on shared edges are shared. 0, or -1 when out of
+ * memory. */
+static int tessellate_triangles(build_ctx *c)
+{
+    const scene *s = c->s;
+    rad_patches *P = c->P;
     uint32_t *corner = malloc((s->nverts ? s->nverts : 1) * sizeof *corner);
     /* Edge points: at most 3 (l - 1) per triangle; the map is twice that. */
     size_t edge_pts = 0;
     for (size_t t = 0; t < s->ntris; t++)
-        edge_pts += 3 * (size_t)(olevel[s->tris[t].object] - 1);
+        edge_pts += 3 * (size_t)(c->olevel[s->tris[t].object] - 1);
     rad__edge_map em;
     int em_ok = rad__edge_map_init(&em, edge_pts) == 0;
-    uint32_t *grid = NULL;
-    if (!P->p || !P->verts || !P->tri_first || !P->tri_level || !P->sphere_first || !P->solid || !corner || !em_ok)
-        goto nomem_local;
-    for (size_t i = 0; i < s->nverts; i++)
-        corner[i] = UINT32_MAX;
-    size_t nv = 0, np = 0;
     uint32_t lmax = 1;
     for (size_t i = 0; i < s->nobjects; i++)
-        lmax = olevel[i] > lmax ? olevel[i] : lmax;
-    grid = malloc((size_t)(lmax + 1) * (lmax + 1) * sizeof *grid);
-    if (!grid)
-        goto nomem_local;
-    for (size_t t = 0; t < s->ntris; t++) {
+        lmax = c->olevel[i] > lmax ? c->olevel[i] : lmax;
+    uint32_t *grid = malloc((size_t)(lmax + 1) * (lmax + 1) * sizeof *grid);
+    int ok = corner && em_ok && grid;
+    for (size_t i = 0; ok && i < s->nverts; i++)
+        corner[i] = UINT32_MAX;
+    for (size_t t = 0; ok && t < s->ntris; t++) {
         const scene_tri *tr = &s->tris[t];
-        uint32_t n = olevel[tr->object];
-        uint32_t vid[3] = {tr->v[0], tr->v[1], tr->v[2]};
-        rr_vec3 A = s->verts[vid[0]], B = s->verts[vid[1]], C = s->verts[vid[2]];
-        /* Grid point (i, j), i along AB, j along AC; g = i + j*(n+1). */
-        for (uint32_t j = 0; j <= n; j++)
-            for (uint32_t i = 0; i + j <= n; i++) {
-                uint32_t *g = &grid[i + j * (n + 1)];
-                int corner_id = (i == 0 && j == 0) ? 0 : (i == n ? 1 : (j == n ? 2 : -1));
-                if (corner_id >= 0) {
-                    uint32_t sv = vid[corner_id];
-                    if (corner[sv] == UINT32_MAX) {
-                        corner[sv] = (uint32_t)nv;
-                        P->verts[nv++] = s->verts[sv];
-                    }
-                    *g = corner[sv];
-                    continue;
-                }
-                /* On an edge: identify it by its two scene vertices and the step
-                 * counted from the smaller one, which both triangles agree on. */
-                uint32_t ea = 0, eb = 0, step = 0;
-                int on_edge = 1;
-                if (j == 0) { /* AB, step i from A */
-                    ea = vid[0], eb = vid[1], step = i;
-                } else if (i == 0) { /* AC, step j from A */
-                    ea = vid[0], eb = vid[2], step = j;
-                } else if (i + j == n) { /* BC, step j from B */
-                    ea = vid[1], eb = vid[2], step = j;
-                } else {
-                    on_edge = 0;
-                }
-                rr_vec3 p = rr_v3_add(A, rr_v3_add(rr_v3_scale(rr_v3_sub(B, A), (double)i / n),
-                                                   rr_v3_scale(rr_v3_sub(C, A), (double)j / n)));
-                if (on_edge) {
-                    if (ea > eb) {
-                        uint32_t tmp = ea;
-                        ea = eb;
-                        eb = tmp;
-                        step = n - step;
-                    }
-                    uint32_t got = rad__edge_get(&em, ea, eb, step, (uint32_t)nv);
-                    if (got == UINT32_MAX)
-                        goto nomem_local;
-                    if (got == nv)
-                        P->verts[nv++] = p;
-                    *g = got;
-                } else {
-                    *g = (uint32_t)nv;
-                    P->verts[nv++] = p;
-                }
-            }
-        P->tri_first[t] = (uint32_t)np;
+        uint32_t n = c->olevel[tr->object];
+        for (uint32_t j = 0; ok && j <= n; j++)
+            for (uint32_t i = 0; ok && i + j <= n; i++)
+                ok = (grid[i + j * (n + 1)] = grid_vertex(c, tr->v, n, i, j, corner, &em)) != UINT32_MAX;
+        P->tri_first[t] = (uint32_t)c->np;
         P->tri_level[t] = n;
         const scene_material *m = &s->materials[tr->material];
-        for (uint32_t j = 0; j < n; j++)
+        for (uint32_t j = 0; ok && j < n; j++)
             for (uint32_t i = 0; i + j < n; i++) {
                 uint32_t g00 = grid[i + j * (n + 1)], g10 = grid[i + 1 + j * (n + 1)], g01 = grid[i + (j + 1) * (n + 1)];
-                fill_patch(P, np++, g00, g10, g01, m, tr->object, (int64_t)t);
+                fill_patch(P, c->np++, g00, g10, g01, m, tr->object, (int64_t)t);
                 if (i + j + 1 < n) {
                     uint32_t g11 = grid[i + 1 + (j + 1) * (n + 1)];
-                    fill_patch(P, np++, g10, g11, g01, m, tr->object, (int64_t)t);
+                    fill_patch(P, c->np++, g10, g11, g01, m, tr->object, (int64_t)t);
                 }
             }
     }
+    free(grid);
+    free(corner);
+    if (em_ok)
+        rad__edge_map_free(&em);
+    return ok ? 0 : -1;
+}
+
+/* Every analytic sphere as S stacks x 2S slices of facets (rings between
+ * the poles), their areas scaled to the true sphere's. */
+static void tessellate_spheres(build_ctx *c)
+{
+    const scene *s = c->s;
+    rad_patches *P = c->P;
+    uint32_t S = c->S, L = 2 * S;
     P->sphere_stacks = S;
-    P->sphere_slices = 2 * S;
+    P->sphere_slices = L;
     for (size_t oi = 0; oi < s->nobjects; oi++) {
         const scene_object *ob = &s->objects[oi];
         P->sphere_first[oi] = UINT32_MAX;
         if (ob->kind != SCENE_OBJ_SPHERE)
             continue;
-        uint32_t L = 2 * S;
         /* Vertices: north pole, rings 1..S-1, south pole. */
-        uint32_t base = (uint32_t)nv;
-        P->verts[nv++] = sphere_point(ob, S, 0, 0);
+        uint32_t base = (uint32_t)c->nv;
+        P->verts[c->nv++] = sphere_point(ob, S, 0, 0);
         for (uint32_t i = 1; i < S; i++)
             for (uint32_t j = 0; j < L; j++)
-                P->verts[nv++] = sphere_point(ob, S, i, j);
-        P->verts[nv++] = sphere_point(ob, S, S, 0);
-        uint32_t south = (uint32_t)nv - 1;
+                P->verts[c->nv++] = sphere_point(ob, S, i, j);
+        P->verts[c->nv++] = sphere_point(ob, S, S, 0);
+        uint32_t south = (uint32_t)c->nv - 1;
 #define RV(i, j) ((i) == 0 ? base : ((i) == S ? south : base + 1 + ((i)-1) * L + ((j) % L)))
-        P->sphere_first[oi] = (uint32_t)np;
+        P->sphere_first[oi] = (uint32_t)c->np;
         const scene_material *m = &s->materials[ob->material];
         for (uint32_t i = 0; i < S; i++)
             for (uint32_t j = 0; j < L; j++) {
-                uint32_t a = RV(i, j), b = RV(i + 1, j), c = RV(i + 1, j + 1), d = RV(i, j + 1);
+                uint32_t a = RV(i, j), b = RV(i + 1, j), cc = RV(i + 1, j + 1), d = RV(i, j + 1);
                 if (i < S - 1)
-                    fill_patch(P, np++, a, b, c, m, (uint32_t)oi, -1);
+                    fill_patch(P, c->np++, a, b, cc, m, (uint32_t)oi, -1);
                 if (i > 0)
-                    fill_patch(P, np++, a, c, d, m, (uint32_t)oi, -1);
+                    fill_patch(P, c->np++, a, cc, d, m, (uint32_t)oi, -1);
             }
 #undef RV
         /* The facets are chords of the sphere the ray tracer (and the
@@ -401,60 +419,88 @@ rr_status rad_patches_build(const scene *s, const rad_patch_opts *o, rad_patches
          * patch stands for its share of the true sphere's area, so that its
          * emitted power and what it receives agree with the rays. */
         double facets = 0.0;
-        for (size_t k = P->sphere_first[oi]; k < np; k++)
+        for (size_t k = P->sphere_first[oi]; k < c->np; k++)
             facets += P->p[k].area;
         double scale = facets > 0 ? 4.0 * RR_PI * ob->radius * ob->radius / facets : 1.0;
-        for (size_t k = P->sphere_first[oi]; k < np; k++)
+        for (size_t k = P->sphere_first[oi]; k < c->np; k++)
             P->p[k].area *= scale;
     }
+}
+
+/* Every solid's tessellation (count_patches made it) moved into P, each
+ * patch with the material of the leaf surface under its centre. */
+static void tessellate_solids(build_ctx *c)
+{
+    const scene *s = c->s;
+    rad_patches *P = c->P;
     for (size_t oi = 0; oi < s->nobjects; oi++) {
         if (s->objects[oi].kind != SCENE_OBJ_CSG)
             continue;
-        rad__solid_mesh *m = &sm[oi];
-        uint32_t vbase = (uint32_t)nv, pbase = (uint32_t)np;
-        memcpy(P->verts + nv, m->verts, m->nverts * sizeof *m->verts);
-        nv += m->nverts;
+        rad__solid_mesh *m = &c->sm[oi];
+        uint32_t vbase = (uint32_t)c->nv, pbase = (uint32_t)c->np;
+        memcpy(P->verts + c->nv, m->verts, m->nverts * sizeof *m->verts);
+        c->nv += m->nverts;
         /* The grid moves into P, with absolute patch indices. */
         P->solid[oi] = m->grid;
         m->grid.cell_first = NULL;
         if (P->solid[oi].n[0]) {
             size_t ncells = (size_t)P->solid[oi].n[0] * P->solid[oi].n[1] * P->solid[oi].n[2];
-            for (size_t c = 0; c <= ncells; c++)
-                P->solid[oi].cell_first[c] += pbase;
+            for (size_t k = 0; k <= ncells; k++)
+                P->solid[oi].cell_first[k] += pbase;
         }
         for (size_t t = 0; t < m->ntris; t++) {
+            size_t np = c->np++;
             fill_patch(P, np, vbase + m->tris[t][0], vbase + m->tris[t][1], vbase + m->tris[t][2],
                        &s->materials[s->objects[oi].material], (uint32_t)oi, -1);
-            /* The material of the leaf surface under the patch's centre. */
             rr_vec3 xs, ns;
             uint32_t leaf;
-            if (rad__solid_surface(P, s, o->accel, (uint32_t)oi, P->p[np].centroid, P->p[np].normal, &xs, &ns, &leaf)) {
+            if (rad__solid_surface(P, s, c->o->accel, (uint32_t)oi, P->p[np].centroid, P->p[np].normal, &xs, &ns,
+                                   &leaf)) {
                 const scene_material *lm = &s->materials[s->csg[leaf].material];
                 P->p[np].rho = lm->diffuse;
                 P->p[np].mirror = rr_rgb_mean(lm->mirror);
                 P->p[np].emission = rr_rgb_scale(lm->emission, RR_PI);
             }
-            np++;
         }
     }
-    RR_CHECK(np == P->n);
-    P->nverts = nv;
-    free(grid);
-    free(corner);
-    rad__edge_map_free(&em);
-    free_solid_meshes(sm, s->nobjects);
-    free(olevel);
-    *out = P;
-    return RR_OK;
-nomem_local:
-    free(grid);
-    free(corner);
-    rad__edge_map_free(&em);
-nomem:
-    free_solid_meshes(sm, s->nobjects);
-    free(olevel);
-    rad_patches_destroy(P);
-    return rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory building patches", s->path);
+}
+
+rr_status rad_patches_build(const scene *s, const rad_patch_opts *o, rad_patches **out, rr_error *err)
+{
+    if (!(o->max_area > 0) || !(o->max_edge > 0) || !isfinite(o->max_area) || !isfinite(o->max_edge))
+        return rr_error_set(err, RR_ERR_INVALID, "%s: radiosity: patch area and edge limits must be > 0 (got %g, %g)",
+                            s->path, o->max_area, o->max_edge);
+    build_ctx c;
+    memset(&c, 0, sizeof c);
+    c.s = s;
+    c.o = o;
+    c.P = calloc(1, sizeof *c.P);
+    c.olevel = calloc(s->nobjects ? s->nobjects : 1, sizeof *c.olevel);
+    c.sm = calloc(s->nobjects ? s->nobjects : 1, sizeof *c.sm);
+    rr_status st = RR_ERR_NOMEM;
+    double npatch = 0, nvert = 0;
+    if (c.P && c.olevel && c.sm) {
+        object_levels(s, o, c.olevel);
+        c.S = sphere_stacks(s, o);
+        st = count_patches(&c, &npatch, &nvert, err);
+    }
+    if (st == RR_OK)
+        st = allocate(&c, (size_t)npatch, (size_t)nvert) == 0 && tessellate_triangles(&c) == 0 ? RR_OK : RR_ERR_NOMEM;
+    if (st == RR_OK) {
+        tessellate_spheres(&c);
+        tessellate_solids(&c);
+        RR_CHECK(c.np == c.P->n);
+        c.P->nverts = c.nv;
+        *out = c.P;
+        c.P = NULL;
+    }
+    if (c.sm)
+        free_solid_meshes(c.sm, s->nobjects);
+    free(c.olevel);
+    rad_patches_destroy(c.P);
+    if (st == RR_ERR_NOMEM)
+        return rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory building patches", s->path);
+    return st;
 }
 
 void rad_patches_destroy(rad_patches *P)

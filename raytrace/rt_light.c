@@ -255,6 +255,121 @@ static void light_init(light *l, light_kind kind, uint32_t index)
     l->index = index;
 }
 
+/* The delta lights (point, directional), each followed by its images. */
+static rr_status add_delta_lights(rt_lights *L, int depth, size_t *budget, rr_error *err)
+{
+    const scene *s = L->s;
+    size_t dcap = 0;
+    rr_status st = RR_OK;
+    for (size_t i = 0; i < s->nlights && st == RR_OK; i++) {
+        const scene_light *sl = &s->lights[i];
+        light l;
+        light_init(&l, sl->type == SCENE_LIGHT_DIRECTIONAL ? LK_DIRECTIONAL : LK_POINT, (uint32_t)i);
+        l.p = sl->type == SCENE_LIGHT_DIRECTIONAL ? sl->direction : sl->position;
+        l.radiance = sl->intensity;
+        l.weight = 1.0;
+        if (L->ndelta == dcap) {
+            dcap = dcap ? 2 * dcap : 16;
+            light *nd = realloc(L->delta, dcap * sizeof *nd);
+            if (!nd)
+                return rr_error_set(err, RR_ERR_NOMEM, "out of memory for the light table");
+            L->delta = nd;
+        }
+        L->delta[L->ndelta++] = l;
+        st = add_images(L, &l, depth, &L->delta, &L->ndelta, &dcap, budget, err);
+    }
+    return st;
+}
+
+/* An emissive triangle as an area light. */
+static void triangle_light(const scene *s, uint32_t t, light *l)
+{
+    light_init(l, LK_TRIANGLE, t);
+    for (int e = 0; e < 3; e++)
+        l->tv[e] = s->verts[s->tris[t].v[e]];
+    l->tn = scene_tri_normal(s, t);
+    l->area = scene_tri_area(s, t);
+    l->radiance = s->materials[s->tris[t].material].emission;
+    l->weight = l->area * rr_rgb_mean(l->radiance);
+    l->p = rr_v3_scale(rr_v3_add(rr_v3_add(l->tv[0], l->tv[1]), l->tv[2]), 1.0 / 3.0);
+    for (int e = 0; e < 3; e++)
+        l->r = fmax(l->r, rr_v3_len(rr_v3_sub(l->tv[e], l->p)));
+}
+
+/* An emissive sphere or solid as an area light (its bounding sphere for a
+ * solid); 0 when object o does not emit. */
+static int object_light(const rt_lights *L, uint32_t o, light *l)
+{
+    const scene *s = L->s;
+    const scene_object *ob = &s->objects[o];
+    double e = 0.0;
+    rr_vec3 c = ob->center;
+    double r = ob->radius;
+    if (ob->kind == SCENE_OBJ_SPHERE)
+        e = rr_rgb_mean(s->materials[ob->material].emission);
+    else if (ob->kind == SCENE_OBJ_CSG) {
+        e = solid_emission(s, o);
+        rr_vec3 lo = s->csg[ob->csg_root].bbox_lo, hi = s->csg[ob->csg_root].bbox_hi;
+        if (!(lo.x <= hi.x && lo.y <= hi.y && lo.z <= hi.z))
+            e = 0.0; /* empty solid */
+        c = rr_v3_scale(rr_v3_add(lo, hi), 0.5);
+        r = 0.5 * rr_v3_len(rr_v3_sub(hi, lo)) * (1.0 + 1e-9) + 1e-12 * L->scale;
+    }
+    if (!(e > 0.0))
+        return 0;
+    light_init(l, LK_SPHERE, o);
+    l->p = c;
+    l->r = r;
+    l->weight = 4.0 * RR_PI * r * r * e;
+    return 1;
+}
+
+/* The real area lights (triangles, then spheres and solids), then their
+ * images, then the sampling cdf over all of them by weight. */
+static rr_status add_area_lights(rt_lights *L, int depth, size_t *budget, rr_error *err)
+{
+    const scene *s = L->s;
+    size_t nreal = s->nemissive;
+    for (size_t o = 0; o < s->nobjects; o++) {
+        const scene_object *ob = &s->objects[o];
+        if ((ob->kind == SCENE_OBJ_SPHERE && rr_rgb_max(s->materials[ob->material].emission) > 0) ||
+            (ob->kind == SCENE_OBJ_CSG && solid_emission(s, (uint32_t)o) > 0))
+            nreal++;
+    }
+    size_t acap = nreal;
+    if (nreal > 0 && !(L->area = malloc(acap * sizeof *L->area)))
+        return rr_error_set(err, RR_ERR_NOMEM, "out of memory for the light table");
+    for (size_t i = 0; i < s->nemissive; i++) {
+        uint32_t t = s->emissive_tris[i];
+        triangle_light(s, t, &L->area[L->narea]);
+        L->tri_light[t] = (int32_t)L->narea++;
+    }
+    for (size_t o = 0; o < s->nobjects; o++)
+        if (object_light(L, (uint32_t)o, &L->area[L->narea]))
+            L->obj_light[o] = (int32_t)L->narea++;
+    L->nreal = L->narea;
+    rr_status st = RR_OK;
+    for (size_t i = 0; st == RR_OK && i < L->nreal && depth > 0; i++) {
+        light base = L->area[i];
+        size_t before = L->narea;
+        st = add_images(L, &base, depth, &L->area, &L->narea, &acap, budget, err);
+        L->area[i].vfirst = (uint32_t)before;
+        L->area[i].vcount = (uint32_t)(L->narea - before);
+    }
+    if (st != RR_OK || L->narea == 0)
+        return st;
+    if (!(L->cdf = malloc(L->narea * sizeof *L->cdf)))
+        return rr_error_set(err, RR_ERR_NOMEM, "out of memory for the light table");
+    double total = 0.0;
+    for (size_t i = 0; i < L->narea; i++) {
+        total += L->area[i].weight > 0 ? L->area[i].weight : 0.0;
+        L->cdf[i] = total;
+    }
+    for (size_t i = 0; i < L->narea; i++)
+        L->cdf[i] = total > 0 ? L->cdf[i] / total : (double)(i + 1) / (double)L->narea;
+    return RR_OK;
+}
+
 rr_status rt_lights_build(const scene *s, const rt_accel *a, int max_mirror_depth, rt_lights **out, rr_error *err)
 {
     rt_lights *L = calloc(1, sizeof *L);
@@ -270,114 +385,19 @@ rr_status rt_lights_build(const scene *s, const rt_accel *a, int max_mirror_dept
     if (L->nplanes == 0)
         depth = 0;
     size_t budget = RT_VIRTUAL_MAX;
-    size_t dcap = 0, acap = 0;
     L->tri_light = malloc((s->ntris ? s->ntris : 1) * sizeof *L->tri_light);
     L->obj_light = malloc((s->nobjects ? s->nobjects : 1) * sizeof *L->obj_light);
     if (st == RR_OK && (!L->tri_light || !L->obj_light))
         st = rr_error_set(err, RR_ERR_NOMEM, "out of memory for the light table");
-    if (st != RR_OK) {
-        rt_lights_destroy(L);
-        return st;
+    if (st == RR_OK) {
+        for (size_t t = 0; t < s->ntris; t++)
+            L->tri_light[t] = -1;
+        for (size_t o = 0; o < s->nobjects; o++)
+            L->obj_light[o] = -1;
+        st = add_delta_lights(L, depth, &budget, err);
     }
-    for (size_t t = 0; t < s->ntris; t++)
-        L->tri_light[t] = -1;
-    for (size_t o = 0; o < s->nobjects; o++)
-        L->obj_light[o] = -1;
-
-    /* Delta lights, each followed by its images. */
-    for (size_t i = 0; i < s->nlights && st == RR_OK; i++) {
-        const scene_light *sl = &s->lights[i];
-        light l;
-        light_init(&l, sl->type == SCENE_LIGHT_DIRECTIONAL ? LK_DIRECTIONAL : LK_POINT, (uint32_t)i);
-        l.p = sl->type == SCENE_LIGHT_DIRECTIONAL ? sl->direction : sl->position;
-        l.radiance = sl->intensity;
-        l.weight = 1.0;
-        if (L->ndelta == dcap) {
-            dcap = dcap ? 2 * dcap : 16;
-            light *nd = realloc(L->delta, dcap * sizeof *nd);
-            if (!nd) {
-                st = rr_error_set(err, RR_ERR_NOMEM, "out of memory for the light table");
-                break;
-            }
-            L->delta = nd;
-        }
-        L->delta[L->ndelta++] = l;
-        st = add_images(L, &l, depth, &L->delta, &L->ndelta, &dcap, &budget, err);
-    }
-    /* Real area lights: triangles, then spheres and solids. */
-    size_t nreal = s->nemissive;
-    for (size_t o = 0; o < s->nobjects; o++) {
-        const scene_object *ob = &s->objects[o];
-        if ((ob->kind == SCENE_OBJ_SPHERE && rr_rgb_max(s->materials[ob->material].emission) > 0) ||
-            (ob->kind == SCENE_OBJ_CSG && solid_emission(s, (uint32_t)o) > 0))
-            nreal++;
-    }
-    if (st == RR_OK && nreal > 0) {
-        acap = nreal;
-        L->area = malloc(acap * sizeof *L->area);
-        if (!L->area)
-            st = rr_error_set(err, RR_ERR_NOMEM, "out of memory for the light table");
-    }
-    for (size_t i = 0; st == RR_OK && i < s->nemissive; i++) {
-        uint32_t t = s->emissive_tris[i];
-        light *l = &L->area[L->narea];
-        light_init(l, LK_TRIANGLE, t);
-        for (int e = 0; e < 3; e++)
-            l->tv[e] = s->verts[s->tris[t].v[e]];
-        l->tn = scene_tri_normal(s, t);
-        l->area = scene_tri_area(s, t);
-        l->radiance = s->materials[s->tris[t].material].emission;
-        l->weight = l->area * rr_rgb_mean(l->radiance);
-        l->p = rr_v3_scale(rr_v3_add(rr_v3_add(l->tv[0], l->tv[1]), l->tv[2]), 1.0 / 3.0);
-        for (int e = 0; e < 3; e++)
-            l->r = fmax(l->r, rr_v3_len(rr_v3_sub(l->tv[e], l->p)));
-        L->tri_light[t] = (int32_t)L->narea++;
-    }
-    for (size_t o = 0; st == RR_OK && o < s->nobjects; o++) {
-        const scene_object *ob = &s->objects[o];
-        double e = 0.0;
-        rr_vec3 c = ob->center;
-        double r = ob->radius;
-        if (ob->kind == SCENE_OBJ_SPHERE)
-            e = rr_rgb_mean(s->materials[ob->material].emission);
-        else if (ob->kind == SCENE_OBJ_CSG) {
-            e = solid_emission(s, (uint32_t)o);
-            rr_vec3 lo = s->csg[ob->csg_root].bbox_lo, hi = s->csg[ob->csg_root].bbox_hi;
-            if (!(lo.x <= hi.x && lo.y <= hi.y && lo.z <= hi.z))
-                e = 0.0; /* empty solid */
-            c = rr_v3_scale(rr_v3_add(lo, hi), 0.5);
-            r = 0.5 * rr_v3_len(rr_v3_sub(hi, lo)) * (1.0 + 1e-9) + 1e-12 * L->scale;
-        }
-        if (!(e > 0.0))
-            continue;
-        light *l = &L->area[L->narea];
-        light_init(l, LK_SPHERE, (uint32_t)o);
-        l->p = c;
-        l->r = r;
-        l->weight = 4.0 * RR_PI * r * r * e;
-        L->obj_light[o] = (int32_t)L->narea++;
-    }
-    L->nreal = L->narea;
-    /* Images of the area lights, after all the real ones. */
-    for (size_t i = 0; st == RR_OK && i < L->nreal && depth > 0; i++) {
-        light base = L->area[i];
-        size_t before = L->narea;
-        st = add_images(L, &base, depth, &L->area, &L->narea, &acap, &budget, err);
-        L->area[i].vfirst = (uint32_t)before;
-        L->area[i].vcount = (uint32_t)(L->narea - before);
-    }
-    if (st == RR_OK && L->narea > 0) {
-        L->cdf = malloc(L->narea * sizeof *L->cdf);
-        if (!L->cdf)
-            st = rr_error_set(err, RR_ERR_NOMEM, "out of memory for the light table");
-        double total = 0.0;
-        for (size_t i = 0; st == RR_OK && i < L->narea; i++) {
-            total += L->area[i].weight > 0 ? L->area[i].weight : 0.0;
-            L->cdf[i] = total;
-        }
-        for (size_t i = 0; st == RR_OK && i < L->narea; i++)
-            L->cdf[i] = total > 0 ? L->cdf[i] / total : (double)(i + 1) / (double)L->narea;
-    }
+    if (st == RR_OK)
+        st = add_area_lights(L, depth, &budget, err);
     if (st == RR_OK)
         st = rt__lights_build_emitters(L, err);
     if (st != RR_OK) {
