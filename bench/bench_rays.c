@@ -44,15 +44,6 @@
 #define RADRAY_BUILD_TYPE "unknown"
 #endif
 
-/* Memory layout of the BVH: a wide node (rt_wnode4: 128 bytes, rt_wnode8:
- * 256 bytes; the accel's width is chosen at build time, rt_accel.width) and a
- * leaf record per primitive (rt_rec, 48 bytes, which includes a triangle's
- * private float copy of its vertices). A benchmark of the BVH may look at its
- * private header for the sizes. */
-#include "rt_internal.h"
-#define BENCH_NODE_BYTES(a) ((a)->width == 8 ? sizeof(rt_wnode8) : sizeof(rt_wnode4))
-#define BENCH_PRIM_BYTES sizeof(rt_rec)
-
 #define BENCH_SEED 20240601u
 #define BENCH_BUILD_REPS 3
 #define BENCH_TRACE_REPS 5
@@ -167,14 +158,16 @@ static void run_scene(bench_scene *b, const options *o, const char *tmpdir)
         tb[r] = now_s() - t0;
     }
     double t_build = median(tb, BENCH_BUILD_REPS);
-    size_t nodes = rt_accel_node_count(a);
-    size_t nprims = s->ntris; /* no analytic spheres in these scenes */
-    double bpt = (double)(nodes * BENCH_NODE_BYTES(a) + nprims * BENCH_PRIM_BYTES) / (double)s->ntris;
+    /* Memory of the BVH: wide nodes and one leaf record per primitive (no
+     * analytic spheres or solids in these scenes). */
+    rt_accel_stats ast = rt_accel_stats_of(a);
+    size_t nodes = ast.nodes;
+    double bpt = (double)ast.bytes / (double)s->ntris;
 
     printf("triangles %zu (vertices %zu), PLY write %.0f ms, scene load %.0f ms\n", s->ntris, s->nverts,
            1e3 * t_write, 1e3 * t_load);
     printf("BVH build %.0f ms (median of %d, single-threaded), %zu nodes (%d wide), %.1f bytes/triangle\n", 1e3 * t_build,
-           BENCH_BUILD_REPS, nodes, a->width, bpt);
+           BENCH_BUILD_REPS, nodes, ast.width, bpt);
 
     /* Primary rays, and their hits (needed for the other two workloads). */
     ray_set prim, diff, shad;

@@ -140,7 +140,17 @@ rr_vec3 rt_csg_leaf_normal(const scene *s, uint32_t leaf, int32_t surface, rr_ve
 
 rr_status rt_accel_build(const scene *s, rt_accel **out, rr_error *err);
 void rt_accel_destroy(rt_accel *a); /* NULL is a no-op */
-size_t rt_accel_node_count(const rt_accel *a);
+/* What an accel holds, for benchmarks and tools. */
+typedef struct rt_accel_stats {
+    int width;            /* children per node: 4 or 8 */
+    size_t nodes;         /* wide nodes of the scene BVH */
+    size_t node_bytes;    /* bytes per wide node (128 or 256) */
+    size_t records;       /* leaf records (one per primitive) */
+    size_t record_bytes;  /* bytes per record (48: a triangle's float copy of its vertices included) */
+    size_t bytes;         /* nodes + records + the solids' mesh-leaf BVHs */
+} rt_accel_stats;
+rt_accel_stats rt_accel_stats_of(const rt_accel *a);
+size_t rt_accel_node_count(const rt_accel *a); /* rt_accel_stats_of(a).nodes */
 /* Same contract as rt_ref_closest (and tested against it). */
 int rt_accel_closest(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_hit *hit);
 /* Any hit with t in (tmin, tmax): for shadow rays; stops at the first occluder. */

@@ -567,3 +567,15 @@ void rt_accel_destroy(rt_accel *a)
 }
 
 size_t rt_accel_node_count(const rt_accel *a) { return a->nwnodes; }
+
+rt_accel_stats rt_accel_stats_of(const rt_accel *a)
+{
+    rt_accel_stats st;
+    st.width = a->width;
+    st.nodes = a->nwnodes;
+    st.node_bytes = a->width == 8 ? sizeof(rt_wnode8) : sizeof(rt_wnode4);
+    st.records = a->nrecs;
+    st.record_bytes = sizeof(rt_rec);
+    st.bytes = st.nodes * st.node_bytes + st.records * st.record_bytes + rt__solids_bytes(a->solids);
+    return st;
+}

@@ -111,8 +111,9 @@ struct rt_accel {
     struct rt_solid_accel *solids; /* per-mesh-leaf BVHs of the scene's solids (rt_solid.c); NULL if none */
 };
 
-/* Per-ray constants of the watertight test (Woop et al. 2013) and the slab
- * tests (rt_wide.h). */
+/* Per-ray constants of the watertight test (Woop et al. 2013, rt_kernel.h),
+ * the solids' mesh-leaf crossings (rt_solid_mesh.c) and the slab tests
+ * (rt_wide.h): every query prepares its ray once, with rt__ray_prepare. */
 typedef struct rt_ray_pre {
     rr_ray ray;
     int kx, ky, kz;
@@ -163,6 +164,7 @@ int rt__occl8(const rt_accel *a, rr_ray ray, double tmin, double tmax);
 /* ---- rt_solid.c: acceleration for the solids' mesh leaves ---- */
 rr_status rt__solids_build(const scene *s, struct rt_solid_accel **out, rr_error *err);
 void rt__solids_destroy(struct rt_solid_accel *sa); /* NULL is a no-op */
+size_t rt__solids_bytes(const struct rt_solid_accel *sa); /* 0 for NULL */
 
 /* ---- rt_prim.c: the primitive interface the BVH is built on ---- */
 

@@ -128,20 +128,6 @@ int rt_ref_closest(const scene *s, rr_ray ray, double tmin, double tmax, rt_hit 
     return found;
 }
 
-void rt_phong(rr_vec3 N, rr_vec3 L, rr_vec3 V, const scene_material *m, rr_rgb E, rr_rgb *diffuse, rr_rgb *specular)
-{
-    double ndotl = rr_v3_dot(N, L);
-    if (ndotl <= 0.0)
-        return; /* the light is behind the surface: negative dot products clamp to zero */
-    *diffuse = rr_rgb_add(*diffuse, rr_rgb_scale(rr_rgb_mul(m->diffuse, E), ndotl / RR_PI));
-    if (rr_rgb_max(m->specular) <= 0.0)
-        return;
-    rr_vec3 R = rr_v3_sub(rr_v3_scale(N, 2.0 * ndotl), L); /* R = 2(N.L)N - L */
-    double rv = rr_v3_dot(R, V);
-    if (rv > 0.0)
-        *specular = rr_rgb_add(*specular, rr_rgb_scale(rr_rgb_mul(m->specular, E), pow(rv, m->k)));
-}
-
 rr_rgb rt_reflected_intensity(rr_vec3 E, rr_vec3 H, rr_vec3 N, rr_vec3 L, const scene_material *m, rr_rgb A,
                               rr_rgb light)
 {

@@ -156,6 +156,22 @@ static rr_rgb bsdf_emission(const render_ctx *c, rr_vec3 H, rr_vec3 N, rr_vec3 d
     }
 }
 
+/* The lecture's Phong terms for one light (rt.h): the shading every light
+ * sample of the renderer goes through, and rt_reflected_intensity too. */
+void rt_phong(rr_vec3 N, rr_vec3 L, rr_vec3 V, const scene_material *m, rr_rgb E, rr_rgb *diffuse, rr_rgb *specular)
+{
+    double ndotl = rr_v3_dot(N, L);
+    if (ndotl <= 0.0)
+        return; /* the light is behind the surface: negative dot products clamp to zero */
+    *diffuse = rr_rgb_add(*diffuse, rr_rgb_scale(rr_rgb_mul(m->diffuse, E), ndotl / RR_PI));
+    if (rr_rgb_max(m->specular) <= 0.0)
+        return;
+    rr_vec3 R = rr_v3_sub(rr_v3_scale(N, 2.0 * ndotl), L); /* R = 2(N.L)N - L */
+    double rv = rr_v3_dot(R, V);
+    if (rv > 0.0)
+        *specular = rr_rgb_add(*specular, rr_rgb_scale(rr_rgb_mul(m->specular, E), pow(rv, m->k)));
+}
+
 /* Direct light at H: every delta light (and its mirror images) with its
  * shadow rays, nl samples of the area lights (and their images), and nb BSDF
  * rays for the diffuse part, combined with the light samples by the balance

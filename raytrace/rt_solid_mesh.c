@@ -51,32 +51,8 @@
 #define MESH_STACK 64
 #define NO_ROOT UINT32_MAX
 
-/* ---- the ray in Woop's sheared frame ---- */
-
-typedef struct mray {
-    rr_vec3 o;
-    int kx, ky, kz;
-    double Sx, Sy, Sz;
-} mray;
-
-static void mray_prepare(rr_ray ray, mray *m)
-{
-    double d[3] = {ray.d.x, ray.d.y, ray.d.z};
-    int kz = fabs(d[0]) > fabs(d[1]) ? (fabs(d[0]) > fabs(d[2]) ? 0 : 2) : (fabs(d[1]) > fabs(d[2]) ? 1 : 2);
-    int kx = (kz + 1) % 3, ky = (kx + 1) % 3;
-    if (d[kz] < 0.0) { /* keep the winding when looking down -z */
-        int t = kx;
-        kx = ky;
-        ky = t;
-    }
-    m->o = ray.o;
-    m->kx = kx;
-    m->ky = ky;
-    m->kz = kz;
-    m->Sx = d[kx] / d[kz];
-    m->Sy = d[ky] / d[kz];
-    m->Sz = 1.0 / d[kz];
-}
+/* ---- the ray in Woop's sheared frame: rt__ray_prepare's (kx, ky, kz, Sx,
+ * Sy, Sz), the set-up every query of raytrace shares ---- */
 
 typedef struct p2 {
     double x, y, z;
@@ -84,9 +60,9 @@ typedef struct p2 {
 
 /* A vertex in the sheared frame; a pure function of the vertex and the ray, so
  * every triangle that shares the vertex sees the same 2D point. */
-static p2 project(const mray *m, rr_vec3 v)
+static p2 project(const rt_ray_pre *m, rr_vec3 v)
 {
-    rr_vec3 a = rr_v3_sub(v, m->o);
+    rr_vec3 a = rr_v3_sub(v, m->ray.o);
     p2 r;
     r.z = rr_v3_get(a, m->kz);
     r.x = rr_v3_get(a, m->kx) - m->Sx * r.z;
@@ -178,7 +154,7 @@ static double edge_z(p2 P, uint32_t ip, p2 Q, uint32_t iq)
  * is computed from that vertex or edge alone, so every triangle around it
  * reports the same t (a ray touching a corner enters and leaves at exactly
  * the same t: a zero-length span, dropped). */
-static int tri_cross(const mray *m, rr_vec3 A, rr_vec3 B, rr_vec3 C, uint32_t ia, uint32_t ib, uint32_t ic,
+static int tri_cross(const rt_ray_pre *m, rr_vec3 A, rr_vec3 B, rr_vec3 C, uint32_t ia, uint32_t ib, uint32_t ic,
                      double *t)
 {
     p2 a = project(m, A), b = project(m, B), c = project(m, C);
@@ -369,6 +345,16 @@ static uint32_t build_rec(bld *b, size_t first, size_t n, double pad)
     return id;
 }
 
+size_t rt__solids_bytes(const struct rt_solid_accel *sa)
+{
+    if (!sa)
+        return 0;
+    size_t ntris = 0;
+    for (size_t k = 0; k < sa->nnodes; k++)
+        ntris += sa->nodes[k].count;
+    return sizeof *sa + sa->ncsg * sizeof *sa->root + sa->nnodes * sizeof *sa->nodes + ntris * sizeof *sa->tris;
+}
+
 void rt__solids_destroy(struct rt_solid_accel *sa)
 {
     if (!sa)
@@ -449,7 +435,7 @@ static int mnode_hit(const mnode *nd, rr_ray r, double tlo, double thi)
     return rt__box_overlap(r, rr_v3(nd->lo[0], nd->lo[1], nd->lo[2]), rr_v3(nd->hi[0], nd->hi[1], nd->hi[2]), tlo, thi);
 }
 
-static void cross_tri(const scene *s, const mray *m, uint32_t tri, xbuf *b)
+static void cross_tri(const scene *s, const rt_ray_pre *m, uint32_t tri, xbuf *b)
 {
     const uint32_t *v = s->csg_tris[tri];
     double t;
@@ -464,8 +450,8 @@ static void cross_tri(const scene *s, const mray *m, uint32_t tri, xbuf *b)
 static void collect(const scene *s, const struct rt_solid_accel *sa, uint32_t leaf, rr_ray ray, xbuf *b)
 {
     const scene_csg_node *n = &s->csg[leaf];
-    mray m;
-    mray_prepare(ray, &m);
+    rt_ray_pre m;
+    rt__ray_prepare(ray, &m);
     if (!sa || leaf >= sa->ncsg || sa->root[leaf] == NO_ROOT) {
         for (size_t t = n->tri_first; t < n->tri_first + n->tri_count; t++)
             cross_tri(s, &m, (uint32_t)t, b);
