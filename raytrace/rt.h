@@ -133,6 +133,54 @@ int rt_csg_contains(const scene *s, const rt_accel *a, uint32_t node, rr_vec3 p)
 /* Outward unit normal of a leaf's surface at world point p (surface as in rt_span_end). */
 rr_vec3 rt_csg_leaf_normal(const scene *s, uint32_t leaf, int32_t surface, rr_vec3 p);
 
+/* ---- the primitive table (rt_prim.c) ----
+ *
+ * Every kind of primitive the BVH holds, and what each pass needs of it, in
+ * one row per kind: the BVH (bounds, hit), the light table and the light
+ * tracer (emission, light sphere, emit), the diagnostics (encloses), the
+ * radiosity pass (area; its own table, rad_patch.c, adds tessellation and
+ * patch lookup per kind) and the solution cache (digest). A kind is either
+ * per triangle (the scene's triangle array, whatever object made it) or per
+ * object (one primitive per scene object of kind object_kind, index = the
+ * object's). Adding a kind: its row here, its syntax in scene/, its patches
+ * in radiosity/rad_patch.c. */
+typedef enum rt_prim_kind { RT_PRIM_TRIANGLE = 0, RT_PRIM_SPHERE = 1, RT_PRIM_SOLID = 2, RT_PRIM_KINDS = 3 } rt_prim_kind;
+struct rt_ray_pre;       /* the per-ray set-up of the fast path (rt_internal.h) */
+typedef struct rt_lights rt_lights;
+typedef struct rt_emission rt_emission;
+typedef struct rt_prim_class {
+    const char *name;
+    int per_object;  /* 0: per scene triangle; 1: per object of kind object_kind */
+    int object_kind; /* scene_object_kind (per-object kinds) */
+    /* World-space box containing primitive i exactly. */
+    void (*bounds)(const scene *s, uint32_t i, rr_vec3 *lo, rr_vec3 *hi);
+    /* Nearest hit with tmin < t < *tmax: fills hit (when not NULL; hit->point
+     * is left to the caller), lowers *tmax, returns 1. */
+    int (*hit)(const rt_accel *a, uint32_t i, const struct rt_ray_pre *p, double tmin, double *tmax, rt_hit *hit);
+    /* Surface area; for a solid an upper estimate (its bounding box's). */
+    double (*area)(const scene *s, uint32_t i);
+    /* Mean over RGB of the radiance of its brightest emitting surface; 0: it does not emit. */
+    double (*emission)(const scene *s, uint32_t i);
+    /* Per-object kinds: the sphere the light table samples it through (scale:
+     * the scene's length scale); 0 when it has none (an empty solid). */
+    int (*light_sphere)(const scene *s, uint32_t i, double scale, rr_vec3 *c, double *r);
+    /* Per-object kinds: one particle of the light tracer from it (light
+     * sphere c, r; u uniform in [0,1)^6; the emitter was picked with
+     * probability pk, which out->power includes); 0: this sample emits nothing. */
+    int (*emit)(const rt_lights *L, uint32_t i, rr_vec3 c, double r, const double u[6], double pk, rt_emission *out);
+    /* Per-object kinds: point p is inside (a closed primitive). */
+    int (*encloses)(const scene *s, uint32_t i, rr_vec3 p);
+    /* Per-object kinds: feeds what of it (beyond the object's kind, material,
+     * csg_root and culling) the radiosity solution depends on to add. */
+    void (*digest)(const scene *s, uint32_t i, void (*add)(void *user, const void *bytes, size_t n), void *user);
+} rt_prim_class;
+extern const rt_prim_class rt_prims[RT_PRIM_KINDS];
+/* The kind of object o's primitives: a per-object kind, or RT_PRIM_TRIANGLE
+ * (meshes, inline triangles, quads, boxes). */
+rt_prim_kind rt_prim_kind_of(const scene *s, uint32_t o);
+/* How many primitives the BVH holds for s (triangles + per-object ones). */
+size_t rt_prim_total(const scene *s);
+
 /* The fast path: a BVH over every triangle, sphere and solid of a scene
  * (binned SAH, collapsed into 4- or 8-wide nodes with SIMD box tests,
  * watertight triangle test; notes/performance.md). The accel keeps a pointer
@@ -185,7 +233,6 @@ int rt_visible_dir(const rt_accel *a, double scale, rr_vec3 x, rr_vec3 n, rr_vec
  * Read-only once built: thread-safe. a must be built over s; both must
  * outlive the table. */
 #define RT_CHAIN_MAX 8 /* mirrors in one image's chain */
-typedef struct rt_lights rt_lights;
 
 rr_status rt_lights_build(const scene *s, const rt_accel *a, int max_mirror_depth, rt_lights **out, rr_error *err);
 void rt_lights_destroy(rt_lights *L); /* NULL is a no-op */
@@ -266,12 +313,12 @@ int rt_lights_near(const rt_lights *L, rr_vec3 x);
  * it where it meets it, and each crossing out of the solid on an emissive
  * leaf is an emission point and direction (one chosen of them, weighted by
  * their count). So every power below is an unbiased estimate. */
-typedef struct rt_emission {
+struct rt_emission {
     rr_ray ray;        /* origin (offset off the surface) and unit direction */
     rr_rgb power;      /* power the particle carries (pick and sampling pdfs divided out) */
     uint32_t object;   /* scene object that emitted it, or UINT32_MAX for a scene light */
     uint32_t light;    /* scene light (point, directional), or UINT32_MAX */
-} rt_emission;
+};
 
 /* Real emitters (scene lights, emissive triangles, spheres, solids). */
 size_t rt_lights_emitter_count(const rt_lights *L);

@@ -93,20 +93,21 @@ static rr_vec3 disk_point(rr_vec3 c, rr_vec3 w, double r, double u1, double u2)
     return rr_v3_add(c, rr_v3_scale(rr_v3_madd(d, w, -rr_v3_dot(d, w)), r));
 }
 
-/* A random line through the bounding sphere of solid l (uniform in the
+/* A random line through the light sphere (c, R) of solid i (uniform in the
  * measure of lines: direction w uniform, point uniform on the disk facing
  * it, pdf 1 / (4 pi * pi R^2)); its crossings out of the solid along w on an
  * emissive leaf are emission points. The ray runs against w from outside the
  * sphere, so those crossings are where its spans begin. One of them is
  * chosen with u[5], its weight times their count. */
-static int emit_solid(const rt_lights *L, const light *l, const double u[6], rt_emission *out)
+int rt__emit_solid(const rt_lights *L, uint32_t i, rr_vec3 c, double R, const double u[6], double pk,
+                   rt_emission *out)
 {
     const scene *s = L->s;
     rr_vec3 w = uniform_sphere_dir(u[1], u[2]);
-    rr_vec3 p = disk_point(l->p, w, l->r, u[3], u[4]);
-    rr_ray r = {rr_v3_madd(p, w, 2.0 * l->r), rr_v3_neg(w)};
+    rr_vec3 p = disk_point(c, w, R, u[3], u[4]);
+    rr_ray r = {rr_v3_madd(p, w, 2.0 * R), rr_v3_neg(w)};
     rt_spans sp;
-    rt_solid_spans(s, L->a, l->index, r, 0.0, 4.0 * l->r, &sp);
+    rt_solid_spans(s, L->a, i, r, 0.0, 4.0 * R, &sp);
     int cand[RT_SPAN_MAX], nc = 0;
     for (int i = 0; i < sp.n; i++)
         if (rr_rgb_max(s->materials[s->csg[sp.s[i].in.leaf].material].emission) > 0.0)
@@ -121,11 +122,30 @@ static int emit_solid(const rt_lights *L, const light *l, const double u[6], rt_
         n = rr_v3_neg(n);
     if (!(rr_v3_dot(n, w) > 0.0))
         return 0;
-    double measure = 4.0 * RR_PI * RR_PI * l->r * l->r;
+    double measure = 4.0 * RR_PI * RR_PI * R * R;
     out->ray.o = rt_offset_origin(L->scale, x, n, w);
     out->ray.d = w;
-    out->power = rr_rgb_scale(s->materials[s->csg[e->leaf].material].emission, measure * nc);
-    out->object = l->index;
+    out->power = rr_rgb_scale(rr_rgb_scale(s->materials[s->csg[e->leaf].material].emission, measure * nc), 1.0 / pk);
+    out->object = i;
+    return 1;
+}
+
+/* Uniform on sphere i's surface, cosine-distributed about the normal. */
+int rt__emit_sphere(const rt_lights *L, uint32_t i, rr_vec3 c, double r, const double u[6], double pk,
+                    rt_emission *out)
+{
+    (void)c;
+    (void)r;
+    const scene *s = L->s;
+    const scene_object *ob = &s->objects[i];
+    rr_vec3 n = uniform_sphere_dir(u[1], u[2]);
+    rr_vec3 x = rr_v3_madd(ob->center, n, ob->radius);
+    rr_vec3 d = rt_cosine_dir(n, u[3], u[4]);
+    out->ray.o = rt_offset_origin(L->scale, x, n, d);
+    out->ray.d = d;
+    double area = 4.0 * RR_PI * ob->radius * ob->radius;
+    out->power = rr_rgb_scale(s->materials[ob->material].emission, RR_PI * area / pk);
+    out->object = i;
     return 1;
 }
 
@@ -176,20 +196,6 @@ int rt_lights_emit(const rt_lights *L, const double u[6], rt_emission *out)
         out->object = s->tris[l->index].object;
         return 1;
     }
-    const scene_object *ob = &s->objects[l->index];
-    if (ob->kind == SCENE_OBJ_SPHERE) {
-        rr_vec3 n = uniform_sphere_dir(u[1], u[2]);
-        rr_vec3 x = rr_v3_madd(ob->center, n, ob->radius);
-        rr_vec3 d = rt_cosine_dir(n, u[3], u[4]);
-        out->ray.o = rt_offset_origin(L->scale, x, n, d);
-        out->ray.d = d;
-        double area = 4.0 * RR_PI * ob->radius * ob->radius;
-        out->power = rr_rgb_scale(s->materials[ob->material].emission, RR_PI * area / pk);
-        out->object = l->index;
-        return 1;
-    }
-    if (!emit_solid(L, l, u, out))
-        return 0;
-    out->power = rr_rgb_scale(out->power, 1.0 / pk);
-    return 1;
+    /* A per-object primitive: its row's emission, through its light sphere. */
+    return rt_prims[rt_prim_kind_of(s, l->index)].emit(L, l->index, l->p, l->r, u, pk, out);
 }

@@ -9,8 +9,6 @@
  * traversal stack (RT_STACK_SIZE). */
 #define RT_BVH_STACK 64
 
-typedef enum rt_prim_kind { RT_PRIM_TRIANGLE = 0, RT_PRIM_SPHERE = 1, RT_PRIM_SOLID = 2 } rt_prim_kind;
-
 /* A primitive: its kind and its index in the scene (triangle index, or object
  * index for spheres and solids). */
 typedef struct rt_prim {
@@ -166,7 +164,7 @@ rr_status rt__solids_build(const scene *s, struct rt_solid_accel **out, rr_error
 void rt__solids_destroy(struct rt_solid_accel *sa); /* NULL is a no-op */
 size_t rt__solids_bytes(const struct rt_solid_accel *sa); /* 0 for NULL */
 
-/* ---- rt_prim.c: the primitive interface the BVH is built on ---- */
+/* ---- rt_prim.c: the primitive table as the BVH reads it (rt.h: rt_prims) ---- */
 
 /* How many primitives the scene has, and the list of them (out has that many). */
 size_t rt__prim_count(const scene *s);

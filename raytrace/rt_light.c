@@ -78,23 +78,12 @@ int rt_scene_emits(const scene *s)
 {
     if (s->nlights > 0 || s->nemissive > 0)
         return 1;
-    for (size_t i = 0; i < s->nobjects; i++)
-        if (s->objects[i].kind == SCENE_OBJ_SPHERE && rr_rgb_max(s->materials[s->objects[i].material].emission) > 0)
+    for (size_t i = 0; i < s->nobjects; i++) {
+        rt_prim_kind k = rt_prim_kind_of(s, (uint32_t)i);
+        if (k != RT_PRIM_TRIANGLE && rt_prims[k].emission(s, (uint32_t)i) > 0)
             return 1;
-    for (size_t i = 0; i < s->ncsg; i++)
-        if (s->csg[i].op == SCENE_CSG_LEAF && rr_rgb_max(s->materials[s->csg[i].material].emission) > 0)
-            return 1;
+    }
     return 0;
-}
-
-/* Mean emitted radiance of the emissive leaves of solid object o (0 when none emits). */
-static double solid_emission(const scene *s, uint32_t o)
-{
-    double e = 0.0;
-    for (size_t i = 0; i < s->ncsg; i++)
-        if (s->csg[i].op == SCENE_CSG_LEAF && s->csg[i].object == o)
-            e = fmax(e, rr_rgb_mean(s->materials[s->csg[i].material].emission));
-    return e;
 }
 
 /* ---- building ---- */
@@ -296,26 +285,18 @@ static void triangle_light(const scene *s, uint32_t t, light *l)
         l->r = fmax(l->r, rr_v3_len(rr_v3_sub(l->tv[e], l->p)));
 }
 
-/* An emissive sphere or solid as an area light (its bounding sphere for a
- * solid); 0 when object o does not emit. */
+/* An emitting per-object primitive (a sphere, a solid) as an area light,
+ * sampled through its row's light sphere; 0 when object o does not emit. */
 static int object_light(const rt_lights *L, uint32_t o, light *l)
 {
     const scene *s = L->s;
-    const scene_object *ob = &s->objects[o];
-    double e = 0.0;
-    rr_vec3 c = ob->center;
-    double r = ob->radius;
-    if (ob->kind == SCENE_OBJ_SPHERE)
-        e = rr_rgb_mean(s->materials[ob->material].emission);
-    else if (ob->kind == SCENE_OBJ_CSG) {
-        e = solid_emission(s, o);
-        rr_vec3 lo = s->csg[ob->csg_root].bbox_lo, hi = s->csg[ob->csg_root].bbox_hi;
-        if (!(lo.x <= hi.x && lo.y <= hi.y && lo.z <= hi.z))
-            e = 0.0; /* empty solid */
-        c = rr_v3_scale(rr_v3_add(lo, hi), 0.5);
-        r = 0.5 * rr_v3_len(rr_v3_sub(hi, lo)) * (1.0 + 1e-9) + 1e-12 * L->scale;
-    }
-    if (!(e > 0.0))
+    rt_prim_kind k = rt_prim_kind_of(s, o);
+    if (k == RT_PRIM_TRIANGLE)
+        return 0;
+    double e = rt_prims[k].emission(s, o);
+    rr_vec3 c;
+    double r;
+    if (!rt_prims[k].light_sphere(s, o, L->scale, &c, &r) || !(e > 0.0))
         return 0;
     light_init(l, LK_SPHERE, o);
     l->p = c;
@@ -324,17 +305,15 @@ static int object_light(const rt_lights *L, uint32_t o, light *l)
     return 1;
 }
 
-/* The real area lights (triangles, then spheres and solids), then their
+/* The real area lights (triangles, then the per-object ones), then their
  * images, then the sampling cdf over all of them by weight. */
 static rr_status add_area_lights(rt_lights *L, int depth, size_t *budget, rr_error *err)
 {
     const scene *s = L->s;
     size_t nreal = s->nemissive;
     for (size_t o = 0; o < s->nobjects; o++) {
-        const scene_object *ob = &s->objects[o];
-        if ((ob->kind == SCENE_OBJ_SPHERE && rr_rgb_max(s->materials[ob->material].emission) > 0) ||
-            (ob->kind == SCENE_OBJ_CSG && solid_emission(s, (uint32_t)o) > 0))
-            nreal++;
+        rt_prim_kind k = rt_prim_kind_of(s, (uint32_t)o);
+        nreal += k != RT_PRIM_TRIANGLE && rt_prims[k].emission(s, (uint32_t)o) > 0;
     }
     size_t acap = nreal;
     if (nreal > 0 && !(L->area = malloc(acap * sizeof *L->area)))

@@ -59,6 +59,14 @@ struct rt_lights {
     double scene_r;
 };
 
+/* The light tracer's emission from a sphere (uniform on the surface, cosine
+ * about the normal) and from a solid (random lines through its light sphere
+ * c, r): the emit functions of the primitive table (rt.h, rt_prims). */
+int rt__emit_sphere(const rt_lights *L, uint32_t i, rr_vec3 c, double r, const double u[6], double pk,
+                    rt_emission *out);
+int rt__emit_solid(const rt_lights *L, uint32_t i, rr_vec3 c, double r, const double u[6], double pk,
+                   rt_emission *out);
+
 /* The emission table (L->emit_delta, L->ecdf, the scene's bounding sphere),
  * once the lights are built. */
 rr_status rt__lights_build_emitters(rt_lights *L, rr_error *err);

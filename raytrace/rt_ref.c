@@ -143,10 +143,9 @@ int rt_object_encloses(const scene *s, uint32_t obj, rr_vec3 p)
     const scene_object *o = &s->objects[obj];
     if (!scene_object_closed(s, obj))
         return 0;
-    if (o->kind == SCENE_OBJ_SPHERE)
-        return rr_v3_len2(rr_v3_sub(p, o->center)) < o->radius * o->radius;
-    if (o->kind == SCENE_OBJ_CSG)
-        return rt_csg_contains(s, NULL, o->csg_root, p);
+    rt_prim_kind k = rt_prim_kind_of(s, obj);
+    if (k != RT_PRIM_TRIANGLE)
+        return rt_prims[k].encloses(s, obj, p);
     /* Parity of the crossings of a ray from p (a direction no axis-aligned
      * model lines up with), each triangle by the lecture's test from its
      * side. A ray through an edge or a corner may count wrong: a diagnostic. */
