@@ -42,9 +42,15 @@ static size_t emitter_points(const scene *s, emitter_point *e)
         rr_vec3 c = rr_v3_scale(rr_v3_add(rr_v3_add(s->verts[t->v[0]], s->verts[t->v[1]]), s->verts[t->v[2]]), 1.0 / 3);
         e[n++] = (emitter_point){c, t->object, s->objects[t->object].name};
     }
-    for (size_t o = 0; o < s->nobjects && n < MAX_EMITTER_POINTS; o++)
-        if (s->objects[o].kind == SCENE_OBJ_SPHERE && rr_rgb_max(s->materials[s->objects[o].material].emission) > 0)
-            e[n++] = (emitter_point){s->objects[o].center, (uint32_t)o, s->objects[o].name};
+    /* Spheres and solids that emit: the centre of their light sphere. */
+    for (size_t o = 0; o < s->nobjects && n < MAX_EMITTER_POINTS; o++) {
+        rt_prim_kind k = rt_prim_kind_of(s, (uint32_t)o);
+        rr_vec3 c;
+        double r;
+        if (k != RT_PRIM_TRIANGLE && rt_prims[k].emission(s, (uint32_t)o) > 0 &&
+            rt_prims[k].light_sphere(s, (uint32_t)o, rt_scene_scale(s), &c, &r))
+            e[n++] = (emitter_point){c, (uint32_t)o, s->objects[o].name};
+    }
     return n;
 }
 
@@ -55,7 +61,7 @@ size_t app_diagnose_scene(const scene *s)
     rr_warn_sink w = app_warn_sink();
     for (size_t o = 0; o < s->nobjects && ne > 0; o++) {
         const scene_object *ob = &s->objects[o];
-        int triangles = ob->kind != SCENE_OBJ_SPHERE && ob->kind != SCENE_OBJ_CSG;
+        int triangles = rt_prim_kind_of(s, (uint32_t)o) == RT_PRIM_TRIANGLE;
         if (!triangles || !scene_object_closed(s, (uint32_t)o) || (double)ob->tri_count * (double)ne > MAX_TESTS ||
             !(signed_volume6(s, ob) > 0.0))
             continue; /* only closed triangle objects can face the wrong way (solids face out by definition) */

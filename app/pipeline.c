@@ -180,9 +180,7 @@ rr_status app_check_memory(const scene *sc, const ig_integrator *ig, const char 
     double film = 8.0 * (double)sc->view.width * (double)sc->view.height * 3.0 * sizeof(float);
     /* Solids count one primitive each, plus their mesh leaves' triangles
      * (which get BVHs of their own). */
-    double prims = (double)sc->ntris + (double)sc->ncsg_tris;
-    for (size_t i = 0; i < sc->nobjects; i++)
-        prims += sc->objects[i].kind == SCENE_OBJ_SPHERE || sc->objects[i].kind == SCENE_OBJ_CSG;
+    double prims = (double)rt_prim_total(sc) + (double)sc->ncsg_tris;
     double bvh = APP_BVH_BYTES_PER_PRIM * prims;
     double patches = 0, rad = 0;
     if (ig_uses_pass(ig, sc)) {

@@ -35,6 +35,8 @@ static void hash_bytes(hasher *x, const void *data, size_t n)
     }
 }
 static void hash_double(hasher *x, double v) { hash_bytes(x, &v, sizeof v); }
+/* hash_bytes as the primitive table's digest callback. */
+static void digest_add(void *user, const void *bytes, size_t n) { hash_bytes(user, bytes, n); }
 static void hash_vec(hasher *x, rr_vec3 v)
 {
     hash_double(x, v.x);
@@ -100,10 +102,9 @@ static void cache_key(const scene *s, const rad_pass_opts *o, uint64_t key[K_COU
         const scene_object *ob = &s->objects[i];
         hash_bytes(g, &ob->kind, sizeof ob->kind);
         hash_bytes(g, &ob->material, sizeof ob->material);
-        if (ob->kind == SCENE_OBJ_SPHERE) {
-            hash_vec(g, ob->center);
-            hash_double(g, ob->radius);
-        }
+        rt_prim_kind k = rt_prim_kind_of(s, (uint32_t)i);
+        if (k != RT_PRIM_TRIANGLE)
+            rt_prims[k].digest(s, (uint32_t)i, digest_add, g); /* a sphere's centre and radius */
         hash_bytes(g, &ob->csg_root, sizeof ob->csg_root);
         hash_bytes(&x[K_CULLING], &ob->cull_backfaces, sizeof ob->cull_backfaces);
     }

@@ -21,16 +21,10 @@ rad_patch_opts rad_pass_patch_limits(const scene *s, const rad_pass_opts *o)
         for (size_t t = 0; t < s->ntris; t++)
             total += scene_tri_area(s, t);
         for (size_t i = 0; i < s->nobjects; i++) {
-            const scene_object *ob = &s->objects[i];
-            if (ob->kind == SCENE_OBJ_SPHERE)
-                total += 4.0 * RR_PI * ob->radius * ob->radius;
-            if (ob->kind == SCENE_OBJ_CSG) {
-                /* A solid's area is known only once tessellated: its bounding
-                 * box's (an overestimate by at most a few times). */
-                rr_vec3 d = rr_v3_sub(s->csg[ob->csg_root].bbox_hi, s->csg[ob->csg_root].bbox_lo);
-                if (d.x > 0 && d.y > 0 && d.z > 0)
-                    total += 2.0 * (d.x * d.y + d.y * d.z + d.z * d.x);
-            }
+            /* Spheres exactly, solids by their bounding box (rt_prims). */
+            rt_prim_kind k = rt_prim_kind_of(s, (uint32_t)i);
+            if (k != RT_PRIM_TRIANGLE)
+                total += rt_prims[k].area(s, (uint32_t)i);
         }
         p.max_area = total > 0 ? total / 2000.0 : 1.0;
     }

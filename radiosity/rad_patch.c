@@ -144,7 +144,7 @@ static uint32_t sphere_stacks(const scene *s, const rad_patch_opts *o)
 {
     double rmax = 0;
     for (size_t i = 0; i < s->nobjects; i++)
-        if (s->objects[i].kind == SCENE_OBJ_SPHERE)
+        if (rt_prim_kind_of(s, (uint32_t)i) == RT_PRIM_SPHERE)
             rmax = fmax(rmax, s->objects[i].radius);
     if (!(rmax > 0))
         return 0;
@@ -197,26 +197,6 @@ size_t rad_patches_level_outliers(const scene *s, const rad_patch_opts *o, const
     return warned;
 }
 
-double rad_patches_estimate(const scene *s, const rad_patch_opts *o)
-{
-    uint32_t *olevel = calloc(s->nobjects ? s->nobjects : 1, sizeof *olevel);
-    if (!olevel)
-        return 0.0;
-    object_levels(s, o, olevel);
-    uint32_t S = sphere_stacks(s, o);
-    double n = 0;
-    for (size_t t = 0; t < s->ntris; t++)
-        n += (double)olevel[s->tris[t].object] * (double)olevel[s->tris[t].object];
-    for (size_t i = 0; i < s->nobjects; i++) {
-        if (s->objects[i].kind == SCENE_OBJ_SPHERE)
-            n += (double)sphere_patch_count(S);
-        else if (s->objects[i].kind == SCENE_OBJ_CSG)
-            n += rad_solid_patch_estimate(s, (uint32_t)i, o);
-    }
-    free(olevel);
-    return n;
-}
-
 static void free_solid_meshes(rad__solid_mesh *sm, size_t n)
 {
     if (!sm)
@@ -238,37 +218,49 @@ typedef struct build_ctx {
     size_t nv, np;        /* vertices and patches written so far */
 } build_ctx;
 
-/* Patch and (upper bound of) vertex counts; solids are tessellated here, as
- * their counts are known only then. */
-static rr_status count_patches(build_ctx *c, double *npatch, double *nvert, rr_error *err)
+/* ---- per kind: how many patches, and the patches ---- */
+
+static rr_status tri_count(build_ctx *c, uint32_t t, double *npatch, double *nvert, rr_error *err)
 {
-    const scene *s = c->s;
-    *npatch = *nvert = 0;
-    for (size_t t = 0; t < s->ntris; t++) {
-        double l = c->olevel[s->tris[t].object];
-        *npatch += l * l;
-        *nvert += (l + 1) * (l + 2) / 2; /* upper bound before sharing */
-    }
-    for (size_t i = 0; i < s->nobjects; i++)
-        if (s->objects[i].kind == SCENE_OBJ_SPHERE) {
-            *npatch += (double)sphere_patch_count(c->S);
-            *nvert += (double)(c->S - 1) * (2.0 * c->S) + 2;
-        }
-    for (size_t i = 0; i < s->nobjects; i++)
-        if (s->objects[i].kind == SCENE_OBJ_CSG) {
-            rr_status st = rad__solid_tessellate(s, c->o->accel, (uint32_t)i, c->o, &c->sm[i], err);
-            if (st != RR_OK)
-                return st;
-            *npatch += (double)c->sm[i].ntris;
-            *nvert += (double)c->sm[i].nverts;
-        }
-    if (*npatch > (double)(1u << 31) || *nvert > (double)(1u << 31))
-        return rr_error_set(err, RR_ERR_LIMIT,
-                            "%s: radiosity: the patch limits would make %.3g patches (more than 2^31); "
-                            "raise the patch area/edge limits",
-                            s->path, *npatch);
+    (void)err;
+    double l = c->olevel[c->s->tris[t].object];
+    *npatch += l * l;
+    *nvert += (l + 1) * (l + 2) / 2; /* upper bound before sharing */
     return RR_OK;
 }
+
+static rr_status sphere_count(build_ctx *c, uint32_t i, double *npatch, double *nvert, rr_error *err)
+{
+    (void)i;
+    (void)err;
+    *npatch += (double)sphere_patch_count(c->S);
+    *nvert += (double)(c->S - 1) * (2.0 * c->S) + 2;
+    return RR_OK;
+}
+
+/* Solids are tessellated here: their counts are known only then. */
+static rr_status solid_count(build_ctx *c, uint32_t i, double *npatch, double *nvert, rr_error *err)
+{
+    rr_status st = rad__solid_tessellate(c->s, c->o->accel, i, c->o, &c->sm[i], err);
+    if (st != RR_OK)
+        return st;
+    *npatch += (double)c->sm[i].ntris;
+    *nvert += (double)c->sm[i].nverts;
+    return RR_OK;
+}
+
+static double tri_estimate(const build_ctx *c, uint32_t t)
+{
+    return (double)c->olevel[c->s->tris[t].object] * (double)c->olevel[c->s->tris[t].object];
+}
+
+static double sphere_estimate(const build_ctx *c, uint32_t i)
+{
+    (void)i;
+    return (double)sphere_patch_count(c->S);
+}
+
+static double solid_estimate(const build_ctx *c, uint32_t i) { return rad_solid_patch_estimate(c->s, i, c->o); }
 
 /* P's arrays for npatch patches and nvert vertices; 0, or -1 when out of memory. */
 static int allocate(build_ctx *c, size_t npatch, size_t nvert)
@@ -382,7 +374,7 @@ static int tessellate_triangles(build_ctx *c)
 
 /* Every analytic sphere as S stacks x 2S slices of facets (rings between
  * the poles), their areas scaled to the true sphere's. */
-static void tessellate_spheres(build_ctx *c)
+static int tessellate_spheres(build_ctx *c)
 {
     const scene *s = c->s;
     rad_patches *P = c->P;
@@ -392,7 +384,7 @@ static void tessellate_spheres(build_ctx *c)
     for (size_t oi = 0; oi < s->nobjects; oi++) {
         const scene_object *ob = &s->objects[oi];
         P->sphere_first[oi] = UINT32_MAX;
-        if (ob->kind != SCENE_OBJ_SPHERE)
+        if (rt_prim_kind_of(s, (uint32_t)oi) != RT_PRIM_SPHERE)
             continue;
         /* Vertices: north pole, rings 1..S-1, south pole. */
         uint32_t base = (uint32_t)c->nv;
@@ -425,16 +417,17 @@ static void tessellate_spheres(build_ctx *c)
         for (size_t k = P->sphere_first[oi]; k < c->np; k++)
             P->p[k].area *= scale;
     }
+    return 0;
 }
 
 /* Every solid's tessellation (count_patches made it) moved into P, each
  * patch with the material of the leaf surface under its centre. */
-static void tessellate_solids(build_ctx *c)
+static int tessellate_solids(build_ctx *c)
 {
     const scene *s = c->s;
     rad_patches *P = c->P;
     for (size_t oi = 0; oi < s->nobjects; oi++) {
-        if (s->objects[oi].kind != SCENE_OBJ_CSG)
+        if (rt_prim_kind_of(s, (uint32_t)oi) != RT_PRIM_SOLID)
             continue;
         rad__solid_mesh *m = &c->sm[oi];
         uint32_t vbase = (uint32_t)c->nv, pbase = (uint32_t)c->np;
@@ -463,6 +456,86 @@ static void tessellate_solids(build_ctx *c)
             }
         }
     }
+    return 0;
+}
+
+static uint32_t tri_locate(const rad_patches *P, const scene *s, int64_t tri, uint32_t obj, rr_vec3 p);
+static uint32_t sphere_locate(const rad_patches *P, const scene *s, int64_t tri, uint32_t obj, rr_vec3 p);
+static uint32_t solid_locate(const rad_patches *P, const scene *s, int64_t tri, uint32_t obj, rr_vec3 p);
+static void tri_surface(const rad_patches *P, const scene *s, const rt_accel *a, uint32_t k, rr_vec3 x, rr_vec3 *xs,
+                        rr_vec3 *ns);
+static void sphere_surface(const rad_patches *P, const scene *s, const rt_accel *a, uint32_t k, rr_vec3 x,
+                           rr_vec3 *xs, rr_vec3 *ns);
+static void solid_surface(const rad_patches *P, const scene *s, const rt_accel *a, uint32_t k, rr_vec3 x,
+                          rr_vec3 *xs, rr_vec3 *ns);
+
+/* The radiosity pass's half of the primitive table (rt.h, rt_prims: the
+ * other half), by rt_prim_kind. The kinds are tessellated in this order. */
+typedef struct patch_kind {
+    /* Adds primitive i's patches (and an upper bound of its vertices). */
+    rr_status (*count)(build_ctx *c, uint32_t i, double *npatch, double *nvert, rr_error *err);
+    /* Primitive i's patches, estimated without building anything. */
+    double (*estimate)(const build_ctx *c, uint32_t i);
+    /* Appends the patches of every primitive of the kind; 0, or -1 when out of memory. */
+    int (*tessellate)(build_ctx *c);
+    /* The patch under point p of a hit on triangle tri / object obj (rad_patch_locate). */
+    uint32_t (*locate)(const rad_patches *P, const scene *s, int64_t tri, uint32_t obj, rr_vec3 p);
+    /* x on patch k moved onto the true surface (rad_patch_surface). */
+    void (*surface)(const rad_patches *P, const scene *s, const rt_accel *a, uint32_t k, rr_vec3 x, rr_vec3 *xs,
+                    rr_vec3 *ns);
+} patch_kind;
+
+static const patch_kind k_patch_kinds[RT_PRIM_KINDS] = {
+    [RT_PRIM_TRIANGLE] = {tri_count, tri_estimate, tessellate_triangles, tri_locate, tri_surface},
+    [RT_PRIM_SPHERE] = {sphere_count, sphere_estimate, tessellate_spheres, sphere_locate, sphere_surface},
+    [RT_PRIM_SOLID] = {solid_count, solid_estimate, tessellate_solids, solid_locate, solid_surface},
+};
+
+/* Every primitive's count (triangles, then the per-object ones in object
+ * order), limited to 2^31 patches. */
+static rr_status count_patches(build_ctx *c, double *npatch, double *nvert, rr_error *err)
+{
+    const scene *s = c->s;
+    *npatch = *nvert = 0;
+    rr_status st = RR_OK;
+    for (size_t t = 0; t < s->ntris && st == RR_OK; t++)
+        st = k_patch_kinds[RT_PRIM_TRIANGLE].count(c, (uint32_t)t, npatch, nvert, err);
+    for (size_t i = 0; i < s->nobjects && st == RR_OK; i++) {
+        rt_prim_kind k = rt_prim_kind_of(s, (uint32_t)i);
+        if (k != RT_PRIM_TRIANGLE)
+            st = k_patch_kinds[k].count(c, (uint32_t)i, npatch, nvert, err);
+    }
+    if (st != RR_OK)
+        return st;
+    if (*npatch > (double)(1u << 31) || *nvert > (double)(1u << 31))
+        return rr_error_set(err, RR_ERR_LIMIT,
+                            "%s: radiosity: the patch limits would make %.3g patches (more than 2^31); "
+                            "raise the patch area/edge limits",
+                            s->path, *npatch);
+    return RR_OK;
+}
+
+double rad_patches_estimate(const scene *s, const rad_patch_opts *o)
+{
+    build_ctx c;
+    memset(&c, 0, sizeof c);
+    c.s = s;
+    c.o = o;
+    c.olevel = calloc(s->nobjects ? s->nobjects : 1, sizeof *c.olevel);
+    if (!c.olevel)
+        return 0.0;
+    object_levels(s, o, c.olevel);
+    c.S = sphere_stacks(s, o);
+    double n = 0;
+    for (size_t t = 0; t < s->ntris; t++)
+        n += k_patch_kinds[RT_PRIM_TRIANGLE].estimate(&c, (uint32_t)t);
+    for (size_t i = 0; i < s->nobjects; i++) {
+        rt_prim_kind k = rt_prim_kind_of(s, (uint32_t)i);
+        if (k != RT_PRIM_TRIANGLE)
+            n += k_patch_kinds[k].estimate(&c, (uint32_t)i);
+    }
+    free(c.olevel);
+    return n;
 }
 
 rr_status rad_patches_build(const scene *s, const rad_patch_opts *o, rad_patches **out, rr_error *err)
@@ -484,11 +557,12 @@ rr_status rad_patches_build(const scene *s, const rad_patch_opts *o, rad_patches
         c.S = sphere_stacks(s, o);
         st = count_patches(&c, &npatch, &nvert, err);
     }
-    if (st == RR_OK)
-        st = allocate(&c, (size_t)npatch, (size_t)nvert) == 0 && tessellate_triangles(&c) == 0 ? RR_OK : RR_ERR_NOMEM;
+    if (st == RR_OK && allocate(&c, (size_t)npatch, (size_t)nvert) != 0)
+        st = RR_ERR_NOMEM;
+    for (int k = 0; k < RT_PRIM_KINDS && st == RR_OK; k++)
+        if (k_patch_kinds[k].tessellate(&c) != 0)
+            st = RR_ERR_NOMEM;
     if (st == RR_OK) {
-        tessellate_spheres(&c);
-        tessellate_solids(&c);
         RR_CHECK(c.np == c.P->n);
         c.P->nverts = c.nv;
         *out = c.P;
@@ -536,26 +610,35 @@ static void plane_coords(rr_vec3 A, rr_vec3 B, rr_vec3 C, rr_vec3 p, double *u, 
     *v = (a11 * b2 - a12 * b1) / det;
 }
 
-uint32_t rad_patch_locate(const rad_patches *P, const scene *s, int64_t tri, uint32_t obj, rr_vec3 p)
+static uint32_t tri_locate(const rad_patches *P, const scene *s, int64_t tri, uint32_t obj, rr_vec3 p)
 {
-    if (tri >= 0) {
-        const scene_tri *tr = &s->tris[tri];
-        double u, v;
-        plane_coords(s->verts[tr->v[0]], s->verts[tr->v[1]], s->verts[tr->v[2]], p, &u, &v);
-        uint32_t n = P->tri_level[tri];
-        double x = fmin(fmax(u * n, 0.0), (double)n), y = fmin(fmax(v * n, 0.0), (double)n);
-        uint32_t j = y >= n ? n - 1 : (uint32_t)y;
-        uint32_t i = x >= n ? n - 1 : (uint32_t)x;
-        if (i + j > n - 1)
-            i = n - 1 - j;
-        double fx = x - i, fy = y - j;
-        int down = fx + fy > 1.0 && i + j + 1 < n;
-        /* Rows before j hold (2(n - j') - 1) patches each: j (2n - j) in all. */
-        uint32_t idx = j * (2 * n - j) + 2 * i + (uint32_t)down;
-        return P->tri_first[tri] + idx;
-    }
-    if (s->objects[obj].kind == SCENE_OBJ_CSG)
-        return rad__solid_locate(P, obj, p);
+    (void)obj;
+    const scene_tri *tr = &s->tris[tri];
+    double u, v;
+    plane_coords(s->verts[tr->v[0]], s->verts[tr->v[1]], s->verts[tr->v[2]], p, &u, &v);
+    uint32_t n = P->tri_level[tri];
+    double x = fmin(fmax(u * n, 0.0), (double)n), y = fmin(fmax(v * n, 0.0), (double)n);
+    uint32_t j = y >= n ? n - 1 : (uint32_t)y;
+    uint32_t i = x >= n ? n - 1 : (uint32_t)x;
+    if (i + j > n - 1)
+        i = n - 1 - j;
+    double fx = x - i, fy = y - j;
+    int down = fx + fy > 1.0 && i + j + 1 < n;
+    /* Rows before j hold (2(n - j') - 1) patches each: j (2n - j) in all. */
+    uint32_t idx = j * (2 * n - j) + 2 * i + (uint32_t)down;
+    return P->tri_first[tri] + idx;
+}
+
+static uint32_t solid_locate(const rad_patches *P, const scene *s, int64_t tri, uint32_t obj, rr_vec3 p)
+{
+    (void)s;
+    (void)tri;
+    return rad__solid_locate(P, obj, p);
+}
+
+static uint32_t sphere_locate(const rad_patches *P, const scene *s, int64_t tri, uint32_t obj, rr_vec3 p)
+{
+    (void)tri;
     const scene_object *o = &s->objects[obj];
     uint32_t S = P->sphere_stacks, L = P->sphere_slices;
     rr_vec3 d = rr_v3_scale(rr_v3_sub(p, o->center), 1.0 / o->radius);
@@ -585,6 +668,12 @@ uint32_t rad_patch_locate(const rad_patches *P, const scene *s, int64_t tri, uin
     return first + row + 2 * j + ((side_p > 0) == (side_b > 0) ? 0u : 1u);
 }
 
+uint32_t rad_patch_locate(const rad_patches *P, const scene *s, int64_t tri, uint32_t obj, rr_vec3 p)
+{
+    rt_prim_kind k = tri >= 0 ? RT_PRIM_TRIANGLE : rt_prim_kind_of(s, obj);
+    return k_patch_kinds[k].locate(P, s, tri, obj, p);
+}
+
 void rad_patch_barycentric(const rad_patches *P, uint32_t k, rr_vec3 p, double b[3])
 {
     const rad_patch *q = &P->p[k];
@@ -595,21 +684,37 @@ void rad_patch_barycentric(const rad_patches *P, uint32_t k, rr_vec3 p, double b
     b[2] = v;
 }
 
+static void tri_surface(const rad_patches *P, const scene *s, const rt_accel *a, uint32_t k, rr_vec3 x, rr_vec3 *xs,
+                        rr_vec3 *ns)
+{
+    (void)s;
+    (void)a;
+    *xs = x;
+    *ns = P->p[k].normal;
+}
+
+static void solid_surface(const rad_patches *P, const scene *s, const rt_accel *a, uint32_t k, rr_vec3 x,
+                          rr_vec3 *xs, rr_vec3 *ns)
+{
+    const rad_patch *q = &P->p[k];
+    rad__solid_surface(P, s, a, q->object, x, q->normal, xs, ns, NULL);
+}
+
+static void sphere_surface(const rad_patches *P, const scene *s, const rt_accel *a, uint32_t k, rr_vec3 x,
+                           rr_vec3 *xs, rr_vec3 *ns)
+{
+    (void)a;
+    const rad_patch *q = &P->p[k];
+    const scene_object *o = &s->objects[q->object];
+    rr_vec3 d = rr_v3_norm(rr_v3_sub(x, o->center));
+    *xs = rr_v3_madd(o->center, d, o->radius);
+    *ns = rr_v3_dot(d, q->normal) >= 0.0 ? d : rr_v3_neg(d);
+}
+
 void rad_patch_surface(const rad_patches *P, const scene *s, const rt_accel *a, uint32_t k, rr_vec3 x, rr_vec3 *xs,
                        rr_vec3 *ns)
 {
     const rad_patch *q = &P->p[k];
-    if (q->tri >= 0) {
-        *xs = x;
-        *ns = q->normal;
-        return;
-    }
-    const scene_object *o = &s->objects[q->object];
-    if (o->kind == SCENE_OBJ_CSG) {
-        rad__solid_surface(P, s, a, q->object, x, q->normal, xs, ns, NULL);
-        return;
-    }
-    rr_vec3 d = rr_v3_norm(rr_v3_sub(x, o->center));
-    *xs = rr_v3_madd(o->center, d, o->radius);
-    *ns = rr_v3_dot(d, q->normal) >= 0.0 ? d : rr_v3_neg(d);
+    rt_prim_kind kind = q->tri >= 0 ? RT_PRIM_TRIANGLE : rt_prim_kind_of(s, q->object);
+    k_patch_kinds[kind].surface(P, s, a, k, x, xs, ns);
 }
