@@ -36,23 +36,21 @@ int rt_sphere_hit(rr_vec3 center, double radius, rr_ray ray, double tmin, double
      * difference loses every significant digit. */
     rr_vec3 q = rr_v3_madd(oc, ray.d, -b / a);
     double h = radius * radius - rr_v3_dot(q, q);
-    if (h < 0.0)
+    /* A tangent (h = 0) touches the sphere in one point: no hit, the rule of
+     * the solids' sphere leaf (rt_solid.c) and mesh leaves (a zero-length
+     * span), so that a sphere and the same sphere as a CSG leaf agree. NaN
+     * (a degenerate ray) is no hit either. */
+    if (!(h > 0.0))
         return 0;
     /* Citardauquan form: the root of larger magnitude from -b -/+ sqrt, the
      * other one from the product of roots c/a, so no subtraction of close
-     * numbers happens. */
+     * numbers happens (|qq| >= sqrt(a h) > 0). */
     double qq = -b - copysign(sqrt(a * h), b);
-    double t0, t1;
-    if (qq == 0.0) {
-        t0 = t1 = -b / a;
-    } else {
-        t0 = c / qq;
-        t1 = qq / a;
-        if (t0 > t1) {
-            double tmp = t0;
-            t0 = t1;
-            t1 = tmp;
-        }
+    double t0 = c / qq, t1 = qq / a;
+    if (t0 > t1) {
+        double tmp = t0;
+        t0 = t1;
+        t1 = tmp;
     }
     if (t0 > tmin && t0 < tmax) {
         *t = t0;

@@ -57,6 +57,15 @@ static void sphere_closed_form(void **state)
     rt_csg_spans(s, NULL, leaf, ray, -INFINITY, INFINITY, &sp);
     assert_int_equal(sp.n, 0);
     assert_false(rt_solid_closest(s, NULL, obj, ray, 0, INFINITY, &h));
+    /* The analytic sphere takes tangents the same way (it used to report a
+     * grazing hit there, the CSG leaf none); just inside, both hit. */
+    double t;
+    assert_false(rt_sphere_hit(c, r, ray, 0, INFINITY, &t));
+    ray = ray_make(rr_v3(-5, 4 - 1e-9, 3), rr_v3(1, 0, 0));
+    rt_csg_spans(s, NULL, leaf, ray, -INFINITY, INFINITY, &sp);
+    assert_int_equal(sp.n, 1);
+    assert_true(rt_sphere_hit(c, r, ray, 0, INFINITY, &t));
+    assert_near(t, sp.s[0].in.t, 1e-9);
 
     /* 1e6 away: t = 1e6 -+ 2 to the last bits. */
     ray = ray_make(rr_v3(1, 2, 3 + 1e6), rr_v3(0, 0, -1));
