@@ -50,9 +50,7 @@ static float round_up(double x)
     return (double)f < x ? nextafterf(f, INFINITY) : f;
 }
 
-typedef struct box3 {
-    rr_vec3 lo, hi;
-} box3;
+typedef rt_box box3;
 
 static box3 box_empty(void)
 {
@@ -88,11 +86,7 @@ static double box_area(box3 b)
     return 2.0 * (d.x * d.y + d.y * d.z + d.z * d.x);
 }
 
-typedef struct build_item {
-    box3 box;
-    rr_vec3 centroid;
-    rt_prim prim;
-} build_item;
+typedef rt_build_item build_item;
 
 typedef struct builder {
     build_item *items;
@@ -224,6 +218,18 @@ static int build_rec(builder *b, size_t first, size_t count, int depth)
         return -1;
     b->nodes[idx].index = (uint32_t)b->nnodes; /* right child follows the whole left subtree */
     return build_rec(b, first + left, count - left, depth + 1);
+}
+
+int rt__bvh_build_binary(rt_build_item *items, size_t n, rt_node **nodes, size_t *nnodes)
+{
+    builder b = {items, NULL, 0, 0};
+    if (build_rec(&b, 0, n, 0)) {
+        free(b.nodes);
+        return -1;
+    }
+    *nodes = b.nodes;
+    *nnodes = b.nnodes;
+    return 0;
 }
 
 /* ---- collapse into the wide tree ---- */
@@ -521,7 +527,7 @@ rr_status rt__accel_build_width(const scene *s, int width, rt_accel **out, rr_er
         rt__prim_bounds(s, b.items[i].prim, &b.items[i].box.lo, &b.items[i].box.hi);
         b.items[i].centroid = rr_v3_scale(rr_v3_add(b.items[i].box.lo, b.items[i].box.hi), 0.5);
     }
-    if (n && build_rec(&b, 0, n, 0))
+    if (n && rt__bvh_build_binary(b.items, n, &b.nodes, &b.nnodes))
         goto nomem;
     a->scene = s;
     a->width = width;

@@ -16,6 +16,18 @@ typedef struct rt_prim {
     uint32_t index;
 } rt_prim;
 
+/* An item of the binary builder: its box, the point it is binned by, and
+ * what it stands for (a primitive of the scene BVH, or a mesh-leaf triangle:
+ * prim.index into scene->csg_tris). */
+typedef struct rt_box {
+    rr_vec3 lo, hi;
+} rt_box;
+typedef struct rt_build_item {
+    rt_box box;
+    rr_vec3 centroid;
+    rt_prim prim;
+} rt_build_item;
+
 /* 32 bytes: a node of the binary build tree (rt_bvh.c builds it, then collapses
  * it into rt_wnode; it is not kept). Inner node (count == 0): left child is the
  * next node, right child is nodes[index]; leaf: items[index .. index + count). */
@@ -137,6 +149,15 @@ void rt__ray_prepare(rr_ray ray, rt_ray_pre *p);
  * back faces. */
 int rt__tri_hit(const rt_ray_pre *p, rr_vec3 A, rr_vec3 B, rr_vec3 C, int cull, double tmin, double tmax, double *t,
                 int *front);
+
+/* ---- the one BVH builder (rt_bvh.c) ----
+ * A binary tree over items[0..n) (n >= 1) by binned SAH, leaves of at most
+ * 8 items (deeper than RT_BVH_STACK - 2: a leaf), in one array in
+ * depth-first order (left child next, right child at index), float bounds
+ * rounded outward; items are reordered into leaf order. The scene BVH
+ * collapses it into wide nodes; the solids' mesh leaves walk it as it is
+ * (rt_solid_mesh.c). *nodes is malloc'd. 0, or -1 when out of memory. */
+int rt__bvh_build_binary(rt_build_item *items, size_t n, rt_node **nodes, size_t *nnodes);
 
 /* ---- the BVH by width (rt_bvh.c, rt_traverse.c, rt_bvh_avx2.c) ---- */
 

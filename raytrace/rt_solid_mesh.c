@@ -44,10 +44,10 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "rt_kernel.h"
 #include "rt_solid_internal.h"
 
 #define XING_MAX (2 * RT_SPAN_MAX)
-#define MESH_LEAF_TRIS 4
 #define MESH_STACK 64
 #define NO_ROOT UINT32_MAX
 
@@ -261,89 +261,16 @@ static void xbuf_add(xbuf *b, xing x)
     }
 }
 
-/* ---- per-leaf BVH ---- */
-
-typedef struct mnode {
-    double lo[3], hi[3];
-    uint32_t index; /* inner: right child; leaf: first entry in tris */
-    uint32_t count; /* 0: inner node (left child is the next node) */
-} mnode;
+/* ---- per-leaf BVH: the scene BVH's binary builder (rt__bvh_build_binary),
+ * walked as a binary tree ---- */
 
 struct rt_solid_accel {
     size_t ncsg;
     uint32_t *root; /* per CSG node: its BVH root in nodes, or NO_ROOT */
-    mnode *nodes;
+    rt_node *nodes; /* every leaf's tree, inner: right child at index (absolute); leaf: first entry in tris */
     size_t nnodes;
     uint32_t *tris; /* csg_tris indices in leaf order */
 };
-
-typedef struct bitem {
-    double c[3];
-    uint32_t tri;
-} bitem;
-
-typedef struct bld {
-    const scene *s;
-    bitem *items;
-    mnode *nodes;
-    size_t nnodes;
-} bld;
-
-/* Sorting on one axis (three comparators: qsort has no context argument). */
-static int cmp_axis(const bitem *a, const bitem *b, int k)
-{
-    if (a->c[k] != b->c[k])
-        return a->c[k] < b->c[k] ? -1 : 1;
-    return a->tri < b->tri ? -1 : (a->tri > b->tri);
-}
-static int cmp_x(const void *a, const void *b) { return cmp_axis(a, b, 0); }
-static int cmp_y(const void *a, const void *b) { return cmp_axis(a, b, 1); }
-static int cmp_z(const void *a, const void *b) { return cmp_axis(a, b, 2); }
-
-/* Median split on the widest centroid axis: depth <= log2(n) + 1. Boxes are
- * padded so that the slab test, which rounds, never misses a triangle that a
- * ray touches at a vertex lying on the box. */
-static uint32_t build_rec(bld *b, size_t first, size_t n, double pad)
-{
-    uint32_t id = (uint32_t)b->nnodes++;
-    mnode *nd = &b->nodes[id];
-    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-    double clo[3] = {INFINITY, INFINITY, INFINITY}, chi[3] = {-INFINITY, -INFINITY, -INFINITY};
-    for (size_t i = first; i < first + n; i++) {
-        const uint32_t *t = b->s->csg_tris[b->items[i].tri];
-        for (int v = 0; v < 3; v++) {
-            rr_vec3 p = b->s->csg_verts[t[v]];
-            for (int k = 0; k < 3; k++) {
-                lo[k] = fmin(lo[k], rr_v3_get(p, k));
-                hi[k] = fmax(hi[k], rr_v3_get(p, k));
-            }
-        }
-        for (int k = 0; k < 3; k++) {
-            clo[k] = fmin(clo[k], b->items[i].c[k]);
-            chi[k] = fmax(chi[k], b->items[i].c[k]);
-        }
-    }
-    for (int k = 0; k < 3; k++) {
-        nd->lo[k] = lo[k] - pad;
-        nd->hi[k] = hi[k] + pad;
-    }
-    int axis = 0;
-    for (int k = 1; k < 3; k++)
-        if (chi[k] - clo[k] > chi[axis] - clo[axis])
-            axis = k;
-    if (n <= MESH_LEAF_TRIS || !(chi[axis] > clo[axis])) {
-        nd->index = (uint32_t)first;
-        nd->count = (uint32_t)n;
-        return id;
-    }
-    size_t half = n / 2;
-    qsort(b->items + first, n, sizeof *b->items, axis == 0 ? cmp_x : (axis == 1 ? cmp_y : cmp_z));
-    nd->count = 0;
-    build_rec(b, first, half, pad);
-    uint32_t right = build_rec(b, first + half, n - half, pad);
-    b->nodes[id].index = right;
-    return id;
-}
 
 size_t rt__solids_bytes(const struct rt_solid_accel *sa)
 {
@@ -365,72 +292,99 @@ void rt__solids_destroy(struct rt_solid_accel *sa)
     free(sa);
 }
 
+/* The tree of mesh leaf n (its triangles' entries at sa->tris[first..]),
+ * appended to sa->nodes (room for 2 tri_count nodes). Boxes are padded so
+ * that the slab test, which rounds, never misses a triangle that a ray
+ * touches at a vertex lying on the box. Returns its root, or NO_ROOT when out
+ * of memory. */
+static uint32_t build_leaf_tree(const scene *s, const scene_csg_node *n, struct rt_solid_accel *sa, size_t first,
+                                rt_build_item *items)
+{
+    double ext = 0.0, big = 0.0;
+    rr_vec3 lo = rr_v3(INFINITY, INFINITY, INFINITY), hi = rr_v3(-INFINITY, -INFINITY, -INFINITY);
+    for (size_t j = 0; j < n->tri_count; j++) {
+        size_t t = n->tri_first + j;
+        const uint32_t *v = s->csg_tris[t];
+        rr_vec3 A = s->csg_verts[v[0]], B = s->csg_verts[v[1]], C = s->csg_verts[v[2]];
+        items[j].box.lo = rr_v3_min(A, rr_v3_min(B, C));
+        items[j].box.hi = rr_v3_max(A, rr_v3_max(B, C));
+        items[j].centroid = rr_v3_scale(rr_v3_add(A, rr_v3_add(B, C)), 1.0 / 3.0);
+        items[j].prim.kind = RT_PRIM_TRIANGLE;
+        items[j].prim.index = (uint32_t)t;
+        lo = rr_v3_min(lo, items[j].box.lo);
+        hi = rr_v3_max(hi, items[j].box.hi);
+    }
+    for (int k = 0; k < 3; k++) {
+        ext = fmax(ext, rr_v3_get(hi, k) - rr_v3_get(lo, k));
+        big = fmax(big, fmax(fabs(rr_v3_get(hi, k)), fabs(rr_v3_get(lo, k))));
+    }
+    double pad = 1e-9 * ext + 1e-12 * big;
+    rt_node *nodes = NULL;
+    size_t nn = 0;
+    if (rt__bvh_build_binary(items, n->tri_count, &nodes, &nn))
+        return NO_ROOT;
+    uint32_t base = (uint32_t)sa->nnodes;
+    for (size_t k = 0; k < nn; k++) {
+        rt_node nd = nodes[k];
+        for (int a = 0; a < 3; a++) {
+            nd.lo[a] = rt__f_down((double)nd.lo[a] - pad);
+            nd.hi[a] = rt__f_up((double)nd.hi[a] + pad);
+        }
+        nd.index += nd.count ? (uint32_t)first : base;
+        sa->nodes[sa->nnodes++] = nd;
+    }
+    free(nodes);
+    for (size_t j = 0; j < n->tri_count; j++)
+        sa->tris[first + j] = items[j].prim.index;
+    return base;
+}
+
 rr_status rt__solids_build(const scene *s, struct rt_solid_accel **out, rr_error *err)
 {
     *out = NULL;
-    size_t total = 0;
+    size_t total = 0, most = 0;
     for (size_t i = 0; i < s->ncsg; i++)
-        if (s->csg[i].op == SCENE_CSG_LEAF && s->csg[i].solid == SCENE_SOLID_MESH)
+        if (s->csg[i].op == SCENE_CSG_LEAF && s->csg[i].solid == SCENE_SOLID_MESH) {
             total += s->csg[i].tri_count;
+            most = s->csg[i].tri_count > most ? s->csg[i].tri_count : most;
+        }
     if (total == 0)
         return RR_OK;
     if (total >= UINT32_MAX / 2)
         return rr_error_set(err, RR_ERR_LIMIT, "%s: %zu mesh-leaf triangles in solids exceed the limit", s->path,
                             total);
     struct rt_solid_accel *sa = calloc(1, sizeof *sa);
-    bld b = {s, NULL, NULL, 0};
-    if (!sa)
+    rt_build_item *items = malloc(most * sizeof *items);
+    if (!sa || !items)
         goto nomem;
     sa->ncsg = s->ncsg;
     sa->root = malloc(s->ncsg * sizeof *sa->root);
     sa->tris = malloc(total * sizeof *sa->tris);
-    b.items = malloc(total * sizeof *b.items);
-    b.nodes = malloc(2 * total * sizeof *b.nodes);
-    if (!sa->root || !sa->tris || !b.items || !b.nodes)
+    sa->nodes = malloc(2 * total * sizeof *sa->nodes);
+    if (!sa->root || !sa->tris || !sa->nodes)
         goto nomem;
-    size_t k = 0;
+    size_t first = 0;
     for (size_t i = 0; i < s->ncsg; i++) {
         const scene_csg_node *n = &s->csg[i];
         sa->root[i] = NO_ROOT;
         if (n->op != SCENE_CSG_LEAF || n->solid != SCENE_SOLID_MESH || n->tri_count == 0)
             continue;
-        double ext = 0.0, big = 0.0;
-        size_t first = k;
-        rr_vec3 lo = rr_v3(INFINITY, INFINITY, INFINITY), hi = rr_v3(-INFINITY, -INFINITY, -INFINITY);
-        for (size_t t = n->tri_first; t < n->tri_first + n->tri_count; t++, k++) {
-            const uint32_t *v = s->csg_tris[t];
-            rr_vec3 A = s->csg_verts[v[0]], B = s->csg_verts[v[1]], C = s->csg_verts[v[2]];
-            rr_vec3 c = rr_v3_scale(rr_v3_add(A, rr_v3_add(B, C)), 1.0 / 3.0);
-            b.items[k].c[0] = c.x;
-            b.items[k].c[1] = c.y;
-            b.items[k].c[2] = c.z;
-            b.items[k].tri = (uint32_t)t;
-            lo = rr_v3_min(lo, rr_v3_min(A, rr_v3_min(B, C)));
-            hi = rr_v3_max(hi, rr_v3_max(A, rr_v3_max(B, C)));
-        }
-        for (int a = 0; a < 3; a++) {
-            ext = fmax(ext, rr_v3_get(hi, a) - rr_v3_get(lo, a));
-            big = fmax(big, fmax(fabs(rr_v3_get(hi, a)), fabs(rr_v3_get(lo, a))));
-        }
-        sa->root[i] = build_rec(&b, first, n->tri_count, 1e-9 * ext + 1e-12 * big);
+        if ((sa->root[i] = build_leaf_tree(s, n, sa, first, items)) == NO_ROOT)
+            goto nomem;
+        first += n->tri_count;
     }
-    for (size_t i = 0; i < total; i++)
-        sa->tris[i] = b.items[i].tri;
-    free(b.items);
-    sa->nodes = b.nodes;
-    sa->nnodes = b.nnodes;
+    free(items);
     *out = sa;
     return RR_OK;
 nomem:
-    free(b.items);
-    free(b.nodes);
+    free(items);
     rt__solids_destroy(sa);
     return rr_error_set(err, RR_ERR_NOMEM, "%s: out of memory building the BVHs of %zu mesh-leaf triangles",
                         s->path, total);
 }
 
 /* Slab test of a (padded) node box over (tlo, thi), widened for rounding. */
-static int mnode_hit(const mnode *nd, rr_ray r, double tlo, double thi)
+static int node_hit(const rt_node *nd, rr_ray r, double tlo, double thi)
 {
     return rt__box_overlap(r, rr_v3(nd->lo[0], nd->lo[1], nd->lo[2]), rr_v3(nd->hi[0], nd->hi[1], nd->hi[2]), tlo, thi);
 }
@@ -462,8 +416,8 @@ static void collect(const scene *s, const struct rt_solid_accel *sa, uint32_t le
     stack[sp++] = sa->root[leaf];
     while (sp > 0) {
         uint32_t id = stack[--sp];
-        const mnode *nd = &sa->nodes[id];
-        if (!mnode_hit(nd, ray, b->count_after ? b->tmin : -INFINITY, b->tmax))
+        const rt_node *nd = &sa->nodes[id];
+        if (!node_hit(nd, ray, b->count_after ? b->tmin : -INFINITY, b->tmax))
             continue;
         if (nd->count) {
             for (uint32_t i = 0; i < nd->count; i++)

@@ -6,15 +6,16 @@
  * function's name), then includes this header: rt_traverse.c instantiates
  * rt__walk4, rt_bvh_avx2.c (compiled for AVX2) rt__walk8.
  *
- * Versions of the box test, one contract (tests/test_raytrace.c checks that
- * they agree and that none culls a box the ray touches):
- *   rt__box4_scalar  float, plain C (the portable fallback, RADRAY_SIMD=OFF)
- *   rt__box4_simd    float, SSE2 4 wide (RT_W 4, RT_SIMD >= 1) or AVX 8 wide
- *                    (RT_W 8)
+ * Versions of the box test, one contract (tests/test_bvh.c checks that they
+ * agree and that none culls a box the ray touches):
+ *   rt__box4_fast    float, on operands prepared once per ray (rt_boxray):
+ *                    the one the walk calls; AVX 8 lanes (RT_W 8), SSE2 4
+ *                    lanes (RT_W 4, RT_SIMD >= 1), else rt__box4_scalar
+ *   rt__box4_scalar  float, plain C (the portable fallback, RADRAY_SIMD=OFF,
+ *                    and the reference the SIMD versions must equal)
  *   rt__box4_double  double, for the rays the float test cannot take
- *                    (rt_ray_pre.box_double), and as the reference in tests
- * rt__box4_fast, on operands prepared once per ray (rt_boxray), is the one
- * the walk calls. "box4" is historical: every version tests RT_W children.
+ *                    (rt_ray_pre.box_double)
+ * "box4" is historical: every version tests RT_W children.
  *
  * Contract: returns a bit mask of the children whose box the ray meets within
  * [tmin, tmax], up to rounding and always erring on the side of "meets" (a box
@@ -91,49 +92,6 @@ static inline unsigned rt__box4_scalar(const rt_wn *n, const rt_ray_pre *p, floa
     return mask;
 }
 
-#if RT_BOX_SIMD == 2
-/* 8 wide, AVX: the SSE code on 256-bit registers (VMINPS/VMAXPS have the same
- * NaN rule). */
-static inline unsigned rt__box4_simd(const rt_wn *n, const rt_ray_pre *p, float tmin, float tmax,
-                                     float dist[RT_W])
-{
-    __m256 t0 = _mm256_set1_ps(tmin), t1 = _mm256_set1_ps(INFINITY);
-    for (int k = 0; k < 3; k++) {
-        int row = p->near_row[k];
-        __m256 inv = _mm256_set1_ps(p->inv_f[k]);
-        __m256 ta = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(n->b[row]), _mm256_set1_ps(p->org_near[k])), inv);
-        __m256 tb = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(n->b[row ^ 1]), _mm256_set1_ps(p->org_far[k])), inv);
-        t0 = _mm256_max_ps(ta, t0);
-        t1 = _mm256_min_ps(tb, t1);
-    }
-    t1 = _mm256_min_ps(_mm256_set1_ps(tmax), _mm256_mul_ps(t1, _mm256_set1_ps(1.0f + RT_BOX_GROW)));
-    _mm256_storeu_ps(dist, t0);
-    return (unsigned)_mm256_movemask_ps(_mm256_cmp_ps(t0, t1, _CMP_LE_OQ));
-}
-#elif RT_BOX_SIMD == 1
-#define rt__box4_simd rt__box4_sse
-static inline unsigned rt__box4_sse(const rt_wn *n, const rt_ray_pre *p, float tmin, float tmax,
-                                    float dist[RT_W])
-{
-    const int nx = p->near_row[0], ny = p->near_row[1], nz = p->near_row[2];
-    __m128 tx0 = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(n->b[nx]), _mm_set1_ps(p->org_near[0])), _mm_set1_ps(p->inv_f[0]));
-    __m128 ty0 = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(n->b[ny]), _mm_set1_ps(p->org_near[1])), _mm_set1_ps(p->inv_f[1]));
-    __m128 tz0 = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(n->b[nz]), _mm_set1_ps(p->org_near[2])), _mm_set1_ps(p->inv_f[2]));
-    __m128 tx1 =
-        _mm_mul_ps(_mm_sub_ps(_mm_load_ps(n->b[nx ^ 1]), _mm_set1_ps(p->org_far[0])), _mm_set1_ps(p->inv_f[0]));
-    __m128 ty1 =
-        _mm_mul_ps(_mm_sub_ps(_mm_load_ps(n->b[ny ^ 1]), _mm_set1_ps(p->org_far[1])), _mm_set1_ps(p->inv_f[1]));
-    __m128 tz1 =
-        _mm_mul_ps(_mm_sub_ps(_mm_load_ps(n->b[nz ^ 1]), _mm_set1_ps(p->org_far[2])), _mm_set1_ps(p->inv_f[2]));
-    /* Running bound second: a NaN slab leaves it as it is. */
-    __m128 t0 = _mm_max_ps(tz0, _mm_max_ps(ty0, _mm_max_ps(tx0, _mm_set1_ps(tmin))));
-    __m128 t1 = _mm_min_ps(tz1, _mm_min_ps(ty1, _mm_min_ps(tx1, _mm_set1_ps(INFINITY))));
-    t1 = _mm_min_ps(_mm_set1_ps(tmax), _mm_mul_ps(t1, _mm_set1_ps(1.0f + RT_BOX_GROW)));
-    _mm_storeu_ps(dist, t0);
-    return (unsigned)_mm_movemask_ps(_mm_cmple_ps(t0, t1));
-}
-#endif
-
 /* The per-ray operands of the float test in the form the selected version
  * wants them (for SSE: broadcast once per ray, kept in registers during the
  * walk, instead of once per node). */
@@ -170,8 +128,10 @@ static inline void rt__boxray_init(const rt_ray_pre *p, rt_boxray *br)
 #endif
 }
 
-/* The selected test on prepared operands; same results as rt__box4_simd
- * (or rt__box4_scalar when there is no SIMD). */
+/* The float test of this SIMD width on prepared operands: AVX 8 lanes, SSE2
+ * 4 lanes (VMINPS/VMAXPS and MINPS/MAXPS have the same NaN rule), or
+ * rt__box4_scalar when there is no SIMD; the same results as rt__box4_scalar
+ * bit for bit (tested). */
 static inline unsigned rt__box4_fast(const rt_wn *n, const rt_boxray *br, float tmin, float tmax,
                                      float dist[RT_W])
 {
