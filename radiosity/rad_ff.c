@@ -279,10 +279,10 @@ static double pair_ff(const ff_ctx *c, const rad_patch *pi, const rad_patch *pj,
         surface_at(c, pj, poly_point(poly, nv, q->tuv[2 * k], q->tuv[2 * k + 1], k), &ys, &yn);
         rr_vec3 o = q->xo[k], t = offset_front(c, ys, yn);
         rr_ray r = {o, rr_v3_sub(t, o)};
-        /* Stop just short of the target, as the renderer's area-light shadow
-         * rays do: j itself (or its neighbours in its plane) must not count as
+        /* Stop just short of the target (RT_SHADOW_END, the shadow-ray rule of
+         * rt.h): j itself (or its neighbours in its plane) must not count as
          * occluders. */
-        if (!rt_accel_occluded(c->a, r, 0.0, 1.0 - 1e-7))
+        if (!rt_accel_occluded(c->a, r, 0.0, RT_SHADOW_END))
             sum += f;
     }
     return sum / q->n;
