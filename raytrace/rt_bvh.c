@@ -238,9 +238,7 @@ int rt__bvh_build_binary(rt_build_item *items, size_t n, rt_node **nodes, size_t
  * wide tree (its primitives are contiguous). Measured: 4 (fewer, fuller nodes,
  * more triangle tests) was 10-20 % slower than 1 (the binary leaves as they
  * are), since a double triangle test costs more than a SIMD node test. */
-#ifndef RT_WIDE_LEAF
 #define RT_WIDE_LEAF 1
-#endif
 
 typedef struct collapser {
     const rt_node *bin;
