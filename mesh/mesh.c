@@ -12,10 +12,13 @@
 #include <stdlib.h>
 #include <string.h>
 
-/* Polygons larger than this are fan-triangulated instead of ear-clipped: ear
- * clipping is quadratic in the polygon size, and such huge polygons are in
- * practice convex caps (cylinders, disks) where a fan is exact anyway. */
-#define MESH__EAR_CLIP_MAX 1024
+/* Ear clipping costs about k^2 point-in-ear tests for a k-corner polygon
+ * (k ear tests of k points each), more when many corners are tried before an
+ * ear is found; past this many tests for one polygon (about 0.1 s) what is
+ * left of it is fanned, so that no polygon can make loading run away (a
+ * 3,458-corner face was ear-clipped in 0.05 s; pathological shapes of any
+ * size stop at the budget). */
+#define MESH__EAR_TESTS_MAX (1u << 26)
 
 /* ---- allocation ---- */
 
@@ -325,12 +328,14 @@ static int mesh__project(const double *pos, mesh__poly *p)
     return 1;
 }
 
-static int mesh__is_ear(const mesh__poly *p, size_t a, size_t b, size_t c)
+/* Whether corner b (between a and c) is an ear; *tests counts the points tried. */
+static int mesh__is_ear(const mesh__poly *p, size_t a, size_t b, size_t c, size_t *tests)
 {
     const double *pa = p->uv + 2 * a, *pb = p->uv + 2 * b, *pc = p->uv + 2 * c;
     if (!(mesh__orient2(pa, pb, pc) > 0.0))
         return 0; /* reflex or flat corner */
     for (size_t i = p->next[c]; i != a; i = p->next[i]) {
+        ++*tests;
         const double *q = p->uv + 2 * i;
         /* A corner repeated at the same position (polygons touching
          * themselves) does not block the ear. */
@@ -360,11 +365,11 @@ static uint32_t *mesh__triangulate(const double *pos, mesh__poly *p, uint32_t *t
         p->prev[i] = (i + k - 1) % k;
         p->next[i] = (i + 1) % k;
     }
-    size_t left = k, cur = 1, misses = 0;
-    int clip = k > 3 && k <= MESH__EAR_CLIP_MAX && mesh__project(pos, p);
-    while (clip && left > 3) {
+    size_t left = k, cur = 1, misses = 0, tests = 0;
+    int clip = k > 3 && mesh__project(pos, p);
+    while (clip && left > 3 && tests < MESH__EAR_TESTS_MAX) {
         size_t a = p->prev[cur], c = p->next[cur];
-        if (mesh__is_ear(p, a, cur, c)) {
+        if (mesh__is_ear(p, a, cur, c, &tests)) {
             t = mesh__emit(t, p, a, cur, c);
             p->next[a] = c;
             p->prev[c] = a;

@@ -44,7 +44,9 @@ typedef struct mesh_report {
  *
  * Details worth knowing (OpenMesh 9.0 underneath, see mesh_openmesh.cpp):
  *  - Polygons are ear-clipped in their best-fit plane, keeping their winding
- *    (a fan for polygons over 1024 corners or self-intersecting ones).
+ *    (a fan for self-intersecting ones, and for what is left of a polygon once
+ *    2^26 point-in-ear tests have been spent on it, which bounds the work for
+ *    any size; ordinary polygons of thousands of corners are clipped).
  *  - Vertex order and numbering follow the file, counting from 0 (error
  *    messages too), except STL, whose reader merges equal positions and drops
  *    triangles that collapse. OBJ's reader drops repeated corners of a face.

@@ -319,6 +319,54 @@ static void test_concave_polygon_ear_clipped(void **state)
     mesh_destroy(m);
 }
 
+/* A 3,458-corner star (every other corner pulled in: half of them reflex),
+ * in one OBJ face: ear-clipped whole (it used to be fanned past 1,024
+ * corners, and a fan of a non-convex polygon folds triangles over each
+ * other: the areas then add up to more than the polygon's), quickly (before
+ * the cap it was cubic: over 300 s). */
+static void test_huge_nonconvex_polygon(void **state)
+{
+    (void)state;
+    enum { K = 3458 };
+    size_t cap = (size_t)K * 96 + 16; /* a vertex line is at most 2 + 2 * 25 + 3 characters */
+    char *text = malloc(cap);
+    assert_non_null(text);
+    size_t n = 0;
+    double shoelace, px[K], py[K];
+    for (int i = 0; i < K; i++) {
+        double a = 2.0 * RR_PI * i / K, r = i % 2 ? 0.6 + 0.3 * ((i * 7919) % 101) / 101.0 : 1.0;
+        px[i] = r * cos(a);
+        py[i] = r * sin(a);
+        n += (size_t)snprintf(text + n, cap - n, "v %.17g %.17g 0\n", px[i], py[i]);
+    }
+    n += (size_t)snprintf(text + n, cap - n, "f");
+    for (int i = 0; i < K; i++) {
+        n += (size_t)snprintf(text + n, cap - n, " %d", i + 1);
+    }
+    snprintf(text + n, cap - n, "\n");
+    mesh_tri *m = load_ok(write_tmp("star.obj", text, strlen(text)));
+    free(text);
+    assert_int_equal(m->ntris, K - 2);
+    double area = 0;
+    for (size_t i = 0; i < m->ntris; i++) {
+        const uint32_t *t = m->tris + 3 * i;
+        const double *a = m->pos + 3 * t[0], *b = m->pos + 3 * t[1], *c = m->pos + 3 * t[2];
+        double z = (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]);
+        assert_true(z > 0); /* none folded over */
+        area += 0.5 * z;
+    }
+    /* The polygon's own area from the vertices as loaded (OpenMesh reads
+     * floats), by the shoelace formula. */
+    shoelace = 0;
+    for (int i = 0; i < K; i++) {
+        const double *a = m->pos + 3 * i, *b = m->pos + 3 * ((i + 1) % K);
+        shoelace += 0.5 * (a[0] * b[1] - b[0] * a[1]);
+    }
+    if (!(fabs(area - shoelace) < 1e-9 * shoelace))
+        fail_msg("triangles cover %.12g, the polygon is %.12g", area, shoelace);
+    mesh_destroy(m);
+}
+
 /* ---- topology report (meshes built from arrays) ---- */
 
 static mesh_tri *from_arrays(const double *pos, size_t nv, const uint32_t *tris, size_t nt)
@@ -773,6 +821,7 @@ int main(void)
         cmocka_unit_test(test_stl_binary),
         cmocka_unit_test(test_extension_case_insensitive),
         cmocka_unit_test(test_concave_polygon_ear_clipped),
+        cmocka_unit_test(test_huge_nonconvex_polygon),
         cmocka_unit_test(test_open_quad),
         cmocka_unit_test(test_nonmanifold_edge),
         cmocka_unit_test(test_misoriented),
