@@ -307,6 +307,68 @@ static void cli_outputs_never_overwrite_inputs(void **state)
     assert_false(temporaries_left());
 }
 
+/* The disk fills between the two writes of one commit: the EXR's temporary
+ * is written, the PNG's (on a tiny, nearly full tmpfs) cannot be. Neither of
+ * the old pair may be replaced, and no temporary may be left. Needs root (to
+ * mount the tmpfs); skipped otherwise. */
+static void cli_disk_full_between_writes(void **state)
+{
+    (void)state;
+    char mnt[256], png[320], exr[256], filler[320], scene_path[512];
+    if (geteuid() != 0) {
+        print_message("  skipped: mounting a tmpfs needs root\n");
+        skip();
+    }
+    path_in(mnt, sizeof mnt, "full");
+    assert_int_equal(mkdir(mnt, 0755), 0);
+    char cmd[512];
+    snprintf(cmd, sizeof cmd, "mount -t tmpfs -o size=64k tmpfs %s 2>/dev/null", mnt);
+    if (system(cmd) != 0) {
+        rmdir(mnt);
+        print_message("  skipped: cannot mount a tmpfs here\n");
+        skip();
+    }
+    snprintf(png, sizeof png, "%s/o.png", mnt);
+    path_in(exr, sizeof exr, "o.exr");
+    snprintf(scene_path, sizeof scene_path, "%s/scenes/cornell.json", RR_SOURCE_DIR);
+    /* The old pair, small (8 px wide). */
+    const char *a[] = {"render", scene_path, "--width", "8", "--mode", "whitted", "-q", "-o", exr, "--png", png,
+                       NULL};
+    assert_int_equal(finish(start(a)), 0);
+    char *old_exr = NULL, *old_png = NULL, *now = NULL;
+    size_t n_exr = 0, n_png = 0, n = 0;
+    assert_int_equal(rr_file_read_all(exr, &old_exr, &n_exr, NULL), RR_OK);
+    assert_int_equal(rr_file_read_all(png, &old_png, &n_png, NULL), RR_OK);
+    /* Fill the tmpfs up to the last few hundred bytes. */
+    snprintf(filler, sizeof filler, "%s/filler", mnt);
+    snprintf(cmd, sizeof cmd, "dd if=/dev/zero of=%s bs=1k count=200 2>/dev/null; true", filler);
+    assert_int_equal(system(cmd), 0);
+    /* A bigger render: its PNG does not fit. */
+    const char *b[] = {"render", scene_path, "--width", "64", "--mode", "whitted", "-q", "-o", exr, "--png", png,
+                       NULL};
+    int rc = finish(start(b));
+    snprintf(cmd, sizeof cmd, "ls -a %s | grep -q '^\\..*\\.tmp-'", mnt);
+    int temp_on_tmpfs = system(cmd) == 0;
+    assert_int_equal(rr_file_read_all(exr, &now, &n, NULL), RR_OK);
+    int exr_same = n == n_exr && memcmp(now, old_exr, n) == 0;
+    free(now);
+    assert_int_equal(rr_file_read_all(png, &now, &n, NULL), RR_OK);
+    int png_same = n == n_png && memcmp(now, old_png, n) == 0;
+    free(now);
+    free(old_exr);
+    free(old_png);
+    snprintf(cmd, sizeof cmd, "umount %s", mnt);
+    assert_int_equal(system(cmd), 0);
+    rmdir(mnt);
+    if (rc != 1 || !strstr(g_out, "o.png"))
+        fail_msg("expected exit 1 naming the PNG; got %d: %s", rc, g_out);
+    assert_true(exr_same);
+    assert_true(png_same);
+    assert_false(temp_on_tmpfs);
+    assert_false(temporaries_left());
+    remove(exr);
+}
+
 /* Two renders to one output at once (a dark and a bright version of one
  * scene): whichever commits last, its EXR and its PNG are the pair left
  * there, never the EXR of one beside the PNG of the other. */
@@ -582,7 +644,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(interrupt_flag_preset),       cmocka_unit_test(cli_sigint_writes_partial),
         cmocka_unit_test(cli_sigterm_writes_partial),  cmocka_unit_test(cli_sigint_stops_radiosity_pass),
-        cmocka_unit_test(cli_outputs_never_overwrite_inputs),
+        cmocka_unit_test(cli_outputs_never_overwrite_inputs), cmocka_unit_test(cli_disk_full_between_writes),
         cmocka_unit_test(cli_cache_key_and_checksum), cmocka_unit_test(cli_concurrent_renders_leave_one_pair),
         cmocka_unit_test(cli_refuses_huge_resolution), cmocka_unit_test(cli_refuses_tiny_patches),
         cmocka_unit_test(scrub_nonfinite),             cmocka_unit_test(scale_invariance_whitted),

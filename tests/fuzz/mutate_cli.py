@@ -83,12 +83,17 @@ def main():
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--verbose", action="store_true", help="print every run")
     ap.add_argument("--keep", default=None, help="folder for the inputs that crash, hang, fail silently or leave partial output")
+    ap.add_argument("--scene", default=None, help="mutate only this scene of scenes/ (e.g. csg.json), no meshes")
     a = ap.parse_args()
     root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
     radray = os.path.abspath(a.radray)
     scenes = sorted(os.path.join(root, "scenes", f) for f in os.listdir(os.path.join(root, "scenes"))
                     if f.endswith(".json"))
     meshes = sorted(os.path.join(root, "scenes", "meshes", f) for f in os.listdir(os.path.join(root, "scenes", "meshes")))
+    if a.scene:
+        scenes = [s for s in scenes if os.path.basename(s) == a.scene]
+        if not scenes:
+            ap.error("--scene: no scenes/%s" % a.scene)
     rng = random.Random(a.seed)
     counts = {}
     bad = []
@@ -100,7 +105,7 @@ def main():
         os.makedirs(os.path.join(d, "meshes"))
         for m in meshes:
             shutil.copy(m, os.path.join(d, "meshes"))
-        if k % 3 == 2 and meshes:  # a mutated mesh under an intact scene
+        if k % 3 == 2 and meshes and not a.scene:  # a mutated mesh under an intact scene
             m = meshes[k // 3 % len(meshes)]
             target = os.path.join(d, "meshes", os.path.basename(m))
             with open(m, "rb") as f:
