@@ -445,7 +445,8 @@ typedef struct rt_render_opts {
     void (*progress)(void *user, int done, int total);
     void *progress_user;
     /* Interrupt (e.g. set by a SIGINT handler): when it points to a non-zero
-     * value, checked before every pixel, rt_render stops starting work,
+     * value, checked before every pixel and every 256 samples of one,
+     * rt_render stops starting work,
      * clears the tiles it had begun (finished tiles stay, the rest is black)
      * and returns RR_ERR_INTERRUPTED. NULL: never interrupted. */
     const volatile sig_atomic_t *interrupt;

@@ -410,6 +410,11 @@ rr_status rt_render(const scene *s, const rt_accel *a, const rt_render_opts *o, 
                 shade_out acc;
                 memset(&acc, 0, sizeof acc);
                 for (int k = 0; k < spp; k++) {
+                    /* Within a pixel too: at 2^24 spp one pixel takes minutes. */
+                    if ((k & 255) == 255 && o->interrupt && *o->interrupt) {
+                        stopped = 1;
+                        break;
+                    }
                     double dx, dy;
                     pixel_offset(k, spp, o->filter, &rng, &dx, &dy);
                     shade_out so;
@@ -417,6 +422,8 @@ rr_status rt_render(const scene *s, const rt_accel *a, const rt_render_opts *o, 
                     for (int i = 0; i < RT_LAYER_COUNT; i++)
                         acc.c[i] = rr_rgb_add(acc.c[i], so.c[i]);
                 }
+                if (stopped)
+                    break;
                 rr_rgb sum = rr_rgb_make(0, 0, 0);
                 for (int i = 0; i < RT_LAYER_COUNT; i++) {
                     rr_rgb mean = rr_rgb_scale(acc.c[i], 1.0 / spp);

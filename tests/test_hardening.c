@@ -91,6 +91,27 @@ static int exited(pid_t pid)
     return gone;
 }
 
+/* CPU time pid has used, in clock ticks (utime + stime of /proc/PID/stat); -1 when gone. */
+static long cpu_ticks(pid_t pid)
+{
+    char path[64], buf[1024];
+    snprintf(path, sizeof path, "/proc/%d/stat", (int)pid);
+    FILE *f = fopen(path, "r");
+    if (!f)
+        return -1;
+    size_t n = fread(buf, 1, sizeof buf - 1, f);
+    fclose(f);
+    buf[n] = '\0';
+    const char *p = strrchr(buf, ')'); /* the command name may hold spaces */
+    if (!p)
+        return -1;
+    long utime = 0, stime = 0;
+    /* after ")": state ppid pgrp session tty tpgid flags minflt cminflt majflt cmajflt utime stime */
+    if (sscanf(p + 1, " %*c %*d %*d %*d %*d %*d %*u %*u %*u %*u %*u %ld %ld", &utime, &stime) != 2)
+        return -1;
+    return utime + stime;
+}
+
 /* ---- a small scene at any scale ---- */
 
 /* Floor, a box on it, an area light above, a point light; all lengths times
@@ -191,21 +212,41 @@ static int temporaries_left(void)
 
 /* SIGINT and SIGTERM stop a render the same way: the finished tiles in
  * OUT.partial.exr, nothing at OUT, no temporary left, exit 128 + signal.
- * Waits for the handlers (a condition), not for a time. */
-static void signal_writes_partial(int sig)
+ * Waits for the handlers (a condition), not for a time. At spp 2^24 (the
+ * largest a scene may ask for) one pixel takes minutes: the render must stop
+ * within a pixel, not after it. */
+static void signal_writes_partial(int sig, const char *spp)
 {
     char out[256], scene_path[512];
     path_in(out, sizeof out, "slow.partial.exr");
     remove(out);
     path_in(out, sizeof out, "slow.exr");
     remove(out);
-    snprintf(scene_path, sizeof scene_path, "%s/scenes/cornell.json", RR_SOURCE_DIR);
-    const char *args[] = {"render", scene_path, "--mode", "secondary", "--spp", "65536", "-q", "-o", out, NULL};
+    /* A closed box seen from inside: every pixel's samples hit walls (the
+     * Cornell box's corner pixels see nothing and are quick at any spp). */
+    snprintf(scene_path, sizeof scene_path, "%s/scenes/energy/furnace-05.json", RR_TEST_DATA);
+    const char *args[] = {"render", scene_path, "--mode", "secondary", "--spp", spp, "--set", "render.light_samples=4096",
+                          "-q", "-o", out, NULL};
     pid_t pid = start(args);
     assert_true(pid > 0);
     while ((!catches(pid, SIGINT) || !catches(pid, SIGTERM)) && !exited(pid))
         usleep(10000);
+    /* Into the pixels: half a second of CPU after the handlers (the set-up
+     * before the first pixel takes milliseconds). */
+    long t0 = cpu_ticks(pid);
+    while (!exited(pid) && cpu_ticks(pid) >= 0 && cpu_ticks(pid) < t0 + sysconf(_SC_CLK_TCK) / 2)
+        usleep(10000);
     kill(pid, sig);
+    /* It stops within 256 samples (milliseconds); a render that finished its
+     * pixels first would take hours at these settings. 60 s is no timing
+     * test, only a bound on a hang. */
+    for (int i = 0; i < 6000 && !exited(pid); i++)
+        usleep(10000);
+    if (!exited(pid)) {
+        kill(pid, SIGKILL);
+        finish(pid);
+        fail_msg("the render did not stop within 60 s of the signal");
+    }
     int rc = finish(pid);
     assert_int_equal(rc, 128 + sig);
     assert_true(exists("slow.partial.exr"));
@@ -219,13 +260,13 @@ static void signal_writes_partial(int sig)
 static void cli_sigint_writes_partial(void **state)
 {
     (void)state;
-    signal_writes_partial(SIGINT);
+    signal_writes_partial(SIGINT, "65536");
 }
 
 static void cli_sigterm_writes_partial(void **state)
 {
     (void)state;
-    signal_writes_partial(SIGTERM);
+    signal_writes_partial(SIGTERM, "16777216");
 }
 
 /* Ctrl-C during the radiosity pass stops its form factors (not the pass's
