@@ -36,6 +36,10 @@ int app_cmd_compare(int argc, char **argv);
 extern const char *const app_indirect_names[];
 /* Index of name in a NULL-terminated list, or -1. */
 int app_pick(const char *name, const char *const *names);
+/* The scene key a shorthand option sets (its long name without "--", e.g.
+ * "spp" -> "render.spp", "ff" -> "radiosity.form_factors"), or NULL: the
+ * one table of them for render and compare. */
+const char *app_option_key(const char *option);
 
 /* Ctrl-C and SIGTERM: the handler only sets app_stop to the signal's number
  * (read by the passes before every pixel, row or particle); the second one
@@ -87,6 +91,33 @@ rr_status app_check_memory(const scene *sc, const ig_integrator *ig, const char 
 /* Sets every non-finite pixel of the film to 0 (rt_film_scrub_nonfinite) and
  * warns on stderr with the count and the first coordinates. Returns the count. */
 size_t app_scrub_film(rt_film *film);
+
+/* ---- metrics.c: image error against a reference (compare --stats) ----
+ *
+ * Per pixel p and channel c of an estimate x against a reference r, with
+ * eps = APP_METRIC_EPS (so that black reference pixels do not dominate):
+ *   relMSE  (x - r)^2 / (r^2 + eps)          (pbrt-v4's imgtool uses the same form)
+ *   MARE    |x - r| / (|r| + eps)             mean absolute relative error
+ *   bias    (x - r) / (|r| + eps)             mean signed relative error
+ * each averaged over the channels, then over the pixels; se is the standard
+ * error of that mean over the pixels (their spread / sqrt(count)), which is
+ * what a Monte Carlo estimate's noise makes of it. SSIM (Wang et al. 2004:
+ * 11 x 11 Gaussian window, sigma 1.5, K1 0.01, K2 0.03) is computed on the
+ * display luminance the figure shows (x 2^exposure, clamped, sRGB). */
+#define APP_METRIC_EPS 0.01
+typedef struct app_metric {
+    double value, se;
+} app_metric;
+typedef struct app_metrics {
+    app_metric relmse, mare, bias;
+    double ssim; /* whole images only; NaN for regions */
+    long pixels;
+} app_metrics;
+/* The metrics of x against r (same size) over the pixels p with
+ * region[p] == which (region NULL: every pixel). */
+void app_metrics_region(const rr_image *x, const rr_image *r, const int *region, int which, app_metrics *out);
+/* Mean SSIM of x against r over the image (NaN when out of memory). */
+double app_metric_ssim(const rr_image *x, const rr_image *r, double exposure);
 
 /* ---- diagnose.c: warnings that name the cause of lost light ---- */
 

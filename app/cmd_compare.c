@@ -13,6 +13,7 @@
 
 #include "app.h"
 #include "figure.h"
+#include "img.h"
 #include "rad.h"
 #include "rt.h"
 #include "scene.h"
@@ -35,6 +36,12 @@ static const char compare_usage[] =
     "                         hybrid, direct (default: the first four, in that order)\n"
     "      --reference MODE   the mode the others are compared to (default: secondary\n"
     "                         when compared, else the last mode)\n"
+    "      --reference FILE.exr  an image of the same size made by any renderer, shown as\n"
+    "                         the last panel and compared to every mode\n"
+    "      --stats FILE       .json or .csv: relMSE, MARE (mean absolute relative error),\n"
+    "                         bias (mean signed relative error), each with its standard error,\n"
+    "                         per mode over the image and over each object, and SSIM per image\n"
+    "                         (relMSE and SSIM are also in the panels' captions)\n"
     "      --layers LIST      instead of modes: panels for the layers of one render,\n"
     "                         from ambient, diffuse, specular, mirror, indirect, emission,\n"
     "                         radiosity, beauty (e.g. ambient,diffuse,specular,radiosity for\n"
@@ -48,6 +55,10 @@ static const char compare_usage[] =
     "                         secondary rays are Monte Carlo, and at the spp that suffices\n"
     "                         for anti-aliasing their noise would fill the difference images\n"
     "      --exposure EV      display exposure in stops (render.exposure)\n"
+    "      --seed N, --threads N, --filter box|tent, --patch-area A, --patch-edge L,\n"
+    "      --solver S, --ff METHOD, --ff-samples N   as for render\n"
+    "      --radiosity-cache FILE  reuse the radiosity solution saved in FILE (made there\n"
+    "                         when missing), as render does\n"
     "      --set KEY=VALUE    override any scene value by its JSON path (repeatable),\n"
     "                         e.g. --set render.threads=2\n"
     "  -q, --quiet            print nothing but errors\n"
@@ -163,6 +174,10 @@ static int *classify_pixels(const scene *sc, const rt_accel *a)
 /* One run of compare: the options, then what the renders leave for the figure. */
 typedef struct job {
     const char *out, *ref_name, *scene_path;
+    const char *ref_file;   /* --reference FILE.exr: an image made by any renderer */
+    const char *stats_path; /* --stats FILE.json / FILE.csv */
+    const char *cache_path; /* --radiosity-cache */
+    int filter;             /* --filter */
     int quiet, nmodes, nlayers, modes[MAX_PANELS], layers[MAX_PANELS];
     long width, secondary_spp;
     char **sets;
@@ -179,7 +194,18 @@ typedef struct job {
     char pass_users[64];      /* the modes that use the radiosity pass */
 } job;
 
-enum { OPT_MODES = 256, OPT_REFERENCE, OPT_LAYERS, OPT_WIDTH, OPT_SPP, OPT_SECONDARY_SPP, OPT_EXPOSURE, OPT_SET };
+enum {
+    OPT_MODES = 256,
+    OPT_REFERENCE,
+    OPT_LAYERS,
+    OPT_WIDTH,
+    OPT_SECONDARY_SPP,
+    OPT_SET,
+    OPT_STATS,
+    OPT_CACHE,
+    OPT_FILTER,
+    OPT_KEY /* an option that sets a scene key (app_option_key) */
+};
 
 /* Reads the command line into j; returns -1 to go on, or the exit code. */
 static int parse_options(job *j, int argc, char **argv)
@@ -187,16 +213,22 @@ static int parse_options(job *j, int argc, char **argv)
     static const struct option longopts[] = {
         {"output", required_argument, NULL, 'o'},           {"modes", required_argument, NULL, OPT_MODES},
         {"reference", required_argument, NULL, OPT_REFERENCE}, {"layers", required_argument, NULL, OPT_LAYERS},
-        {"width", required_argument, NULL, OPT_WIDTH},      {"spp", required_argument, NULL, OPT_SPP},
+        {"width", required_argument, NULL, OPT_WIDTH},      {"spp", required_argument, NULL, OPT_KEY},
         {"secondary-spp", required_argument, NULL, OPT_SECONDARY_SPP},
-        {"exposure", required_argument, NULL, OPT_EXPOSURE}, {"set", required_argument, NULL, OPT_SET},
+        {"exposure", required_argument, NULL, OPT_KEY},     {"set", required_argument, NULL, OPT_SET},
+        {"seed", required_argument, NULL, OPT_KEY},         {"threads", required_argument, NULL, OPT_KEY},
+        {"patch-area", required_argument, NULL, OPT_KEY},   {"patch-edge", required_argument, NULL, OPT_KEY},
+        {"solver", required_argument, NULL, OPT_KEY},       {"ff", required_argument, NULL, OPT_KEY},
+        {"ff-samples", required_argument, NULL, OPT_KEY},   {"filter", required_argument, NULL, OPT_FILTER},
+        {"radiosity-cache", required_argument, NULL, OPT_CACHE}, {"stats", required_argument, NULL, OPT_STATS},
         {"quiet", no_argument, NULL, 'q'},                  {"help", no_argument, NULL, 'h'},
         {NULL, 0, NULL, 0}};
+    static const char *const filters[] = {"box", "tent", NULL};
     optind = 1;
     opterr = 0;
-    int c;
-    while ((c = getopt_long(argc, argv, ":o:qh", longopts, NULL)) != -1) {
-        const char *key = NULL;
+    int c, li;
+    while ((li = -1, c = getopt_long(argc, argv, ":o:qh", longopts, &li)) != -1) {
+        const char *key = c == OPT_KEY && li >= 0 ? app_option_key(longopts[li].name) : NULL;
         switch (c) {
         case 'o': j->out = optarg; break;
         case 'q': j->quiet = 1; break;
@@ -210,12 +242,31 @@ static int parse_options(job *j, int argc, char **argv)
                 return APP_EXIT_USAGE;
             break;
         case OPT_REFERENCE:
+            if (app_ends_with(optarg, ".exr")) {
+                j->ref_file = optarg; /* read once the view's size is known */
+                break;
+            }
             if (!ig_find(optarg)) {
                 char names[128];
-                app_error("--reference: unknown mode '%s' (expected %s)", optarg, ig_names(names, sizeof names));
+                app_error("--reference: unknown mode '%s' (expected %s, or an image FILE.exr)", optarg,
+                          ig_names(names, sizeof names));
                 return APP_EXIT_USAGE;
             }
             j->ref_name = optarg;
+            break;
+        case OPT_STATS:
+            if (!app_ends_with(optarg, ".json") && !app_ends_with(optarg, ".csv")) {
+                app_error("--stats %s: the statistics file must end in .json or .csv", optarg);
+                return APP_EXIT_USAGE;
+            }
+            j->stats_path = optarg;
+            break;
+        case OPT_CACHE: j->cache_path = optarg; break;
+        case OPT_FILTER:
+            if ((j->filter = app_pick(optarg, filters)) < 0) {
+                app_error("--filter: expected box or tent, got '%s'", optarg);
+                return APP_EXIT_USAGE;
+            }
             break;
         case OPT_WIDTH:
             /* The figure puts several panels side by side on one cairo
@@ -231,8 +282,7 @@ static int parse_options(job *j, int argc, char **argv)
                 return APP_EXIT_USAGE;
             }
             break;
-        case OPT_SPP: key = "render.spp"; break;
-        case OPT_EXPOSURE: key = "render.exposure"; break;
+        case OPT_KEY: break;
         case OPT_SET: j->sets[j->nsets++] = strdup(optarg); break;
         case ':':
             app_error("option '%s' needs a value (try 'radray compare --help')", argv[optind - 1]);
@@ -259,8 +309,9 @@ static int parse_options(job *j, int argc, char **argv)
         return APP_EXIT_USAGE;
     }
     j->scene_path = argv[optind];
-    if (j->nlayers && (j->nmodes || j->ref_name)) {
-        app_error("--layers: compares the layers of one render; it does not go with --modes or --reference");
+    if (j->nlayers && (j->nmodes || j->ref_name || j->ref_file || j->stats_path)) {
+        app_error("--layers: compares the layers of one render; it does not go with --modes, --reference or "
+                  "--stats");
         return APP_EXIT_USAGE;
     }
     if (!j->nlayers && !j->nmodes)
@@ -269,7 +320,13 @@ static int parse_options(job *j, int argc, char **argv)
                 j->modes[j->nmodes++] = (int)m;
     j->npanels = j->nlayers ? j->nlayers : j->nmodes;
     j->ref = -1;
-    if (!j->nlayers) {
+    if (j->ref_file) {
+        if (j->nmodes + 1 > MAX_PANELS) {
+            app_error("--reference: at most %d modes beside an image reference", MAX_PANELS - 1);
+            return APP_EXIT_USAGE;
+        }
+        j->ref = j->npanels++; /* the image is the last panel */
+    } else if (!j->nlayers) {
         /* Secondary rays are the unbiased estimate: the natural reference. */
         int want = (int)((j->ref_name ? ig_find(j->ref_name) : ig_find("secondary")) - ig_table);
         for (int i = 0; i < j->nmodes; i++)
@@ -283,6 +340,28 @@ static int parse_options(job *j, int argc, char **argv)
             j->ref = j->nmodes - 1;
     }
     return -1;
+}
+
+/* The --reference image into the last panel: an EXR of the view's size
+ * (after --width). 0, or -1 after the error. */
+static int read_reference(job *j)
+{
+    rr_error err;
+    rr_image im = {0};
+    if (rr_file_check_regular(j->ref_file, &err) != RR_OK || img_read_exr(j->ref_file, NULL, &im, &err) != RR_OK) {
+        app_error("--reference: %s", err.msg);
+        return -1;
+    }
+    int w = j->sc->view.width, h = j->sc->view.height;
+    if (im.width != w || im.height != h) {
+        app_error("--reference %s: the image is %d x %d, the renders are %d x %d (give --width %d, or render the "
+                  "reference at this size)",
+                  j->ref_file, im.width, im.height, w, h, im.width);
+        rr_image_free(&im);
+        return -1;
+    }
+    j->img[j->ref] = im;
+    return 0;
 }
 
 /* Loads the scene and settles the output path; returns -1 to go on, or the
@@ -317,9 +396,13 @@ static int prepare(job *j)
         app_error("-o %s: the figure must end in .png, .pdf or .svg", j->out);
         return APP_EXIT_USAGE;
     }
-    const char *ins[64], *outs[1] = {j->out}, *what[1] = {"-o"};
-    size_t nin = app_scene_inputs(j->sc, ins, 64);
-    if (app_check_outputs(outs, what, 1, ins, nin))
+    const char *ins[64], *outs[2] = {j->out, j->stats_path}, *what[2] = {"-o", "--stats"};
+    size_t nin = app_scene_inputs(j->sc, ins, 62);
+    ins[nin++] = j->cache_path;
+    ins[nin++] = j->ref_file;
+    if (app_check_outputs(outs, what, 2, ins, nin))
+        return APP_EXIT_USAGE;
+    if (j->ref_file && read_reference(j) != 0)
         return APP_EXIT_USAGE;
     if (rt_film_init(&j->film, j->sc->view.width, j->sc->view.height, &err) != RR_OK ||
         rt_accel_build(j->sc, &j->accel, &err) != RR_OK) {
@@ -327,7 +410,7 @@ static int prepare(job *j)
         return APP_EXIT_RUNTIME;
     }
     app_diagnose_light(j->sc, j->accel);
-    app_session_init(&j->ses, j->sc, j->accel, NULL);
+    app_session_init(&j->ses, j->sc, j->accel, j->cache_path);
     return -1;
 }
 
@@ -376,7 +459,8 @@ static int render_panels(job *j)
         if (ig->indirect == RT_INDIRECT_SECONDARY)
             sc->settings.spp = (int)(j->secondary_spp ? j->secondary_spp : fmin(16.0 * base_spp, 1 << 20));
         j->spp_of[m] = sc->settings.spp;
-        rr_status st = ig_render(&j->ses, ig, NULL, &j->film, &j->secs[m], &err);
+        ig_render_opts ro = {(rt_filter)j->filter, NULL, NULL};
+        rr_status st = ig_render(&j->ses, ig, &ro, &j->film, &j->secs[m], &err);
         sc->settings.spp = base_spp;
         if (st != RR_OK) {
             app_error("%s", err.msg);
@@ -386,7 +470,7 @@ static int render_panels(job *j)
             fprintf(stderr, "compare: %s, %d spp, %.2f s\n", ig->name, j->spp_of[m], j->secs[m]);
         for (int i = 0; i < j->npanels; i++) {
             const rr_image *src = NULL;
-            if (!j->nlayers && j->modes[i] == m)
+            if (!j->nlayers && i < j->nmodes && j->modes[i] == m)
                 src = &j->film.beauty;
             else if (j->nlayers && layer_mode(j->layers[i]) == m)
                 src = layer_index[j->layers[i]] < 0 ? &j->film.beauty : &j->film.layer[layer_index[j->layers[i]]];
@@ -477,7 +561,7 @@ static int region_table(const job *j, table_store *ts, fig_table *t)
     t->rows = ts->rows;
     t->pixels = ts->pixels;
     t->mean = ts->mean;
-    t->ref = j->nlayers || j->nmodes < 2 ? -1 : j->ref;
+    t->ref = j->nlayers || j->npanels < 2 ? -1 : j->ref;
     return 0;
 }
 
@@ -492,6 +576,146 @@ static void free_job(job *j)
     for (size_t i = 0; i < j->nsets; i++)
         free(j->sets[i]);
     free(j->sets);
+}
+
+/* Titles and captions: the mode (or layer), its samples and time; the image
+ * reference by its file name; with a reference, each estimate's relMSE and
+ * SSIM against it. */
+static void label_panels(const job *j, fig_panel *panels, const char **cols)
+{
+    for (int i = 0; i < j->npanels; i++) {
+        panels[i].img = &j->img[i];
+        cols[i] = panels[i].title;
+        if (j->ref_file && i == j->ref) {
+            const char *b = strrchr(j->ref_file, '/');
+            snprintf(panels[i].title, sizeof panels[i].title, "reference");
+            snprintf(panels[i].caption, sizeof panels[i].caption, "image %s", b ? b + 1 : j->ref_file);
+            continue;
+        }
+        int m = j->nlayers ? layer_mode(j->layers[i]) : j->modes[i];
+        snprintf(panels[i].title, sizeof panels[i].title, "%s",
+                 j->nlayers ? layer_names[j->layers[i]] : ig_table[m].name);
+        if (j->nlayers) {
+            snprintf(panels[i].caption, sizeof panels[i].caption, "%s %s, %d spp, %.2f s", ig_table[m].name,
+                     ig_table[m].shows_field ? "display" : "render", j->spp_of[m], j->secs[m]);
+            continue;
+        }
+        int k = snprintf(panels[i].caption, sizeof panels[i].caption, "%d spp, %.2f s", j->spp_of[m], j->secs[m]);
+        if (j->ref >= 0 && i != j->ref && j->npanels > 1) {
+            app_metrics mt;
+            app_metrics_region(&j->img[i], &j->img[j->ref], NULL, 0, &mt);
+            snprintf(panels[i].caption + k, sizeof panels[i].caption - (size_t)k, ", relMSE %.3g, SSIM %.3f",
+                     mt.relmse.value, app_metric_ssim(&j->img[i], &j->img[j->ref], j->sc->settings.exposure));
+        }
+    }
+}
+
+/* s as a JSON string (object names may hold quotes or backslashes). */
+static void json_text(FILE *f, const char *s)
+{
+    fputc('"', f);
+    for (; *s; s++) {
+        unsigned char c = (unsigned char)*s;
+        if (c == '"' || c == '\\')
+            fprintf(f, "\\%c", c);
+        else if (c < 0x20)
+            fprintf(f, "\\u%04x", c);
+        else
+            fputc(c, f);
+    }
+    fputc('"', f);
+}
+
+static void json_metric(FILE *f, const char *name, app_metric m)
+{
+    fprintf(f, "\"%s\": %.9g, \"%s_se\": %.9g", name, m.value, name, m.se);
+}
+
+/* One row of the statistics: panel i against the reference over region
+ * `which` of region (NULL: the whole image), as JSON or CSV. */
+static void stats_row(FILE *f, int json, const job *j, const fig_panel *panels, int i, const char *area,
+                      const int *region, int which, int first)
+{
+    app_metrics mt;
+    app_metrics_region(&j->img[i], &j->img[j->ref], region, which, &mt);
+    double ssim = region ? NAN : app_metric_ssim(&j->img[i], &j->img[j->ref], j->sc->settings.exposure);
+    if (!json) {
+        fprintf(f, "%s,%s,%ld,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g\n", panels[i].title, area, mt.pixels,
+                mt.relmse.value, mt.relmse.se, mt.mare.value, mt.mare.se, mt.bias.value, mt.bias.se, ssim);
+        return;
+    }
+    fprintf(f, "%s\n    {\"panel\": \"%s\", \"region\": ", first ? "" : ",", panels[i].title);
+    json_text(f, area);
+    fprintf(f, ", \"pixels\": %ld, ", mt.pixels);
+    json_metric(f, "relmse", mt.relmse);
+    fputs(", ", f);
+    json_metric(f, "mare", mt.mare);
+    fputs(", ", f);
+    json_metric(f, "bias", mt.bias);
+    if (isfinite(ssim))
+        fprintf(f, ", \"ssim\": %.9g", ssim);
+    fputs("}", f);
+}
+
+/* --stats: every estimate against the reference, over the whole image and
+ * over each object that fills enough whole pixels (the figure's table rows),
+ * written through a temporary file. 0, or -1 after the error. */
+static int write_stats(const job *j, const fig_panel *panels)
+{
+    if (j->ref < 0 || j->nlayers) {
+        app_error("--stats: the statistics compare estimates with a reference; layers have none");
+        return -1;
+    }
+    const scene *sc = j->sc;
+    int *region = classify_pixels(sc, j->accel);
+    long *count = calloc(sc->nobjects + 1, sizeof *count);
+    rr_error err;
+    FILE *f = NULL;
+    char tmp[4096];
+    int json = app_ends_with(j->stats_path, ".json"), rc = -1;
+    if (!region || !count) {
+        app_error("out of memory");
+        goto done;
+    }
+    size_t npx = (size_t)sc->view.width * (size_t)sc->view.height;
+    for (size_t p = 0; p < npx; p++)
+        if (region[p] >= 0)
+            count[region[p]]++;
+    if (rr_file_make_parent_dirs(j->stats_path, &err) != RR_OK ||
+        rr_file_tmpname(j->stats_path, tmp, sizeof tmp, &err) != RR_OK || !(f = fopen(tmp, "w"))) {
+        app_error("--stats %s: cannot write it", j->stats_path);
+        goto done;
+    }
+    if (json)
+        fprintf(f, "{\"reference\": \"%s\", \"eps\": %g, \"rows\": [", panels[j->ref].title, APP_METRIC_EPS);
+    else
+        fputs("panel,region,pixels,relmse,relmse_se,mare,mare_se,bias,bias_se,ssim\n", f);
+    long threshold = (long)fmax(4.0, 0.001 * (double)npx);
+    int first = 1;
+    for (int i = 0; i < j->npanels; i++) {
+        if (i == j->ref)
+            continue;
+        stats_row(f, json, j, panels, i, "(all pixels)", NULL, 0, first);
+        first = 0;
+        for (size_t o = 0; o < sc->nobjects; o++)
+            if (count[o] >= threshold)
+                stats_row(f, json, j, panels, i, sc->objects[o].name, region, (int)o, 0);
+    }
+    if (json)
+        fputs("\n]}\n", f);
+    int bad = ferror(f);
+    if (fclose(f) != 0 || bad || rename(tmp, j->stats_path) != 0) {
+        remove(tmp);
+        app_error("--stats %s: write failed", j->stats_path);
+        goto done;
+    }
+    if (!j->quiet)
+        printf("wrote %s (statistics against %s)\n", j->stats_path, panels[j->ref].title);
+    rc = 0;
+done:
+    free(region);
+    free(count);
+    return rc;
 }
 
 int app_cmd_compare(int argc, char **argv)
@@ -517,18 +741,9 @@ int app_cmd_compare(int argc, char **argv)
         goto done;
     rc = APP_EXIT_RUNTIME;
 
-    for (int i = 0; i < j.npanels; i++) {
-        int m = j.nlayers ? layer_mode(j.layers[i]) : j.modes[i];
-        snprintf(panels[i].title, sizeof panels[i].title, "%s",
-                 j.nlayers ? layer_names[j.layers[i]] : ig_table[m].name);
-        if (j.nlayers)
-            snprintf(panels[i].caption, sizeof panels[i].caption, "%s %s, %d spp, %.2f s", ig_table[m].name,
-                     ig_table[m].shows_field ? "display" : "render", j.spp_of[m], j.secs[m]);
-        else
-            snprintf(panels[i].caption, sizeof panels[i].caption, "%d spp, %.2f s", j.spp_of[m], j.secs[m]);
-        panels[i].img = &j.img[i];
-        cols[i] = panels[i].title;
-    }
+    label_panels(&j, panels, cols);
+    if (j.stats_path && write_stats(&j, panels) != 0)
+        goto done;
     if (region_table(&j, &ts, &d.table) != 0) {
         app_error("out of memory");
         goto done;

@@ -107,26 +107,9 @@ typedef struct render_args {
     char exr_default[4200], png_default[4200], partial[4200];
 } render_args;
 
-/* The scene key a shorthand option sets, or NULL. */
-static const char *shorthand_key(int c)
-{
-    switch (c) {
-    case OPT_PATCH_AREA: return "radiosity.patch_area";
-    case OPT_PATCH_EDGE: return "radiosity.patch_edge";
-    case OPT_SOLVER: return "radiosity.solver";
-    case OPT_FF: return "radiosity.form_factors";
-    case OPT_FF_SAMPLES: return "radiosity.ff_samples";
-    case OPT_SPP: return "render.spp";
-    case OPT_SEED: return "render.seed";
-    case OPT_THREADS: return "render.threads";
-    case OPT_EXPOSURE: return "render.exposure";
-    case OPT_HALF: return "render.half_float";
-    default: return NULL;
-    }
-}
-
 /* One option into A; returns -1 to go on, or the exit code. */
-static int parse_option(render_args *A, int c, const char *arg, const char *name, const ig_integrator **by_indirect)
+static int parse_option(render_args *A, int c, const char *arg, const char *name, const char *longname,
+                        const ig_integrator **by_indirect)
 {
     static const char *const filters[] = {"box", "tent", NULL};
     char names[128];
@@ -169,7 +152,7 @@ static int parse_option(render_args *A, int c, const char *arg, const char *name
         return APP_EXIT_USAGE;
     default: break;
     }
-    const char *key = shorthand_key(c);
+    const char *key = longname ? app_option_key(longname) : NULL;
     if (!key) {
         app_error("unknown option '%s' (try 'radray render --help')", name);
         return APP_EXIT_USAGE;
@@ -206,9 +189,9 @@ static int parse_args(render_args *A, int argc, char **argv)
     A->max_memory = app_default_max_memory();
     optind = 1;
     opterr = 0;
-    int c;
-    while ((c = getopt_long(argc, argv, ":o:qh", longopts, NULL)) != -1) {
-        int rc = parse_option(A, c, optarg, argv[optind - 1], &by_indirect);
+    int c, li;
+    while ((li = -1, c = getopt_long(argc, argv, ":o:qh", longopts, &li)) != -1) {
+        int rc = parse_option(A, c, optarg, argv[optind - 1], li >= 0 ? longopts[li].name : NULL, &by_indirect);
         if (rc >= 0)
             return rc;
     }

@@ -23,6 +23,21 @@ int app_pick(const char *name, const char *const *names)
     return -1;
 }
 
+const char *app_option_key(const char *option)
+{
+    static const char *const keys[][2] = {
+        {"spp", "render.spp"},           {"seed", "render.seed"},
+        {"threads", "render.threads"},   {"exposure", "render.exposure"},
+        {"half", "render.half_float"},   {"patch-area", "radiosity.patch_area"},
+        {"patch-edge", "radiosity.patch_edge"}, {"solver", "radiosity.solver"},
+        {"ff", "radiosity.form_factors"}, {"ff-samples", "radiosity.ff_samples"},
+    };
+    for (size_t i = 0; i < sizeof keys / sizeof keys[0]; i++)
+        if (!strcmp(option, keys[i][0]))
+            return keys[i][1];
+    return NULL;
+}
+
 int app_ends_with(const char *s, const char *suffix)
 {
     size_t n = strlen(s), m = strlen(suffix);

@@ -12,6 +12,7 @@
 
 #include <fcntl.h>
 #include <ftw.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -193,6 +194,110 @@ static void bad_input(void **state)
     assert_false(exists(fig));
 }
 
+/* The number after "key": in the row of panel `panel`, region "(all pixels)". */
+static double stats_value(const char *json, const char *panel, const char *key)
+{
+    char want[96];
+    snprintf(want, sizeof want, "{\"panel\": \"%s\", \"region\": \"(all pixels)\"", panel);
+    const char *row = strstr(json, want);
+    assert_non_null(row);
+    char k[64];
+    snprintf(k, sizeof k, "\"%s\": ", key);
+    const char *v = strstr(row, k);
+    assert_non_null(v);
+    return strtod(v + strlen(k), NULL);
+}
+
+/* compare --reference FILE.exr (an image from any renderer; here from
+ * `render`): a render of the same settings scores relMSE 0 and SSIM 1
+ * against it, another mode's relMSE, MARE and bias are what this test
+ * computes itself from the two EXRs, and a second run reuses the radiosity
+ * cache. */
+static void external_reference_and_stats(void **state)
+{
+    (void)state;
+    /* path_in rotates four buffers: keep copies. */
+    char ref[256], wh[256], cache[256], fig[256], stats[256], csv[256], fig2[256], junk[256], none[256], txt[256];
+    snprintf(ref, sizeof ref, "%s", path_in("ref.exr"));
+    snprintf(wh, sizeof wh, "%s", path_in("wh.exr"));
+    snprintf(cache, sizeof cache, "%s", path_in("c.cache"));
+    snprintf(fig, sizeof fig, "%s", path_in("ext.png"));
+    snprintf(stats, sizeof stats, "%s", path_in("s.json"));
+    snprintf(csv, sizeof csv, "%s", path_in("s.csv"));
+    snprintf(fig2, sizeof fig2, "%s", path_in("never.png"));
+    snprintf(junk, sizeof junk, "%s", path_in("junk.exr"));
+    snprintf(none, sizeof none, "%s", path_in("none.exr"));
+    snprintf(txt, sizeof txt, "%s", path_in("s.txt"));
+    const char *r1[] = {"render", scene("cornell.json"), "--width", "24", "--spp", "2", "-q", "-o", ref, NULL};
+    assert_int_equal(run(r1), 0);
+    const char *r2[] = {"render", scene("cornell.json"), "--width", "24", "--spp", "2", "--mode", "whitted", "-q",
+                        "-o", wh, NULL};
+    assert_int_equal(run(r2), 0);
+    const char *a[] = {"compare", scene("cornell.json"), "--width", "24", "--spp", "2", "--modes", "hybrid,whitted",
+                       "--reference", ref, "--stats", stats, "--radiosity-cache", cache, "-o", fig, NULL};
+    assert_int_equal(run(a), 0);
+    assert_true(exists(fig) && exists(stats) && exists(cache));
+    char *json = NULL;
+    size_t n = 0;
+    assert_int_equal(rr_file_read_all(stats, &json, &n, NULL), RR_OK);
+    assert_true(stats_value(json, "hybrid", "relmse") == 0.0);
+    assert_true(stats_value(json, "hybrid", "ssim") == 1.0);
+    rr_image x = {0}, r = {0};
+    assert_int_equal(img_read_exr(wh, NULL, &x, NULL), RR_OK);
+    assert_int_equal(img_read_exr(ref, NULL, &r, NULL), RR_OK);
+    double rel = 0, mare = 0, bias = 0;
+    size_t m = 3 * (size_t)x.width * (size_t)x.height;
+    for (size_t k = 0; k < m; k++) {
+        double d = (double)x.px[k] - (double)r.px[k], b = r.px[k];
+        rel += d * d / (b * b + 0.01);
+        mare += fabs(d) / (fabs(b) + 0.01);
+        bias += d / (fabs(b) + 0.01);
+    }
+    rel /= (double)m;
+    mare /= (double)m;
+    bias /= (double)m;
+    assert_true(rel > 0.01);
+    assert_true(fabs(stats_value(json, "whitted", "relmse") - rel) <= 1e-6 * rel);
+    assert_true(fabs(stats_value(json, "whitted", "mare") - mare) <= 1e-6 * mare);
+    assert_true(fabs(stats_value(json, "whitted", "bias") - bias) <= 1e-6 * fabs(bias));
+    assert_true(stats_value(json, "whitted", "ssim") < 1.0);
+    assert_non_null(strstr(json, "\"region\": \"back_wall\""));
+    free(json);
+    rr_image_free(&x);
+    rr_image_free(&r);
+    /* Again, as CSV, from the cache. */
+    const char *b[] = {"compare", scene("cornell.json"), "--width", "24", "--spp", "2", "--modes", "hybrid",
+                       "--reference", ref, "--stats", csv, "--radiosity-cache", cache, "-o", fig, NULL};
+    assert_int_equal(run(b), 0);
+    assert_non_null(strstr(g_out, "solution read from"));
+    char *text = NULL;
+    assert_int_equal(rr_file_read_all(csv, &text, &n, NULL), RR_OK);
+    assert_true(!strncmp(text, "panel,region,pixels,relmse,relmse_se,mare,mare_se,bias,bias_se,ssim\nhybrid,(all pixels),576,0,", 92));
+    free(text);
+    /* Bad references: another size, not an EXR, a missing file; a stats file
+     * of another kind. Exit 2, nothing written. */
+    const char *c[] = {"compare", scene("cornell.json"), "--width", "30", "--reference", ref, "-o", fig2, NULL};
+    static const char *const wc[] = {"ref.exr", "24 x 24", "30 x 30", NULL};
+    expect_usage(c, wc);
+    FILE *f = fopen(junk, "wb");
+    assert_non_null(f);
+    fputs("not an EXR at all", f);
+    fclose(f);
+    const char *d[] = {"compare", scene("cornell.json"), "--reference", junk, "-o", fig2, NULL};
+    static const char *const wd[] = {"--reference", "junk.exr", NULL};
+    expect_usage(d, wd);
+    const char *e[] = {"compare", scene("cornell.json"), "--reference", none, "-o", fig2, NULL};
+    static const char *const we[] = {"--reference", "none.exr", NULL};
+    expect_usage(e, we);
+    const char *g[] = {"compare", scene("cornell.json"), "--stats", txt, "-o", fig2, NULL};
+    static const char *const wg[] = {"--stats", ".json", ".csv", NULL};
+    expect_usage(g, wg);
+    const char *h[] = {"compare", scene("cornell.json"), "--reference", ref, "--stats", ref, "-o", fig2, NULL};
+    static const char *const wh2[] = {"--stats", NULL};
+    expect_usage(h, wh2);
+    assert_false(exists(fig2));
+}
+
 static void unwritable_output(void **state)
 {
     (void)state;
@@ -234,6 +339,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(help),           cmocka_unit_test(cornell_modes), cmocka_unit_test(phong_layers),
         cmocka_unit_test(vector_outputs), cmocka_unit_test(bad_input),     cmocka_unit_test(unwritable_output),
+        cmocka_unit_test(external_reference_and_stats),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }
