@@ -32,6 +32,11 @@ int app_cmd_compare(int argc, char **argv);
 
 /* ---- pipeline.c: shared by render, compare and energy ---- */
 
+/* scene_load; when the error is about a key that one of lo's overrides
+ * set (--set KEY=VALUE, or an option such as --spp), the message blames the
+ * command line and names the override instead of the scene file. */
+rr_status app_scene_load(const char *path, const scene_load_opts *lo, scene **out, rr_error *err);
+
 /* The names of rt_indirect's values (--indirect), NULL-terminated. */
 extern const char *const app_indirect_names[];
 /* Index of name in a NULL-terminated list, or -1. */
@@ -121,8 +126,10 @@ double app_metric_ssim(const rr_image *x, const rr_image *r, double exposure);
 
 /* ---- diagnose.c: warnings that name the cause of lost light ---- */
 
-/* Warns about every closed triangle object whose faces point outwards and
- * that has an emitter inside (a room built inside out). Returns the count. */
+/* Warns when nothing can light the scene (nothing emits, black background:
+ * a black image), and about every closed triangle object whose faces point
+ * outwards and that has an emitter inside (a room built inside out). Returns
+ * the count. */
 size_t app_diagnose_scene(const scene *s);
 /* Warns about every object whose back faces receive more than share of the
  * emitted power in the light tracer's ledger g. Returns the count. */

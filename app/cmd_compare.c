@@ -373,7 +373,7 @@ static int prepare(job *j)
     lo.overrides = (const char *const *)j->sets;
     lo.noverrides = j->nsets;
     lo.warn = app_warn_sink();
-    if (scene_load(j->scene_path, &lo, &j->sc, &err) != RR_OK) {
+    if (app_scene_load(j->scene_path, &lo, &j->sc, &err) != RR_OK) {
         app_error("%s", err.msg);
         return APP_EXIT_USAGE;
     }

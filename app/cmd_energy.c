@@ -470,7 +470,7 @@ int app_cmd_energy(int argc, char **argv)
     lo.noverrides = A.nsets;
     lo.warn = app_warn_sink();
     lo.max_image_bytes = A.max_memory;
-    if (scene_load(A.path, &lo, &s, &err) != RR_OK) {
+    if (app_scene_load(A.path, &lo, &s, &err) != RR_OK) {
         app_error("%s", err.msg);
         goto done;
     }

@@ -116,7 +116,7 @@ int app_cmd_info(int argc, char **argv)
     lo.noverrides = nsets;
     lo.warn = app_warn_sink();
     scene *s = NULL;
-    if (scene_load(argv[optind], &lo, &s, &err) != RR_OK) {
+    if (app_scene_load(argv[optind], &lo, &s, &err) != RR_OK) {
         app_error("%s", err.msg);
         return APP_EXIT_USAGE;
     }
@@ -127,8 +127,15 @@ int app_cmd_info(int argc, char **argv)
     rt_accel_destroy(a);
     const rr_view *v = &s->view;
     printf("scene      %s (%s)\n", s->name, s->path);
-    printf("camera     E (%g, %g, %g)  O (%g, %g, %g)  U (%g, %g, %g)  s %g\n", v->E.x, v->E.y, v->E.z, v->O.x,
-           v->O.y, v->O.z, v->U.x, v->U.y, v->U.z, v->s);
+    const scene_camera *cam = &s->camera;
+    if (cam->lookat) /* the keys of the file (and of --set camera.eye=...) first */
+        printf("camera     lookat: eye (%g, %g, %g)  target (%g, %g, %g)  up (%g, %g, %g)  fov %g\n"
+               "           as the lecture's view: E (%g, %g, %g)  O (%g, %g, %g)  U (%g, %g, %g)  s %g\n",
+               cam->eye.x, cam->eye.y, cam->eye.z, cam->target.x, cam->target.y, cam->target.z, cam->up.x, cam->up.y,
+               cam->up.z, cam->fov, v->E.x, v->E.y, v->E.z, v->O.x, v->O.y, v->O.z, v->U.x, v->U.y, v->U.z, v->s);
+    else
+        printf("camera     lecture: E (%g, %g, %g)  O (%g, %g, %g)  U (%g, %g, %g)  s %g\n", v->E.x, v->E.y, v->E.z,
+               v->O.x, v->O.y, v->O.z, v->U.x, v->U.y, v->U.z, v->s);
     printf("           I (%.4f, %.4f, %.4f)  J (%.4f, %.4f, %.4f)  %d x %d pixels\n", v->I.x, v->I.y, v->I.z, v->J.x,
            v->J.y, v->J.z, v->width, v->height);
     printf("render     %d spp, seed %llu, max depth %d, %d light sample(s)\n", s->settings.spp,

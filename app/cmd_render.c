@@ -21,7 +21,8 @@ static const char render_usage[] =
     "an sRGB PNG preview beside it.\n"
     "\n"
     "options:\n"
-    "  -o, --output FILE.exr  EXR output (default out/<scene name>.exr)\n"
+    "  -o, --output FILE.exr  EXR output (default out/<scene file name>.exr, e.g. out/cornell.exr);\n"
+    "                         -o FILE.png names the preview instead, the EXR beside it\n"
     "      --png FILE.png     PNG preview path (default: the output with .png)\n"
     "      --no-png           do not write the PNG preview\n"
     "      --width N          image width in pixels; the height keeps the aspect ratio\n"
@@ -222,8 +223,14 @@ static int settle_outputs(render_args *A, const scene *sc)
         snprintf(A->exr_default, sizeof A->exr_default, "out/%.*s.exr", (int)n, base);
         A->out_exr = A->exr_default;
     }
+    if (app_ends_with(A->out_exr, ".png") && !A->out_png && !A->no_png) {
+        /* -o FILE.png: that is the preview; the EXR goes beside it. */
+        A->out_png = A->out_exr;
+        snprintf(A->exr_default, sizeof A->exr_default, "%.*s.exr", (int)(strlen(A->out_exr) - 4), A->out_exr);
+        A->out_exr = A->exr_default;
+    }
     if (!app_ends_with(A->out_exr, ".exr")) {
-        app_error("-o %s: the output must end in .exr (the PNG preview is written beside it)", A->out_exr);
+        app_error("-o %s: the output must end in .exr (or .png: the preview, with the EXR beside it)", A->out_exr);
         return -1;
     }
     if (!A->out_png && !A->no_png) {
@@ -255,7 +262,7 @@ static scene *load_scene(const render_args *A)
     lo.warn = app_warn_sink();
     lo.max_image_bytes = A->max_memory;
     scene *sc = NULL;
-    if (scene_load(A->scene_path, &lo, &sc, &err) != RR_OK) {
+    if (app_scene_load(A->scene_path, &lo, &sc, &err) != RR_OK) {
         app_error("%s", err.msg);
         return NULL;
     }

@@ -59,6 +59,17 @@ size_t app_diagnose_scene(const scene *s)
     emitter_point e[MAX_EMITTER_POINTS];
     size_t ne = emitter_points(s, e), warned = 0;
     rr_warn_sink w = app_warn_sink();
+    int ambient = 0;
+    for (size_t m = 0; m < s->nmaterials; m++)
+        ambient |= s->materials[m].ambient > 0 && rr_rgb_max(s->materials[m].diffuse) > 0;
+    ambient &= rr_rgb_max(s->settings.ambient) > 0; /* the lecture's a * A * rho, Whitted mode only */
+    if (!rt_scene_emits(s) && !(rr_rgb_max(s->settings.background) > 0)) {
+        rr_warn(&w,
+                "%s: nothing emits light (no lights, no emissive material on any surface) and the background is "
+                "black: every mode renders a black image%s. Add a light, or an \"emission\" to a material",
+                s->path, ambient ? " except for the lecture's ambient term (--mode whitted)" : "");
+        warned++;
+    }
     for (size_t o = 0; o < s->nobjects && ne > 0; o++) {
         const scene_object *ob = &s->objects[o];
         int triangles = rt_prim_kind_of(s, (uint32_t)o) == RT_PRIM_TRIANGLE;

@@ -38,6 +38,31 @@ const char *app_option_key(const char *option)
     return NULL;
 }
 
+rr_status app_scene_load(const char *path, const scene_load_opts *lo, scene **out, rr_error *err)
+{
+    rr_status st = scene_load(path, lo, out, err);
+    if (st == RR_OK || !err)
+        return st;
+    /* A message "<path>: <key>..." about a key an override set is about the
+     * command line, not the file: say so, and which override it was. */
+    size_t np = strlen(path);
+    if (strncmp(err->msg, path, np) != 0 || strncmp(err->msg + np, ": ", 2) != 0)
+        return st;
+    const char *where = err->msg + np + 2;
+    for (size_t i = 0; i < lo->noverrides; i++) {
+        const char *ov = lo->overrides[i], *eq = strchr(ov, '=');
+        size_t nk = eq ? (size_t)(eq - ov) : strlen(ov);
+        char c = where[nk];
+        if (strncmp(where, ov, nk) != 0 || (c != ':' && c != '[' && c != '.'))
+            continue;
+        char msg[sizeof err->msg];
+        snprintf(msg, sizeof msg, "the command line (%s, from --set or an option): %s", ov, where);
+        snprintf(err->msg, sizeof err->msg, "%s", msg);
+        break;
+    }
+    return st;
+}
+
 int app_ends_with(const char *s, const char *suffix)
 {
     size_t n = strlen(s), m = strlen(suffix);

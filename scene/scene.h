@@ -161,10 +161,18 @@ typedef struct scene_radiosity {
     double tolerance;       /* iterative solver: relative residual, default 1e-9 */
 } scene_radiosity;
 
+/* The camera as the file gave it (view is always the lecture's form). */
+typedef struct scene_camera {
+    int lookat;             /* 1: "type": "lookat" (eye, target, up, fov below); 0: "lecture" */
+    rr_vec3 eye, target, up;
+    double fov;             /* degrees, vertical */
+} scene_camera;
+
 typedef struct scene {
     char path[4096];        /* the file it was loaded from ("<string>" names for in-memory) */
     char name[SCENE_NAME_MAX];
     rr_view view;
+    scene_camera camera;
     scene_settings settings;
     scene_radiosity radiosity;
     scene_material *materials;

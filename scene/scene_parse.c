@@ -92,7 +92,14 @@ static rr_status parse_lookat(const sp_ctx *c, const cJSON *cam, scene *s)
     if ((st = check_film(c, (long)width, (long)height)) != RR_OK)
         return st;
     st = rr_view_lookat(eye, target, up, fov, (int)width, (int)height, &s->view, c->err);
-    return st == RR_OK ? RR_OK : view_fail(c, st);
+    if (st != RR_OK)
+        return view_fail(c, st);
+    s->camera.lookat = 1;
+    s->camera.eye = eye;
+    s->camera.target = target;
+    s->camera.up = up;
+    s->camera.fov = fov;
+    return RR_OK;
 }
 
 rr_status sp_parse_camera(const sp_ctx *c, const cJSON *root, scene *s)

@@ -302,6 +302,45 @@ static void modes_and_indirect(void **state)
     assert_non_null(strstr(g_out, "whitted, secondary, radiosity, hybrid or direct"));
 }
 
+/* Small things a new user meets: -o FILE.png, an option's bad value blamed
+ * on the command line (not the scene file), info showing a lookat camera in
+ * the keys --set takes, a scene that nothing lights. */
+static void user_details(void **state)
+{
+    (void)state;
+    char png[256], exr[256], room[512];
+    snprintf(png, sizeof png, "%s/pp.png", g_dir);
+    snprintf(exr, sizeof exr, "%s/pp.exr", g_dir);
+    char sc[256];
+    snprintf(sc, sizeof sc, "%s", scene_file("details.json", "4", k_quad)); /* scene_file reuses its buffer */
+    const char *a[] = {"render", sc, "-o", png, "--mode", "whitted", "-q", NULL};
+    assert_int_equal(run(a), 0);
+    assert_true(exists("pp.png") && exists("pp.exr"));
+    const char *b[] = {"render", sc, "--spp", "0", "-o", exr, NULL};
+    assert_int_equal(run(b), 2);
+    assert_non_null(strstr(g_out, "the command line (render.spp=0"));
+    assert_null(strstr(g_out, "details.json"));
+    const char *c[] = {"render", sc, "--set", "materials.a.diffuse=[2,0,0]", "-o", exr, NULL};
+    assert_int_equal(run(c), 2);
+    assert_non_null(strstr(g_out, "the command line (materials.a.diffuse=[2,0,0]"));
+    /* A bad value in the file itself is still the file's. */
+    const char *bad = scene_file("details-bad.json", "1.5", k_quad);
+    const char *d[] = {"render", bad, "-o", exr, NULL};
+    assert_int_equal(run(d), 2);
+    assert_non_null(strstr(g_out, "details-bad.json: camera"));
+    snprintf(room, sizeof room, "%s/scenes/room.json", RR_SOURCE_DIR);
+    const char *e[] = {"info", room, NULL};
+    assert_int_equal(run(e), 0);
+    assert_non_null(strstr(g_out, "camera     lookat: eye (3.1, 1.6, 5.35)  target (2.3, 1.05, 1.2)"));
+    const char *f[] = {"info", room, "--set", "camera.eye=[3,1.6,5]", NULL};
+    assert_int_equal(run(f), 0);
+    assert_non_null(strstr(g_out, "eye (3, 1.6, 5)"));
+    /* Nothing emits (k_quad is grey, no lights): warned, still exit 0. */
+    const char *g[] = {"render", sc, "-o", exr, "-q", NULL};
+    assert_int_equal(run(g), 0);
+    assert_non_null(strstr(g_out, "nothing emits light"));
+}
+
 /* radray energy: the ledger balances on the Cornell box, in text and JSON;
  * scenes the radiosity pass cannot take are bad input (exit 2). */
 static void energy_ledger(void **state)
@@ -406,6 +445,7 @@ int main(void)
         cmocka_unit_test(zero_area_warning),
         cmocka_unit_test(render_reads_back_and_is_thread_independent),
         cmocka_unit_test(modes_and_indirect),
+        cmocka_unit_test(user_details),
         cmocka_unit_test(energy_ledger),
         cmocka_unit_test(radiosity_cache),
     };

@@ -666,18 +666,16 @@ static int setup(void **state)
     return mkdtemp(g_dir) ? 0 : -1;
 }
 
+/* Removes the test folder with everything the tests left in it (a
+ * folder of our own under /tmp, made by mkdtemp). */
 static int teardown(void **state)
 {
     (void)state;
-    static const char *const names[] = {"log.txt",  "slow.partial.exr", "slow.exr", "slow.png", "huge.exr",
-                                        "huge.png", "tiny.exr",         "tiny.png", NULL};
-    char path[256];
-    for (int i = 0; names[i]; i++) {
-        path_in(path, sizeof path, names[i]);
-        remove(path);
-    }
-    rmdir(g_dir);
-    return 0;
+    char cmd[128];
+    if (strncmp(g_dir, "/tmp/radray-hardening-", 22) != 0)
+        return 0;
+    snprintf(cmd, sizeof cmd, "rm -rf '%s'", g_dir);
+    return system(cmd) == 0 ? 0 : -1;
 }
 
 int main(void)
