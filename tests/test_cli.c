@@ -170,9 +170,10 @@ static void unwritable_output(void **state)
     snprintf(out, sizeof out, "%s/afile/sub/bad.exr", g_dir);
     const char *a[] = {"render", sc, "-o", out, NULL};
     expect_bad(a, "afile", "");
-    /* Not an .exr name. */
-    const char *b[] = {"render", sc, "-o", "x.png", NULL};
+    /* Neither .exr nor .png (-o FILE.png is the preview, the EXR beside it). */
+    const char *b[] = {"render", sc, "-o", "x.jpg", NULL};
     assert_int_equal(run(b), 2);
+    assert_non_null(strstr(g_out, "x.jpg"));
 }
 
 static void zero_area_warning(void **state)
