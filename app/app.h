@@ -13,6 +13,7 @@
 #include <stddef.h>
 
 #include "ig.h"
+#include "img.h"
 #include "rad.h"
 #include "rr_core.h"
 #include "rt.h"
@@ -174,11 +175,20 @@ size_t app_scene_inputs(const scene *s, const char **ins, size_t cap);
  * app_check_writable; prints the error and returns -1 on the first problem. */
 int app_check_outputs(const char *const *outs, const char *const *what, size_t nout, const char *const *ins,
                       size_t nin);
-/* Writes the film's EXR (beauty + layers) and, when png is set, its sRGB
- * preview as one commit: both to temporaries, then both renamed under a lock
- * on the folder; on any failure neither replaces its old file. */
+/* What the EXR carries beyond the film: extra layers (the AOVs, at most
+ * RT_AOV_COUNT) and header attributes (what made it). */
+typedef struct app_exr_extra {
+    const img_layer *layers;
+    int nlayers;
+    const img_attr *attrs;
+    int nattrs;
+} app_exr_extra;
+/* Writes the film's EXR (beauty + layers + extra, may be NULL) and, when png
+ * is set, its sRGB preview as one commit: both to temporaries, then both
+ * renamed under a lock on the folder; on any failure neither replaces its old
+ * file. */
 rr_status app_write_film(const char *exr, const char *png, const rt_film *film, int half, double exposure,
-                         rr_error *err);
+                         const app_exr_extra *extra, rr_error *err);
 
 /* Parses a whole decimal integer in [lo, hi]; 0 on success. */
 int app_parse_int(const char *s, long lo, long hi, long *out);

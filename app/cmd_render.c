@@ -41,6 +41,10 @@ static const char render_usage[] =
     "                         radiosity (= --mode hybrid), secondary, ambient (= whitted) or\n"
     "                         none (= direct); overrides --mode\n"
     "      --filter F         pixel filter for supersampling: box (default) or tent\n"
+    "      --aov LIST         extra EXR layers of each pixel's centre ray: albedo (diffuse\n"
+    "                         reflectance), normal (unit, facing the ray), depth (distance from\n"
+    "                         the eye), object_id (index in the scene's objects, -1: nothing);\n"
+    "                         comma-separated, or all\n"
     "radiosity options (override the scene's \"radiosity\" block):\n"
     "      --patch-area A     largest patch area (scene units squared)\n"
     "      --patch-edge L     longest patch edge\n"
@@ -93,13 +97,15 @@ enum {
     OPT_FF_SAMPLES,
     OPT_PLOT,
     OPT_CACHE,
-    OPT_MAX_MEMORY
+    OPT_MAX_MEMORY,
+    OPT_AOV
 };
 
 /* The command line, parsed. */
 typedef struct render_args {
     const char *scene_path, *out_exr, *out_png, *plot, *cache_path;
     int no_png, quiet, filter;
+    unsigned aovs; /* --aov: 1u << RT_AOV_* */
     long width;
     const ig_integrator *ig;
     size_t max_memory;
@@ -107,6 +113,33 @@ typedef struct render_args {
     size_t nsets;
     char exr_default[4200], png_default[4200], partial[4200];
 } render_args;
+
+/* --aov LIST: comma-separated AOV names, or "all"; -1, or the exit code. */
+static int parse_aovs(render_args *A, const char *arg)
+{
+    char buf[256];
+    snprintf(buf, sizeof buf, "%s", arg);
+    for (char *tok = strtok(buf, ","); tok; tok = strtok(NULL, ",")) {
+        int k = -1;
+        for (int i = 0; i < RT_AOV_COUNT; i++)
+            if (!strcmp(tok, rt_aov_name(i)))
+                k = i;
+        if (!strcmp(tok, "all")) {
+            A->aovs = (1u << RT_AOV_COUNT) - 1;
+            continue;
+        }
+        if (k < 0) {
+            app_error("--aov: unknown AOV '%s' (expected albedo, normal, depth, object_id or all)", tok);
+            return APP_EXIT_USAGE;
+        }
+        A->aovs |= 1u << k;
+    }
+    if (!A->aovs) {
+        app_error("--aov: expected a list such as albedo,normal,depth,object_id (or all), got '%s'", arg);
+        return APP_EXIT_USAGE;
+    }
+    return -1;
+}
 
 /* One option into A; returns -1 to go on, or the exit code. */
 static int parse_option(render_args *A, int c, const char *arg, const char *name, const char *longname,
@@ -129,6 +162,7 @@ static int parse_option(render_args *A, int c, const char *arg, const char *name
             return -1;
         app_error("--width: expected an integer in [1, %d], got '%s'", 1 << 21, arg);
         return APP_EXIT_USAGE;
+    case OPT_AOV: return parse_aovs(A, arg);
     case OPT_MAX_MEMORY:
         if (!app_parse_size(arg, &A->max_memory))
             return -1;
@@ -182,7 +216,7 @@ static int parse_args(render_args *A, int argc, char **argv)
         {"solver", required_argument, NULL, OPT_SOLVER},  {"ff", required_argument, NULL, OPT_FF},
         {"ff-samples", required_argument, NULL, OPT_FF_SAMPLES}, {"plot", required_argument, NULL, OPT_PLOT},
         {"radiosity-cache", required_argument, NULL, OPT_CACHE},
-        {"max-memory", required_argument, NULL, OPT_MAX_MEMORY},
+        {"max-memory", required_argument, NULL, OPT_MAX_MEMORY}, {"aov", required_argument, NULL, OPT_AOV},
         {NULL, 0, NULL, 0}};
     const ig_integrator *by_indirect = NULL;
     A->ig = ig_default();
@@ -318,6 +352,72 @@ static int write_plot(const render_args *A, const rad_solution *sol)
     return 0;
 }
 
+/* FNV-1a of the scene file's bytes, as hex (the file that made the image). */
+static void file_hash(const char *path, char *buf, size_t n)
+{
+    char *text = NULL;
+    size_t len = 0;
+    uint64_t h = 0xcbf29ce484222325ULL;
+    if (rr_file_read_all(path, &text, &len, NULL) != RR_OK) {
+        snprintf(buf, n, "unknown");
+        return;
+    }
+    for (size_t i = 0; i < len; i++) {
+        h ^= (unsigned char)text[i];
+        h *= 0x100000001b3ULL;
+    }
+    free(text);
+    snprintf(buf, n, "fnv1a64:%016llx", (unsigned long long)h);
+}
+
+/* The EXR (film, AOVs, what made it) and the PNG, as one commit. */
+static int write_outputs(const render_args *A, const scene *sc, const ig_session *ses, const rt_film *film,
+                         double secs)
+{
+    rr_error err;
+    rr_image aov[RT_AOV_COUNT];
+    memset(aov, 0, sizeof aov);
+    img_layer layers[RT_AOV_COUNT];
+    int nl = 0, rc = APP_EXIT_RUNTIME;
+    for (int k = 0; k < RT_AOV_COUNT; k++)
+        if (A->aovs & (1u << k)) {
+            if (rr_image_init(&aov[k], sc->view.width, sc->view.height, &err) != RR_OK) {
+                app_error("%s", err.msg);
+                goto done;
+            }
+            layers[nl].name = rt_aov_name(k);
+            layers[nl++].image = &aov[k];
+        }
+    if (A->aovs)
+        rt_render_aovs(sc, ses->accel, A->aovs, aov, sc->settings.threads);
+    char spp[32], seed[32], t_all[32], t_pass[32], hash[64], camera[512];
+    const rr_view *v = &sc->view;
+    snprintf(spp, sizeof spp, "%d", sc->settings.spp);
+    snprintf(seed, sizeof seed, "%llu", (unsigned long long)sc->settings.seed);
+    snprintf(t_all, sizeof t_all, "%.3f", secs);
+    snprintf(t_pass, sizeof t_pass, "%.3f", ses->sol ? ses->seconds_pass : 0.0);
+    file_hash(sc->path, hash, sizeof hash);
+    snprintf(camera, sizeof camera, "E (%.17g, %.17g, %.17g) O (%.17g, %.17g, %.17g) U (%.17g, %.17g, %.17g) s %.17g, %d x %d",
+             v->E.x, v->E.y, v->E.z, v->O.x, v->O.y, v->O.z, v->U.x, v->U.y, v->U.z, v->s, v->width, v->height);
+    const img_attr attrs[] = {
+        {"radray:version", RADRAY_VERSION}, {"radray:mode", A->ig->name},     {"radray:spp", spp},
+        {"radray:seed", seed},              {"radray:seconds", t_all},        {"radray:radiosity_seconds", t_pass},
+        {"radray:scene", sc->path},         {"radray:scene_name", sc->name},  {"radray:scene_hash", hash},
+        {"radray:camera", camera},
+    };
+    app_exr_extra extra = {layers, nl, attrs, (int)(sizeof attrs / sizeof attrs[0])};
+    if (app_write_film(A->out_exr, A->no_png ? NULL : A->out_png, film, sc->settings.half_float,
+                       sc->settings.exposure, &extra, &err) != RR_OK) {
+        app_error("%s", err.msg);
+        goto done;
+    }
+    rc = APP_EXIT_OK;
+done:
+    for (int k = 0; k < RT_AOV_COUNT; k++)
+        rr_image_free(&aov[k]);
+    return rc;
+}
+
 static void print_summary(const render_args *A, const scene *sc, const rt_film *film, double secs)
 {
     printf("rendered %s: %d x %d, %d spp, mode %s, %.2f s\n", A->scene_path, film->beauty.width,
@@ -325,6 +425,9 @@ static void print_summary(const render_args *A, const scene *sc, const rt_film *
     printf("wrote %s (linear %s RGB; layers", A->out_exr, sc->settings.half_float ? "half" : "float");
     for (int i = 0; i < RT_LAYER_COUNT; i++)
         printf(" %s", rt_layer_name(i));
+    for (int k = 0; k < RT_AOV_COUNT; k++)
+        if (A->aovs & (1u << k))
+            printf(" %s", rt_aov_name(k));
     printf(")\n");
     if (!A->no_png)
         printf("wrote %s (sRGB preview, exposure %+g)\n", A->out_png, sc->settings.exposure);
@@ -357,11 +460,9 @@ static int render_and_write(const render_args *A, scene *sc, ig_session *ses, rt
         return APP_EXIT_RUNTIME;
     app_scrub_film(film);
     double secs = rr_now_seconds() - t0;
-    if (app_write_film(A->out_exr, A->no_png ? NULL : A->out_png, film, sc->settings.half_float,
-                       sc->settings.exposure, &err) != RR_OK) {
-        app_error("%s", err.msg);
-        return APP_EXIT_RUNTIME;
-    }
+    int rc = write_outputs(A, sc, ses, film, secs);
+    if (rc != APP_EXIT_OK)
+        return rc;
     if (!A->quiet)
         print_summary(A, sc, film, secs);
     return APP_EXIT_OK;

@@ -169,13 +169,16 @@ static rr_status commit_all(char tmp[][4096], const char *const *path, int n, rr
 }
 
 rr_status app_write_film(const char *exr, const char *png, const rt_film *film, int half, double exposure,
-                         rr_error *err)
+                         const app_exr_extra *extra, rr_error *err)
 {
-    img_layer layers[RT_LAYER_COUNT];
+    img_layer layers[RT_LAYER_COUNT + RT_AOV_COUNT];
+    int nl = 0;
     for (int i = 0; i < RT_LAYER_COUNT; i++) {
-        layers[i].name = rt_layer_name(i);
-        layers[i].image = &film->layer[i];
+        layers[nl].name = rt_layer_name(i);
+        layers[nl++].image = &film->layer[i];
     }
+    for (int i = 0; extra && i < extra->nlayers && nl < RT_LAYER_COUNT + RT_AOV_COUNT; i++)
+        layers[nl++] = extra->layers[i];
     const char *path[2] = {exr, png};
     char tmp[2][4096] = {"", ""};
     int n = png ? 2 : 1;
@@ -185,8 +188,8 @@ rr_status app_write_film(const char *exr, const char *png, const rt_film *film, 
         if ((st = rr_file_make_parent_dirs(path[i], err)) == RR_OK)
             st = rr_file_tmpname(path[i], tmp[i], sizeof tmp[i], err);
     int failed = st == RR_OK ? -1 : 0;
-    if (st == RR_OK && (st = img_write_exr(tmp[0], &film->beauty, layers, RT_LAYER_COUNT,
-                                           half ? IMG_HALF : IMG_FLOAT, err)) != RR_OK)
+    if (st == RR_OK && (st = img_write_exr_attrs(tmp[0], &film->beauty, layers, nl, half ? IMG_HALF : IMG_FLOAT,
+                                                 extra ? extra->attrs : NULL, extra ? extra->nattrs : 0, err)) != RR_OK)
         failed = 0;
     if (st == RR_OK && png && (st = img_write_png(tmp[1], &film->beauty, exposure, err)) != RR_OK)
         failed = 1;

@@ -32,6 +32,21 @@ typedef enum img_pixel_type { IMG_FLOAT = 0, IMG_HALF = 1 } img_pixel_type;
 rr_status img_write_exr(const char *path, const rr_image *rgb, const img_layer *layers, int nlayers,
                         img_pixel_type type, rr_error *err);
 
+/* A string attribute of the EXR header, e.g. {"radray:mode", "hybrid"}. */
+typedef struct img_attr {
+    const char *name;  /* 1..255 bytes */
+    const char *value; /* at most 65535 bytes */
+} img_attr;
+
+/* img_write_exr with string attributes in the header (what made the image:
+ * viewers such as exrheader and tev show them). */
+rr_status img_write_exr_attrs(const char *path, const rr_image *rgb, const img_layer *layers, int nlayers,
+                              img_pixel_type type, const img_attr *attrs, int nattrs, rr_error *err);
+
+/* The string attribute `name` of an EXR file into buf (truncated to n - 1
+ * bytes); RR_ERR_INVALID when the file has none of that name. */
+rr_status img_read_exr_attr(const char *path, const char *name, char *buf, size_t n, rr_error *err);
+
 /* Reads one layer of an EXR file into *out (allocated; free with
  * rr_image_free). layer NULL or "" reads the main R, G, B channels. Half and
  * float files are both accepted. Fails with a message that lists the layers the

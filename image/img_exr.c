@@ -139,7 +139,7 @@ static const img_exr_src *img_exr_find_src(const img_exr_src *srcs, int n, const
 
 /* Defines the part (header attributes and channels) of a fresh write context. */
 static exr_result_t img_exr_define(exr_context_t ctx, const rr_image *rgb, const img_exr_src *srcs, int nsrcs,
-                                   exr_pixel_type_t ptype)
+                                   exr_pixel_type_t ptype, const img_attr *attrs, int nattrs)
 {
     int part = 0;
     exr_result_t rv = exr_add_part(ctx, NULL, EXR_STORAGE_SCANLINE, &part);
@@ -174,6 +174,11 @@ static exr_result_t img_exr_define(exr_context_t ctx, const rr_image *rgb, const
                 return rv;
             break;
         }
+    }
+    for (int i = 0; i < nattrs; i++) {
+        rv = exr_attr_set_string(ctx, part, attrs[i].name, attrs[i].value);
+        if (rv != EXR_ERR_SUCCESS)
+            return rv;
     }
     for (int i = 0; i < nsrcs; i++) {
         /* Colour values: perceptually logarithmic, as the library docs say for R, G, B. */
@@ -254,6 +259,17 @@ static int img_exr_sync(const char *tmp)
 rr_status img_write_exr(const char *path, const rr_image *rgb, const img_layer *layers, int nlayers,
                         img_pixel_type type, rr_error *err)
 {
+    return img_write_exr_attrs(path, rgb, layers, nlayers, type, NULL, 0, err);
+}
+
+rr_status img_write_exr_attrs(const char *path, const rr_image *rgb, const img_layer *layers, int nlayers,
+                              img_pixel_type type, const img_attr *attrs, int nattrs, rr_error *err)
+{
+    for (int i = 0; i < nattrs; i++)
+        if (!attrs[i].name || !attrs[i].name[0] || !attrs[i].value || strlen(attrs[i].name) > 255 ||
+            strlen(attrs[i].value) > 65535)
+            return rr_error_set(err, RR_ERR_INVALID, "%s: EXR attribute %d needs a name (at most 255 bytes) and a "
+                                "value (at most 65535)", path, i);
     rr_status st = img_exr_check_args(path, rgb, layers, nlayers, type, err);
     if (st != RR_OK)
         return st;
@@ -291,7 +307,8 @@ rr_status img_write_exr(const char *path, const rr_image *rgb, const img_layer *
      * own temp-file mode would add a second, uncontrolled name in the folder. */
     exr_result_t rv = exr_start_write(&ctx, tmp, EXR_WRITE_FILE_DIRECTLY, &init);
     if (rv == EXR_ERR_SUCCESS)
-        rv = img_exr_define(ctx, rgb, srcs, nsrcs, type == IMG_HALF ? EXR_PIXEL_HALF : EXR_PIXEL_FLOAT);
+        rv = img_exr_define(ctx, rgb, srcs, nsrcs, type == IMG_HALF ? EXR_PIXEL_HALF : EXR_PIXEL_FLOAT, attrs,
+                            nattrs);
     if (rv == EXR_ERR_SUCCESS)
         rv = img_exr_write_chunks(ctx, rgb, srcs, nsrcs);
     /* exr_finish writes the chunk offset table, so its result counts too;
@@ -406,6 +423,24 @@ rr_status img_exr_layers(const char *path, char names[][64], int max, int *count
         int found = img_exr_collect_layers(ch, names, max > 0 ? max : 0);
         *count = found < max ? found : (max > 0 ? max : 0);
     }
+    exr_finish(&ctx);
+    return st;
+}
+
+rr_status img_read_exr_attr(const char *path, const char *name, char *buf, size_t n, rr_error *err)
+{
+    exr_context_t ctx;
+    img_exr_log log;
+    rr_status st = img_exr_open(path, &ctx, &log, err);
+    if (st != RR_OK)
+        return st;
+    int32_t len = 0;
+    const char *v = NULL;
+    exr_result_t rv = exr_attr_get_string(ctx, 0, name, &len, &v);
+    if (rv != EXR_ERR_SUCCESS || !v)
+        st = rr_error_set(err, RR_ERR_INVALID, "%s: no string attribute '%s'", path, name);
+    else if (n > 0)
+        snprintf(buf, n, "%.*s", (int)len, v);
     exr_finish(&ctx);
     return st;
 }

@@ -480,6 +480,19 @@ void rt_film_free(rt_film *f); /* NULL and double free are harmless */
  * one RNG stream per pixel). */
 rr_status rt_render(const scene *s, const rt_accel *a, const rt_render_opts *opts, rt_film *film, rr_error *err);
 
+/* Arbitrary output variables (for figures and denoisers) of the first hit
+ * of each pixel's centre ray, one image per AOV (view-sized, initialised):
+ *   albedo     the diffuse reflectance of the material hit (0 on a miss)
+ *   normal     the unit surface normal there, facing the ray (0 on a miss)
+ *   depth      the distance from the eye E to the hit, in every channel (0 on a miss)
+ *   object_id  the index of the object hit in the scene's objects, in every
+ *              channel (-1 on a miss)
+ * Only the AOVs whose bit (1u << RT_AOV_*) is in mask are written.
+ * Deterministic, threads as rt_render_opts.threads. */
+enum { RT_AOV_ALBEDO = 0, RT_AOV_NORMAL, RT_AOV_DEPTH, RT_AOV_OBJECT_ID, RT_AOV_COUNT };
+const char *rt_aov_name(int aov);
+void rt_render_aovs(const scene *s, const rt_accel *a, unsigned mask, rr_image *aov, int threads);
+
 /* NaN/Inf guard for the output: every pixel of the beauty image or of a layer
  * with a non-finite channel is set to 0 (all three channels, in that image).
  * Returns the number of pixels so cleared (counted once however many images

@@ -456,6 +456,42 @@ rr_status rt_render(const scene *s, const rt_accel *a, const rt_render_opts *o, 
     return RR_OK;
 }
 
+static const char *const k_aov_names[RT_AOV_COUNT] = {"albedo", "normal", "depth", "object_id"};
+
+const char *rt_aov_name(int aov) { return aov >= 0 && aov < RT_AOV_COUNT ? k_aov_names[aov] : "?"; }
+
+void rt_render_aovs(const scene *s, const rt_accel *a, unsigned mask, rr_image *aov, int threads)
+{
+    const rr_view *v = &s->view;
+    int nthreads = 1;
+#ifdef _OPENMP
+    nthreads = threads > 0 ? threads : omp_get_max_threads();
+#endif
+    (void)nthreads;
+    (void)threads;
+#pragma omp parallel for schedule(dynamic, 1) num_threads(nthreads)
+    for (int row = 0; row < v->height; row++)
+        for (int col = 0; col < v->width; col++) {
+            rr_ray r = rr_view_ray(v, col, row, 0.0, 0.0);
+            rt_hit h;
+            int hit = rt_accel_closest(a, r, 0.0, INFINITY, &h);
+            rr_rgb val[RT_AOV_COUNT];
+            if (hit) {
+                double depth = h.t * rr_v3_len(r.d), id = (double)h.object;
+                val[RT_AOV_ALBEDO] = s->materials[h.material].diffuse;
+                val[RT_AOV_NORMAL] = rr_rgb_make(h.normal.x, h.normal.y, h.normal.z);
+                val[RT_AOV_DEPTH] = rr_rgb_make(depth, depth, depth);
+                val[RT_AOV_OBJECT_ID] = rr_rgb_make(id, id, id);
+            } else {
+                val[RT_AOV_ALBEDO] = val[RT_AOV_NORMAL] = val[RT_AOV_DEPTH] = rr_rgb_make(0, 0, 0);
+                val[RT_AOV_OBJECT_ID] = rr_rgb_make(-1, -1, -1);
+            }
+            for (int k = 0; k < RT_AOV_COUNT; k++)
+                if (mask & (1u << k))
+                    rr_image_set(&aov[k], col, row, val[k]);
+        }
+}
+
 static int pixel_finite(const rr_image *im, size_t k)
 {
     const float *p = im->px + 3 * k;

@@ -342,6 +342,64 @@ static void user_details(void **state)
     assert_non_null(strstr(g_out, "nothing emits light"));
 }
 
+/* --aov and the EXR's header: on the quad of k_quad (z = -1, facing +z,
+ * diffuse 0.5) seen from E = (0, 0, 5), albedo is the reflectance, the
+ * normal unit and facing the eye, depth the distance to the plane along the
+ * pixel's ray (6 through the centre), object_id the quad's index; the corners
+ * miss the quad. The header says what made the image. */
+static void aovs_and_metadata(void **state)
+{
+    (void)state;
+    char sc[256], out[256];
+    snprintf(sc, sizeof sc, "%s", scene_file("aov.json", "4", k_quad));
+    snprintf(out, sizeof out, "%s/aov.exr", g_dir);
+    const char *a[] = {"render", sc, "-o", out, "--aov", "albedo,normal,depth,object_id", "--spp", "3", "-q", NULL};
+    assert_int_equal(run(a), 0);
+    rr_image alb = {0}, nrm = {0}, dep = {0}, oid = {0};
+    assert_int_equal(img_read_exr(out, "albedo", &alb, NULL), RR_OK);
+    assert_int_equal(img_read_exr(out, "normal", &nrm, NULL), RR_OK);
+    assert_int_equal(img_read_exr(out, "depth", &dep, NULL), RR_OK);
+    assert_int_equal(img_read_exr(out, "object_id", &oid, NULL), RR_OK);
+    int w = alb.width, hits = 0, misses = 0;
+    assert_true(fabs(rr_image_get(&dep, w / 2, w / 2).r - 6.0) < 1e-5);
+    for (int y = 0; y < w; y++)
+        for (int x = 0; x < w; x++) {
+            rr_rgb id = rr_image_get(&oid, x, y), d = rr_image_get(&dep, x, y), n = rr_image_get(&nrm, x, y);
+            if (id.r < 0) {
+                misses++;
+                assert_true(d.r == 0.0 && rr_image_get(&alb, x, y).g == 0.0);
+                continue;
+            }
+            hits++;
+            assert_true(id.r == 0.0 && id.g == 0.0);
+            assert_true(fabs(rr_image_get(&alb, x, y).g - 0.5) < 1e-6);
+            assert_true(fabs(n.r * n.r + n.g * n.g + n.b * n.b - 1.0) < 1e-5);
+            assert_true(n.b > 0.999); /* the quad faces +z, towards E */
+            assert_true(d.r >= 6.0 - 1e-5 && d.r < 6.0 * 1.5); /* at least the plane's distance */
+        }
+    assert_true(hits > 0 && misses > 0);
+    rr_image_free(&alb);
+    rr_image_free(&nrm);
+    rr_image_free(&dep);
+    rr_image_free(&oid);
+    char v[512];
+    assert_int_equal(img_read_exr_attr(out, "radray:mode", v, sizeof v, NULL), RR_OK);
+    assert_string_equal(v, "hybrid");
+    assert_int_equal(img_read_exr_attr(out, "radray:spp", v, sizeof v, NULL), RR_OK);
+    assert_string_equal(v, "3");
+    assert_int_equal(img_read_exr_attr(out, "radray:scene_hash", v, sizeof v, NULL), RR_OK);
+    assert_true(!strncmp(v, "fnv1a64:", 8) && strlen(v) == 24);
+    assert_int_equal(img_read_exr_attr(out, "radray:camera", v, sizeof v, NULL), RR_OK);
+    assert_non_null(strstr(v, "E (0, 0, 5)"));
+    assert_int_equal(img_read_exr_attr(out, "radray:version", v, sizeof v, NULL), RR_OK);
+    assert_int_equal(img_read_exr_attr(out, "radray:nothing", v, sizeof v, NULL), RR_ERR_INVALID);
+    /* An unknown AOV: exit 2 naming it, nothing written. */
+    char bad[256];
+    snprintf(bad, sizeof bad, "%s/bad.exr", g_dir);
+    const char *b[] = {"render", sc, "-o", bad, "--aov", "albedo,motion", NULL};
+    expect_bad(b, "motion", "--aov");
+}
+
 /* radray energy: the ledger balances on the Cornell box, in text and JSON;
  * scenes the radiosity pass cannot take are bad input (exit 2). */
 static void energy_ledger(void **state)
@@ -447,6 +505,7 @@ int main(void)
         cmocka_unit_test(render_reads_back_and_is_thread_independent),
         cmocka_unit_test(modes_and_indirect),
         cmocka_unit_test(user_details),
+        cmocka_unit_test(aovs_and_metadata),
         cmocka_unit_test(energy_ledger),
         cmocka_unit_test(radiosity_cache),
     };
