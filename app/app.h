@@ -154,6 +154,16 @@ rr_warn_sink app_warn_sink(void);
 /* Writes a log-scale plot of res[0..n) (residual per iteration) to path, PNG
  * or SVG by extension, atomically. 0 on success. */
 int app_plot_residuals(const char *path, const double *res, int n, const char *title, rr_error *err);
+/* One line of a plot: n points (x[i], y[i]); name for the legend (may be NULL). */
+typedef struct app_series {
+    const char *name;
+    const double *x, *y;
+    int n;
+} app_series;
+/* Lines on a logarithmic y axis (x logarithmic when logx), with a legend,
+ * PNG or SVG by extension, atomically. 0 on success. */
+int app_plot_lines(const char *path, const app_series *s, int ns, const char *title, const char *xlabel,
+                   const char *ylabel, int logx, rr_error *err);
 
 /* s ends with suffix, ignoring case. */
 int app_ends_with(const char *s, const char *suffix);

@@ -57,6 +57,9 @@ static const char compare_usage[] =
     "      --exposure EV      display exposure in stops (render.exposure)\n"
     "      --seed N, --threads N, --filter box|tent, --patch-area A, --patch-edge L,\n"
     "      --solver S, --ff METHOD, --ff-samples N   as for render\n"
+    "      --convergence FILE  .png or .svg: each mode's relMSE against the reference at 1, 2,\n"
+    "                         4, ... spp up to its own, against render time (the radiosity\n"
+    "                         pass included), on log-log axes: when the hybrid pays\n"
     "      --radiosity-cache FILE  reuse the radiosity solution saved in FILE (made there\n"
     "                         when missing), as render does\n"
     "      --set KEY=VALUE    override any scene value by its JSON path (repeatable),\n"
@@ -176,6 +179,7 @@ typedef struct job {
     const char *out, *ref_name, *scene_path;
     const char *ref_file;   /* --reference FILE.exr: an image made by any renderer */
     const char *stats_path; /* --stats FILE.json / FILE.csv */
+    const char *conv_path;  /* --convergence FILE.png / FILE.svg */
     const char *cache_path; /* --radiosity-cache */
     int filter;             /* --filter */
     int quiet, nmodes, nlayers, modes[MAX_PANELS], layers[MAX_PANELS];
@@ -204,6 +208,7 @@ enum {
     OPT_STATS,
     OPT_CACHE,
     OPT_FILTER,
+    OPT_CONVERGENCE,
     OPT_KEY /* an option that sets a scene key (app_option_key) */
 };
 
@@ -221,6 +226,7 @@ static int parse_options(job *j, int argc, char **argv)
         {"solver", required_argument, NULL, OPT_KEY},       {"ff", required_argument, NULL, OPT_KEY},
         {"ff-samples", required_argument, NULL, OPT_KEY},   {"filter", required_argument, NULL, OPT_FILTER},
         {"radiosity-cache", required_argument, NULL, OPT_CACHE}, {"stats", required_argument, NULL, OPT_STATS},
+        {"convergence", required_argument, NULL, OPT_CONVERGENCE},
         {"quiet", no_argument, NULL, 'q'},                  {"help", no_argument, NULL, 'h'},
         {NULL, 0, NULL, 0}};
     static const char *const filters[] = {"box", "tent", NULL};
@@ -262,6 +268,13 @@ static int parse_options(job *j, int argc, char **argv)
             j->stats_path = optarg;
             break;
         case OPT_CACHE: j->cache_path = optarg; break;
+        case OPT_CONVERGENCE:
+            if (!app_ends_with(optarg, ".png") && !app_ends_with(optarg, ".svg")) {
+                app_error("--convergence %s: the plot must end in .png or .svg", optarg);
+                return APP_EXIT_USAGE;
+            }
+            j->conv_path = optarg;
+            break;
         case OPT_FILTER:
             if ((j->filter = app_pick(optarg, filters)) < 0) {
                 app_error("--filter: expected box or tent, got '%s'", optarg);
@@ -309,9 +322,9 @@ static int parse_options(job *j, int argc, char **argv)
         return APP_EXIT_USAGE;
     }
     j->scene_path = argv[optind];
-    if (j->nlayers && (j->nmodes || j->ref_name || j->ref_file || j->stats_path)) {
-        app_error("--layers: compares the layers of one render; it does not go with --modes, --reference or "
-                  "--stats");
+    if (j->nlayers && (j->nmodes || j->ref_name || j->ref_file || j->stats_path || j->conv_path)) {
+        app_error("--layers: compares the layers of one render; it does not go with --modes, --reference, "
+                  "--stats or --convergence");
         return APP_EXIT_USAGE;
     }
     if (!j->nlayers && !j->nmodes)
@@ -396,11 +409,12 @@ static int prepare(job *j)
         app_error("-o %s: the figure must end in .png, .pdf or .svg", j->out);
         return APP_EXIT_USAGE;
     }
-    const char *ins[64], *outs[2] = {j->out, j->stats_path}, *what[2] = {"-o", "--stats"};
+    const char *ins[64], *outs[3] = {j->out, j->stats_path, j->conv_path};
+    const char *what[3] = {"-o", "--stats", "--convergence"};
     size_t nin = app_scene_inputs(j->sc, ins, 62);
     ins[nin++] = j->cache_path;
     ins[nin++] = j->ref_file;
-    if (app_check_outputs(outs, what, 2, ins, nin))
+    if (app_check_outputs(outs, what, 3, ins, nin))
         return APP_EXIT_USAGE;
     if (j->ref_file && read_reference(j) != 0)
         return APP_EXIT_USAGE;
@@ -578,6 +592,63 @@ static void free_job(job *j)
     free(j->sets);
 }
 
+enum { CONV_MAX = 16 };
+
+/* --convergence: every estimate's relMSE against the reference at 1, 2, 4, ...
+ * samples per pixel up to the spp it was rendered with, against the time it
+ * took (the radiosity pass's time added to the modes that use it: that is
+ * what they cost), on log-log axes; also printed. -1 or the exit code. */
+static int convergence(job *j, const fig_panel *panels)
+{
+    if (j->ref < 0 || j->npanels < 2) {
+        app_error("--convergence: it measures the modes against a reference; give two modes or --reference");
+        return APP_EXIT_USAGE;
+    }
+    scene *sc = j->sc;
+    int base_spp = sc->settings.spp, ns = 0;
+    static double xs[MAX_PANELS][CONV_MAX], ys[MAX_PANELS][CONV_MAX];
+    app_series series[MAX_PANELS];
+    rr_error err;
+    if (!j->quiet)
+        printf("convergence against %s: mode, spp, seconds, relMSE\n", panels[j->ref].title);
+    for (int i = 0; i < j->npanels; i++) {
+        if (i == j->ref || i >= j->nmodes)
+            continue;
+        int m = j->modes[i], n = 0;
+        const ig_integrator *ig = &ig_table[m];
+        double extra = ig_uses_pass(ig, sc) ? j->pass_secs : 0.0;
+        for (long spp = 1; spp <= j->spp_of[m] && n < CONV_MAX; spp *= 2) {
+            sc->settings.spp = (int)spp;
+            double secs = 0;
+            rr_status st = ig_render(&j->ses, ig, NULL, &j->film, &secs, &err);
+            sc->settings.spp = base_spp;
+            if (st != RR_OK) {
+                app_error("%s", err.msg);
+                return exit_code(st);
+            }
+            app_metrics mt;
+            app_metrics_region(&j->film.beauty, &j->img[j->ref], NULL, 0, &mt);
+            xs[ns][n] = secs + extra;
+            ys[ns][n] = mt.relmse.value;
+            if (!j->quiet)
+                printf("  %-10s %8ld %10.3f %12.4g\n", ig->name, spp, xs[ns][n], ys[ns][n]);
+            n++;
+        }
+        series[ns] = (app_series){ig->name, xs[ns], ys[ns], n};
+        ns++;
+    }
+    char title[160];
+    snprintf(title, sizeof title, "relMSE against %s by render time (spp 1, 2, 4, ...)", panels[j->ref].title);
+    if (rr_file_make_parent_dirs(j->conv_path, &err) != RR_OK ||
+        app_plot_lines(j->conv_path, series, ns, title, "seconds (radiosity pass included)", "relMSE", 1, &err)) {
+        app_error("%s", err.msg);
+        return APP_EXIT_RUNTIME;
+    }
+    if (!j->quiet)
+        printf("wrote %s (convergence plot)\n", j->conv_path);
+    return -1;
+}
+
 /* Titles and captions: the mode (or layer), its samples and time; the image
  * reference by its file name; with a reference, each estimate's relMSE and
  * SSIM against it. */
@@ -744,6 +815,9 @@ int app_cmd_compare(int argc, char **argv)
     label_panels(&j, panels, cols);
     if (j.stats_path && write_stats(&j, panels) != 0)
         goto done;
+    if (j.conv_path && (rc = convergence(&j, panels)) >= 0)
+        goto done;
+    rc = APP_EXIT_RUNTIME;
     if (region_table(&j, &ts, &d.table) != 0) {
         app_error("out of memory");
         goto done;

@@ -274,6 +274,23 @@ static void external_reference_and_stats(void **state)
     assert_int_equal(rr_file_read_all(csv, &text, &n, NULL), RR_OK);
     assert_true(!strncmp(text, "panel,region,pixels,relmse,relmse_se,mare,mare_se,bias,bias_se,ssim\nhybrid,(all pixels),576,0,", 92));
     free(text);
+    /* The convergence plot: relMSE at 1 and 2 spp for each mode, by time. */
+    char conv[256];
+    snprintf(conv, sizeof conv, "%s", path_in("conv.svg"));
+    const char *cv[] = {"compare", scene("cornell.json"), "--width", "24", "--spp", "2", "--modes", "hybrid,whitted",
+                        "--reference", ref, "--radiosity-cache", cache, "--convergence", conv, "-o", fig, NULL};
+    assert_int_equal(run(cv), 0);
+    assert_true(exists(conv));
+    assert_non_null(strstr(g_out, "convergence against reference"));
+    const char *l1 = strstr(g_out, "  hybrid            1 "), *l2 = strstr(g_out, "  whitted           2 ");
+    assert_non_null(l1);
+    assert_non_null(l2);
+    /* At 2 spp the hybrid is the reference itself: relMSE 0. */
+    const char *l3 = strstr(g_out, "  hybrid            2 ");
+    assert_non_null(l3);
+    double secs = -1, rel2 = -1;
+    assert_int_equal(sscanf(l3, " hybrid 2 %lf %lf", &secs, &rel2), 2);
+    assert_true(rel2 == 0.0 && secs > 0.0);
     /* Bad references: another size, not an EXR, a missing file; a stats file
      * of another kind. Exit 2, nothing written. */
     const char *c[] = {"compare", scene("cornell.json"), "--width", "30", "--reference", ref, "-o", fig2, NULL};
@@ -295,6 +312,9 @@ static void external_reference_and_stats(void **state)
     const char *h[] = {"compare", scene("cornell.json"), "--reference", ref, "--stats", ref, "-o", fig2, NULL};
     static const char *const wh2[] = {"--stats", NULL};
     expect_usage(h, wh2);
+    const char *k[] = {"compare", scene("cornell.json"), "--convergence", path_in("c.jpg"), "-o", fig2, NULL};
+    static const char *const wk[] = {"--convergence", ".png", ".svg", NULL};
+    expect_usage(k, wk);
     assert_false(exists(fig2));
 }
 
