@@ -19,6 +19,7 @@
 enum {
     MARGIN = 16,
     GAP = 12,         /* between panel columns */
+    WRAP_W = 1240,    /* panel rows wrap beyond this width (eight layers made one 1,550-px row) */
     HEADER = 50,      /* title and subtitle */
     LABEL = 38,       /* panel name and caption above each image */
     ROW_GAP = 14,     /* between the panel row and the difference row */
@@ -250,7 +251,9 @@ typedef struct layout {
     int k, dw, dh;          /* enlargement and displayed panel size */
     int col_w;              /* panel column width */
     double W, H;
-    double y_panels, y_diff, y_table;
+    double y_panels, y_diff, y_table; /* y_panels, y_diff: of the first band */
+    int per_row;            /* panels per band (a row of panels, and their differences under them) */
+    double band_h;          /* height of one band */
     double col_x[FIG_MAX_PANELS + 2]; /* table columns: left edge of names, then right edges */
     double table_w;
 } layout;
@@ -287,7 +290,14 @@ static void measure(const fig_desc *d, layout *L)
     L->y_diff = bottom + ROW_GAP;
     if (d->diff)
         bottom = L->y_diff + LABEL + (L->dh > SCALE_H ? L->dh : SCALE_H);
-    L->y_table = bottom + 24;
+    /* Bands of at most WRAP_W, the panels shared out evenly between them. */
+    int n = d->npanels > 0 ? d->npanels : 1, per = n;
+    while (per > 1 && per * L->col_w + (per - 1) * GAP > WRAP_W)
+        per--;
+    int bands = (n + per - 1) / per;
+    L->per_row = (n + bands - 1) / bands;
+    L->band_h = bottom - L->y_panels + ROW_GAP + 10;
+    L->y_table = bottom + (bands - 1) * L->band_h + 24;
     const fig_table *t = &d->table;
     double x = MARGIN;
     L->col_x[0] = x;
@@ -305,7 +315,7 @@ static void measure(const fig_desc *d, layout *L)
     tw = fmax(tw, text_width(cr, d->title));
     font(cr, 12, 0);
     tw = fmax(tw, text_width(cr, d->subtitle));
-    double panels_w = d->npanels * L->col_w + (d->npanels - 1) * GAP;
+    double panels_w = L->per_row * L->col_w + (L->per_row - 1) * GAP;
     L->W = ceil(2 * MARGIN + fmax(panels_w, fmax(L->table_w, tw)));
     L->H = ceil(L->y_table + 30 + TABLE_ROW * (t->nrows + 1) + MARGIN);
     cairo_destroy(cr);
@@ -393,15 +403,16 @@ static void draw(cairo_t *cr, const fig_desc *d, const layout *L, cairo_surface_
     font(cr, 12, 0);
     text(cr, MARGIN, MARGIN + 37, 0, d->subtitle);
     for (int i = 0; i < d->npanels; i++) {
-        double x = MARGIN + i * (L->col_w + GAP);
+        double x = MARGIN + (i % L->per_row) * (L->col_w + GAP), dy = (i / L->per_row) * L->band_h;
+        double y_panel = L->y_panels + dy, y_diff = L->y_diff + dy;
         /* Each column's text stays in its column, however long a name is. */
         cairo_save(cr);
         cairo_rectangle(cr, x - 1, 0, L->col_w + GAP - 2, L->y_table);
         cairo_clip(cr);
-        label(cr, x, L->y_panels, d->panels[i].title, d->panels[i].caption);
-        draw_image(cr, panel[i], x, L->y_panels + LABEL);
+        label(cr, x, y_panel, d->panels[i].title, d->panels[i].caption);
+        draw_image(cr, panel[i], x, y_panel + LABEL);
         if (d->diff && i == d->ref)
-            draw_scale(cr, d, L, x, L->y_diff);
+            draw_scale(cr, d, L, x, y_diff);
         cairo_restore(cr);
         if (!d->diff || i == d->ref)
             continue;
@@ -417,8 +428,8 @@ static void draw(cairo_t *cr, const fig_desc *d, const layout *L, cairo_surface_
         cairo_save(cr);
         cairo_rectangle(cr, x - 1, 0, L->col_w + GAP - 2, L->y_table);
         cairo_clip(cr);
-        label(cr, x, L->y_diff, t, c);
-        draw_image(cr, diff[i], x, L->y_diff + LABEL);
+        label(cr, x, y_diff, t, c);
+        draw_image(cr, diff[i], x, y_diff + LABEL);
         cairo_restore(cr);
     }
     draw_table(cr, d, L);
