@@ -473,7 +473,7 @@ static int render_panels(job *j)
         if (ig->indirect == RT_INDIRECT_SECONDARY)
             sc->settings.spp = (int)(j->secondary_spp ? j->secondary_spp : fmin(16.0 * base_spp, 1 << 20));
         j->spp_of[m] = sc->settings.spp;
-        ig_render_opts ro = {(rt_filter)j->filter, NULL, NULL};
+        ig_render_opts ro = {(rt_filter)j->filter, NULL, NULL, NULL};
         rr_status st = ig_render(&j->ses, ig, &ro, &j->film, &j->secs[m], &err);
         sc->settings.spp = base_spp;
         if (st != RR_OK) {

@@ -1,5 +1,6 @@
 /* cmd_render.c - `radray render SCENE`: load, render, write EXR + PNG. */
 #include <getopt.h>
+#include <sys/resource.h>
 #include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -41,6 +42,9 @@ static const char render_usage[] =
     "                         radiosity (= --mode hybrid), secondary, ambient (= whitted) or\n"
     "                         none (= direct); overrides --mode\n"
     "      --filter F         pixel filter for supersampling: box (default) or tent\n"
+    "      --stats FILE.json  rays traced (closest-hit and any-hit), Mrays/s, the radiosity\n"
+    "                         pass (patches, form factors, time per stage), times, peak\n"
+    "                         memory (the summary printed at the end, by name)\n"
     "      --aov LIST         extra EXR layers of each pixel's centre ray: albedo (diffuse\n"
     "                         reflectance), normal (unit, facing the ray), depth (distance from\n"
     "                         the eye), object_id (index in the scene's objects, -1: nothing);\n"
@@ -98,12 +102,13 @@ enum {
     OPT_PLOT,
     OPT_CACHE,
     OPT_MAX_MEMORY,
-    OPT_AOV
+    OPT_AOV,
+    OPT_STATS
 };
 
 /* The command line, parsed. */
 typedef struct render_args {
-    const char *scene_path, *out_exr, *out_png, *plot, *cache_path;
+    const char *scene_path, *out_exr, *out_png, *plot, *cache_path, *stats;
     int no_png, quiet, filter;
     unsigned aovs; /* --aov: 1u << RT_AOV_* */
     long width;
@@ -163,6 +168,13 @@ static int parse_option(render_args *A, int c, const char *arg, const char *name
         app_error("--width: expected an integer in [1, %d], got '%s'", 1 << 21, arg);
         return APP_EXIT_USAGE;
     case OPT_AOV: return parse_aovs(A, arg);
+    case OPT_STATS:
+        if (app_ends_with(arg, ".json")) {
+            A->stats = arg;
+            return -1;
+        }
+        app_error("--stats %s: the statistics file must end in .json", arg);
+        return APP_EXIT_USAGE;
     case OPT_MAX_MEMORY:
         if (!app_parse_size(arg, &A->max_memory))
             return -1;
@@ -217,6 +229,7 @@ static int parse_args(render_args *A, int argc, char **argv)
         {"ff-samples", required_argument, NULL, OPT_FF_SAMPLES}, {"plot", required_argument, NULL, OPT_PLOT},
         {"radiosity-cache", required_argument, NULL, OPT_CACHE},
         {"max-memory", required_argument, NULL, OPT_MAX_MEMORY}, {"aov", required_argument, NULL, OPT_AOV},
+        {"stats", required_argument, NULL, OPT_STATS},
         {NULL, 0, NULL, 0}};
     const ig_integrator *by_indirect = NULL;
     A->ig = ig_default();
@@ -275,9 +288,9 @@ static int settle_outputs(render_args *A, const scene *sc)
     const char *ins[64];
     size_t nin = app_scene_inputs(sc, ins, 63);
     ins[nin++] = A->cache_path;
-    const char *outs[4] = {A->out_exr, A->no_png ? NULL : A->out_png, A->plot, A->partial};
-    const char *what[4] = {"-o", "--png", "--plot", "the partial image"};
-    if (app_check_outputs(outs, what, 4, ins, nin))
+    const char *outs[5] = {A->out_exr, A->no_png ? NULL : A->out_png, A->plot, A->partial, A->stats};
+    const char *what[5] = {"-o", "--png", "--plot", "the partial image", "--stats"};
+    if (app_check_outputs(outs, what, 5, ins, nin))
         return -1;
     if (A->plot && !A->ig->uses_field) {
         app_error("--plot: the convergence plot belongs to the radiosity pass: use it with --mode radiosity");
@@ -433,6 +446,79 @@ static void print_summary(const render_args *A, const scene *sc, const rt_film *
         printf("wrote %s (sRGB preview, exposure %+g)\n", A->out_png, sc->settings.exposure);
 }
 
+/* What one render did, for the summary and --stats. */
+typedef struct render_stats {
+    double seconds, seconds_render;
+    rt_ray_counts rays;
+    double peak_bytes;
+} render_stats;
+
+static double peak_rss_bytes(void)
+{
+    struct rusage ru;
+    return getrusage(RUSAGE_SELF, &ru) == 0 ? 1024.0 * (double)ru.ru_maxrss : 0.0; /* Linux: KiB */
+}
+
+/* The end-of-render summary: rays per kind and their rate, the radiosity
+ * pass (patches, form factors, time per stage), time, peak memory. */
+static void print_stats(const ig_session *ses, const render_stats *rs)
+{
+    char peak[32];
+    double n = (double)rs->rays.closest + (double)rs->rays.occluded;
+    printf("rays       %.4g M (%.4g M closest-hit, %.4g M any-hit), %.3g Mrays/s, render %.2f s\n",
+           n * 1e-6, (double)rs->rays.closest * 1e-6, (double)rs->rays.occluded * 1e-6,
+           rs->seconds_render > 0 ? n * 1e-6 / rs->seconds_render : 0.0, rs->seconds_render);
+    const rad_solution *sol = ses->sol;
+    if (sol && ses->sol_cached)
+        printf("radiosity  %zu patches, read from %s (%.2f s)\n", sol->P->n, ses->cache_path, ses->seconds_pass);
+    else if (sol)
+        printf("radiosity  %zu patches, %zu form factors; patches %.2f s, form factors %.2f s, solve %.2f s "
+               "(%s, %d iteration(s))\n",
+               sol->P->n, sol->nnz, sol->seconds_patches, sol->seconds_ff, sol->seconds_solve,
+               sol->stats.used == RAD_SOLVER_DIRECT ? "direct" : "iterative", sol->stats.iterations);
+    printf("total      %.2f s, peak memory %s\n", rs->seconds, rr_size_text(rs->peak_bytes, peak, sizeof peak));
+}
+
+/* render --stats FILE.json: the summary's numbers, by name. */
+static int write_stats(const char *path, const render_args *A, const scene *sc, const ig_session *ses,
+                       const render_stats *rs)
+{
+    char tmp[4200];
+    rr_error err;
+    FILE *f = NULL;
+    if (rr_file_make_parent_dirs(path, &err) != RR_OK || rr_file_tmpname(path, tmp, sizeof tmp, &err) != RR_OK ||
+        !(f = fopen(tmp, "w"))) {
+        app_error("--stats %s: cannot write it", path);
+        return -1;
+    }
+    const rad_solution *sol = ses->sol;
+    fprintf(f, "{\"mode\": \"%s\", \"width\": %d, \"height\": %d, \"spp\": %d, \"seed\": %llu, ", A->ig->name,
+            sc->view.width, sc->view.height, sc->settings.spp, (unsigned long long)sc->settings.seed);
+    fprintf(f, "\"rays_closest\": %llu, \"rays_any_hit\": %llu, \"seconds_render\": %.6g, \"seconds\": %.6g, ",
+            (unsigned long long)rs->rays.closest, (unsigned long long)rs->rays.occluded, rs->seconds_render,
+            rs->seconds);
+    fprintf(f, "\"mrays_per_second\": %.6g, \"peak_bytes\": %.0f, ",
+            rs->seconds_render > 0
+                ? ((double)rs->rays.closest + (double)rs->rays.occluded) * 1e-6 / rs->seconds_render
+                : 0.0,
+            rs->peak_bytes);
+    if (sol)
+        fprintf(f, "\"patches\": %zu, \"form_factors\": %zu, \"radiosity_cached\": %s, "
+                   "\"seconds_radiosity\": %.6g, \"seconds_patches\": %.6g, \"seconds_form_factors\": %.6g, "
+                   "\"seconds_solve\": %.6g, \"solver_iterations\": %d}\n",
+                sol->P->n, sol->nnz, ses->sol_cached ? "true" : "false", ses->seconds_pass, sol->seconds_patches,
+                sol->seconds_ff, sol->seconds_solve, sol->stats.iterations);
+    else
+        fprintf(f, "\"patches\": 0}\n");
+    int bad = ferror(f);
+    if (fclose(f) != 0 || bad || rename(tmp, path) != 0) {
+        remove(tmp);
+        app_error("--stats %s: write failed", path);
+        return -1;
+    }
+    return 0;
+}
+
 /* The radiosity pass (when the mode runs it), the render, the outputs; the exit code. */
 static int render_and_write(const render_args *A, scene *sc, ig_session *ses, rt_film *film)
 {
@@ -440,10 +526,12 @@ static int render_and_write(const render_args *A, scene *sc, ig_session *ses, rt
     double t0 = rr_now_seconds();
     app_progress prog = {!A->quiet && isatty(STDERR_FILENO), -1, t0, "rendering"};
     rr_status st = ig_uses_pass(A->ig, sc) ? app_session_field(ses, A->quiet, &err) : RR_OK;
+    render_stats rs;
+    memset(&rs, 0, sizeof rs);
     if (st == RR_OK) {
-        ig_render_opts ro = {(rt_filter)A->filter, draw_progress, &prog};
+        ig_render_opts ro = {(rt_filter)A->filter, draw_progress, &prog, &rs.rays};
         prog.t0 = rr_now_seconds();
-        st = ig_render(ses, A->ig, &ro, film, NULL, &err);
+        st = ig_render(ses, A->ig, &ro, film, &rs.seconds_render, &err);
     }
     if (st == RR_ERR_INTERRUPTED) {
         if (prog.enabled)
@@ -463,8 +551,14 @@ static int render_and_write(const render_args *A, scene *sc, ig_session *ses, rt
     int rc = write_outputs(A, sc, ses, film, secs);
     if (rc != APP_EXIT_OK)
         return rc;
-    if (!A->quiet)
+    rs.seconds = rr_now_seconds() - t0;
+    rs.peak_bytes = peak_rss_bytes();
+    if (A->stats && write_stats(A->stats, A, sc, ses, &rs) != 0)
+        return APP_EXIT_RUNTIME;
+    if (!A->quiet) {
         print_summary(A, sc, film, secs);
+        print_stats(ses, &rs);
+    }
     return APP_EXIT_OK;
 }
 

@@ -109,6 +109,7 @@ rr_status ig_render(ig_session *s, const ig_integrator *ig, const ig_render_opts
         ro.filter = o->filter;
         ro.progress = o->progress;
         ro.progress_user = o->progress_user;
+        ro.rays = o->rays;
     }
     if (ig_uses_pass(ig, sc)) {
         rr_status st = ig_session_field(s, err);

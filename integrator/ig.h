@@ -85,6 +85,7 @@ typedef struct ig_render_opts {
     /* Progress of the ray-tracing pass in tiles (rt_render_opts.progress). */
     void (*progress)(void *user, int done, int total);
     void *progress_user;
+    rt_ray_counts *rays; /* when set: the rays the render traced */
 } ig_render_opts;
 
 /* Renders ig into film (sized to the view), with the scene's render

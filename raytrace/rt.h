@@ -203,6 +203,15 @@ size_t rt_accel_node_count(const rt_accel *a); /* rt_accel_stats_of(a).nodes */
 int rt_accel_closest(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_hit *hit);
 /* Any hit with t in (tmin, tmax): for shadow rays; stops at the first occluder. */
 int rt_accel_occluded(const rt_accel *a, rr_ray ray, double tmin, double tmax);
+/* Rays traced through rt_accel_closest (camera, mirror, bounce and BSDF
+ * rays, area-light shadow rays, which must meet the emitter, form-factor
+ * rays) and rt_accel_occluded (any-hit: visibility towards point and
+ * directional lights and patch points), counted per thread since the thread
+ * started: take the difference of two readings. */
+typedef struct rt_ray_counts {
+    uint64_t closest, occluded;
+} rt_ray_counts;
+rt_ray_counts rt_ray_counts_of_thread(void);
 
 /* ---- the shadow-ray rule (rt_light.c) ----
  *
@@ -450,6 +459,8 @@ typedef struct rt_render_opts {
      * clears the tiles it had begun (finished tiles stay, the rest is black)
      * and returns RR_ERR_INTERRUPTED. NULL: never interrupted. */
     const volatile sig_atomic_t *interrupt;
+    /* When set, receives the rays this render traced (all threads). */
+    rt_ray_counts *rays;
 } rt_render_opts;
 
 /* Per-component layers of a render; the beauty image is their sum. */

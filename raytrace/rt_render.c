@@ -396,7 +396,11 @@ rr_status rt_render(const scene *s, const rt_accel *a, const rt_render_opts *o, 
     nthreads = o->threads > 0 ? o->threads : omp_get_max_threads();
 #endif
     (void)nthreads;
-#pragma omp parallel for schedule(dynamic, 1) num_threads(nthreads)
+    rt_ray_counts total = {0, 0};
+#pragma omp parallel num_threads(nthreads)
+    {
+    rt_ray_counts before = rt_ray_counts_of_thread();
+#pragma omp for schedule(dynamic, 1)
     for (int tile = 0; tile < ntiles; tile++) {
         int x0 = (tile % tiles_x) * RT_TILE, y0 = (tile / tiles_x) * RT_TILE;
         int stopped = 0;
@@ -450,6 +454,14 @@ rr_status rt_render(const scene *s, const rt_accel *a, const rt_render_opts *o, 
             o->progress(o->progress_user, now, ntiles);
         }
     }
+    rt_ray_counts after = rt_ray_counts_of_thread();
+#pragma omp atomic
+    total.closest += after.closest - before.closest;
+#pragma omp atomic
+    total.occluded += after.occluded - before.occluded;
+    }
+    if (o->rays)
+        *o->rays = total;
     rt_lights_destroy(c.lights);
     if (o->interrupt && *o->interrupt)
         return rr_error_set(err, RR_ERR_INTERRUPTED, "interrupted: %d of %d tiles finished", done, ntiles);

@@ -67,13 +67,20 @@ static int walk(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_hit 
     return rt__walk4(a, ray, tmin, tmax, hit, any);
 }
 
+/* Rays traced by this thread (rt_ray_counts). */
+static _Thread_local rt_ray_counts t_counts;
+
+rt_ray_counts rt_ray_counts_of_thread(void) { return t_counts; }
+
 int rt_accel_closest(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_hit *hit)
 {
+    t_counts.closest++;
     return walk(a, ray, tmin, tmax, hit, 0);
 }
 
 int rt_accel_occluded(const rt_accel *a, rr_ray ray, double tmin, double tmax)
 {
+    t_counts.occluded++;
 #if RT_HAVE_W8
     if (a->width == 8)
         return rt__occl8(a, ray, tmin, tmax);

@@ -393,6 +393,35 @@ static void aovs_and_metadata(void **state)
     assert_non_null(strstr(v, "E (0, 0, 5)"));
     assert_int_equal(img_read_exr_attr(out, "radray:version", v, sizeof v, NULL), RR_OK);
     assert_int_equal(img_read_exr_attr(out, "radray:nothing", v, sizeof v, NULL), RR_ERR_INVALID);
+    /* --stats: with no lights and no mirrors, Whitted traces exactly one ray
+     * per sample (9 x 9 pixels, 3 spp) and no visibility rays; secondary rays
+     * trace the same rays whatever the thread count. */
+    char st[256], *text = NULL;
+    size_t len = 0;
+    snprintf(st, sizeof st, "%s/st.json", g_dir);
+    const char *c[] = {"render", sc, "-o", out, "--mode", "whitted", "--spp", "3", "--stats", st, "-q", NULL};
+    assert_int_equal(run(c), 0);
+    assert_int_equal(rr_file_read_all(st, &text, &len, NULL), RR_OK);
+    assert_non_null(strstr(text, "\"rays_closest\": 243, \"rays_any_hit\": 0,"));
+    assert_non_null(strstr(text, "\"mode\": \"whitted\""));
+    free(text);
+    char objs[512], counts[2][128];
+    snprintf(objs, sizeof objs,
+             "%s,{\"type\":\"sphere\",\"material\":\"glow\",\"center\":[0,0,0],\"radius\":0.5}", k_quad);
+    char lit[256];
+    snprintf(lit, sizeof lit, "%s", scene_file("lit.json", "4", objs));
+    for (int t = 0; t < 2; t++) {
+        const char *d[] = {"render", lit, "-o", out, "--mode", "secondary", "--spp", "4", "--threads", t ? "2" : "1",
+                           "--stats", st, "-q", NULL};
+        assert_int_equal(run(d), 0);
+        assert_int_equal(rr_file_read_all(st, &text, &len, NULL), RR_OK);
+        const char *r = strstr(text, "\"rays_closest\"");
+        assert_non_null(r);
+        snprintf(counts[t], sizeof counts[t], "%.*s", (int)(strstr(r, "\"seconds_render\"") - r), r);
+        free(text);
+    }
+    assert_string_equal(counts[0], counts[1]);
+    assert_null(strstr(counts[0], "\"rays_closest\": 0,"));
     /* An unknown AOV: exit 2 naming it, nothing written. */
     char bad[256];
     snprintf(bad, sizeof bad, "%s/bad.exr", g_dir);
