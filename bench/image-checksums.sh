@@ -1,6 +1,8 @@
 #!/bin/bash
 # image-checksums.sh RADRAY OUTDIR: renders every example scene (scenes/*.json)
-# in every mode at 48 px, 2 spp, and prints "scene mode sha256-prefix" per EXR.
+# in every mode at 48 px, 2 spp, and prints "scene mode digest" per EXR: a
+# digest of its pixels, all layers (radray-exr-digest, built beside RADRAY),
+# not of its bytes, which hold the render time.
 # Run it with the binary before and after a change and diff the two lists:
 # a refactoring must leave every line the same (notes/architecture.md).
 set -u
@@ -15,6 +17,6 @@ for s in scenes/*.json; do
             echo "$n $m FAILED"
             continue
         fi
-        echo "$n $m $(sha256sum < "$O/$n-$m.exr" | cut -c1-16)"
+        echo "$n $m $("$(dirname "$R")/radray-exr-digest" "$O/$n-$m.exr" | cut -c1-16)"
     done
 done
