@@ -212,6 +212,8 @@ enum {
     OPT_KEY /* an option that sets a scene key (app_option_key) */
 };
 
+static int settle_panels(job *j);
+
 /* Reads the command line into j; returns -1 to go on, or the exit code. */
 static int parse_options(job *j, int argc, char **argv)
 {
@@ -322,6 +324,14 @@ static int parse_options(job *j, int argc, char **argv)
         return APP_EXIT_USAGE;
     }
     j->scene_path = argv[optind];
+    return settle_panels(j);
+}
+
+/* The panels the options ask for: the modes (every row of the table that
+ * belongs in figures, by default) or layers, and which one is the
+ * reference; -1 to go on, or the exit code. */
+static int settle_panels(job *j)
+{
     if (j->nlayers && (j->nmodes || j->ref_name || j->ref_file || j->stats_path || j->conv_path)) {
         app_error("--layers: compares the layers of one render; it does not go with --modes, --reference, "
                   "--stats or --convergence");
