@@ -573,6 +573,40 @@ static void cli_refuses_tiny_patches(void **state)
     assert_true(exists("tiny.exr"));
 }
 
+/* The mutated copy of scenes/csg.json that ran past 20 s (issue #20): its
+ * pebble scaled by -2.5 instead of 0.45, a mirrored pebble through the
+ * walls, whose CSG leaf makes ~40-60k patches and 17 M form factors (69 s).
+ * Long work, not a loop: the pass counts it, and a --max-memory below it
+ * refuses the render before any work. (--set replaces the whole transform.) */
+static void cli_bounds_the_csg_mutant(void **state)
+{
+    (void)state;
+    char out[256], scene_path[512];
+    path_in(out, sizeof out, "mutant.exr");
+    snprintf(scene_path, sizeof scene_path, "%s/scenes/csg.json", RR_SOURCE_DIR);
+    char *text = NULL;
+    size_t n = 0;
+    assert_int_equal(rr_file_read_all(scene_path, &text, &n, NULL), RR_OK);
+    char *at = strstr(text, "{\"scale\": 0.45}");
+    assert_non_null(at);
+    memcpy(at, "{\"scale\": -2.5}", strlen("{\"scale\": -2.5}"));
+    char copy[256];
+    path_in(copy, sizeof copy, "meshes");
+    snprintf(scene_path, sizeof scene_path, "ln -sfn %s/scenes/meshes %s", RR_SOURCE_DIR, copy);
+    assert_int_equal(system(scene_path), 0); /* the scene's mesh paths are relative to it */
+    path_in(copy, sizeof copy, "mutant.json");
+    FILE *f = fopen(copy, "wb");
+    assert_non_null(f);
+    assert_int_equal(fwrite(text, 1, n, f), n);
+    fclose(f);
+    free(text);
+    const char *args[] = {"render", copy, "--width", "24", "--spp", "1", "--max-memory", "300M", "-o", out, NULL};
+    assert_int_equal(finish(start(args)), 2);
+    assert_non_null(strstr(g_out, "patches need about"));
+    assert_non_null(strstr(g_out, "form factors"));
+    assert_false(exists("mutant.exr"));
+}
+
 /* ---- NaN / Inf ---- */
 
 static void scrub_nonfinite(void **state)
@@ -686,6 +720,7 @@ int main(void)
         cmocka_unit_test(cli_outputs_never_overwrite_inputs), cmocka_unit_test(cli_disk_full_between_writes),
         cmocka_unit_test(cli_cache_key_and_checksum), cmocka_unit_test(cli_concurrent_renders_leave_one_pair),
         cmocka_unit_test(cli_refuses_huge_resolution), cmocka_unit_test(cli_refuses_tiny_patches),
+        cmocka_unit_test(cli_bounds_the_csg_mutant),
         cmocka_unit_test(scrub_nonfinite),             cmocka_unit_test(scale_invariance_whitted),
         cmocka_unit_test(scale_invariance_hybrid),
     };
