@@ -5,6 +5,7 @@
  * is shared by every mode that needs it. */
 #include <getopt.h>
 #include <math.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -396,6 +397,7 @@ static int prepare(job *j)
     lo.overrides = (const char *const *)j->sets;
     lo.noverrides = j->nsets;
     lo.warn = app_warn_sink();
+    lo.max_image_bytes = j->width > 0 ? SIZE_MAX : 0; /* --width: the file's resolution is not rendered */
     if (app_scene_load(j->scene_path, &lo, &j->sc, &err) != RR_OK) {
         app_error("%s", err.msg);
         return APP_EXIT_USAGE;

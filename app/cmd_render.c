@@ -2,6 +2,7 @@
 #include <getopt.h>
 #include <sys/resource.h>
 #include <signal.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -307,7 +308,9 @@ static scene *load_scene(const render_args *A)
     lo.overrides = (const char *const *)A->sets;
     lo.noverrides = A->nsets;
     lo.warn = app_warn_sink();
-    lo.max_image_bytes = A->max_memory;
+    /* With --width the file's resolution is not the one rendered: the film is
+     * judged after the resize (app_check_memory), not at load. */
+    lo.max_image_bytes = A->width > 0 ? SIZE_MAX : A->max_memory;
     scene *sc = NULL;
     if (app_scene_load(A->scene_path, &lo, &sc, &err) != RR_OK) {
         app_error("%s", err.msg);

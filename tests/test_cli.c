@@ -336,6 +336,16 @@ static void user_details(void **state)
     const char *f[] = {"info", room, "--set", "camera.eye=[3,1.6,5]", NULL};
     assert_int_equal(run(f), 0);
     assert_non_null(strstr(g_out, "eye (3, 1.6, 5)"));
+    /* --max-memory judges the film that is rendered: the Cornell box's 255 x
+     * 255 film (6 MiB) is over 2M, its --width 8 film is not. */
+    char cornell[512];
+    snprintf(cornell, sizeof cornell, "%s/scenes/cornell.json", RR_SOURCE_DIR);
+    const char *m1[] = {"render", cornell, "--mode", "whitted", "--max-memory", "2M", "-o", exr, NULL};
+    assert_int_equal(run(m1), 2);
+    assert_non_null(strstr(g_out, "255 x 255"));
+    const char *m2[] = {"render", cornell, "--mode", "whitted", "--max-memory", "2M", "--width", "8", "-q", "-o",
+                        exr, NULL};
+    assert_int_equal(run(m2), 0);
     /* Nothing emits (k_quad is grey, no lights): warned, still exit 0. */
     const char *g[] = {"render", sc, "-o", exr, "-q", NULL};
     assert_int_equal(run(g), 0);
