@@ -88,11 +88,11 @@ size_t app_default_max_memory(void);
  * (optionally followed by "B" or "iB"), e.g. 512M, 4G, 1.5GiB, 1000000; 0 on
  * success. */
 int app_parse_size(const char *s, size_t *out);
-/* Estimates what a render of sc by ig needs (film, BVH, and when ig runs the
+/* Estimates what a render of sc by ig needs (film with aovs AOV images, BVH, and when ig runs the
  * radiosity pass, patches and form factors, fewer when cache_path exists) and
  * fails with RR_ERR_LIMIT and a message giving the estimate, the limit and
  * what to change when it exceeds limit. Counts only: nothing is built. */
-rr_status app_check_memory(const scene *sc, const ig_integrator *ig, const char *cache_path, size_t limit,
+rr_status app_check_memory(const scene *sc, const ig_integrator *ig, const char *cache_path, int aovs, size_t limit,
                            rr_error *err);
 /* Sets every non-finite pixel of the film to 0 (rt_film_scrub_nonfinite) and
  * warns on stderr with the count and the first coordinates. Returns the count. */

@@ -475,7 +475,7 @@ int app_cmd_energy(int argc, char **argv)
         goto done;
     }
     R.s = s;
-    if (app_check_memory(s, ig_find("radiosity"), NULL, A.max_memory, &err) != RR_OK) {
+    if (app_check_memory(s, ig_find("radiosity"), NULL, 0, A.max_memory, &err) != RR_OK) {
         app_error("%s", err.msg);
         goto done;
     }

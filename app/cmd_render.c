@@ -120,6 +120,15 @@ typedef struct render_args {
     char exr_default[4200], png_default[4200], partial[4200];
 } render_args;
 
+/* How many AOVs the mask asks for. */
+static int aov_count(unsigned mask)
+{
+    int n = 0;
+    for (int k = 0; k < RT_AOV_COUNT; k++)
+        n += (mask >> k) & 1u;
+    return n;
+}
+
 /* --aov LIST: comma-separated AOV names, or "all"; -1, or the exit code. */
 static int parse_aovs(render_args *A, const char *arg)
 {
@@ -587,7 +596,7 @@ int app_cmd_render(int argc, char **argv)
     rc = APP_EXIT_USAGE;
     if (!(sc = load_scene(&A)) || settle_outputs(&A, sc) != 0)
         goto done;
-    if (app_check_memory(sc, A.ig, A.cache_path, A.max_memory, &err) != RR_OK) {
+    if (app_check_memory(sc, A.ig, A.cache_path, aov_count(A.aovs), A.max_memory, &err) != RR_OK) {
         app_error("%s", err.msg);
         goto done;
     }

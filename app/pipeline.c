@@ -213,11 +213,12 @@ static const char *count_text(double v, char *buf, size_t n)
 /* A BVH node pair and an index per primitive. */
 #define APP_BVH_BYTES_PER_PRIM 48.0
 
-rr_status app_check_memory(const scene *sc, const ig_integrator *ig, const char *cache_path, size_t limit,
+rr_status app_check_memory(const scene *sc, const ig_integrator *ig, const char *cache_path, int aovs, size_t limit,
                            rr_error *err)
 {
     char a[32], b[32], c[32], d[32];
-    double film = 8.0 * (double)sc->view.width * (double)sc->view.height * 3.0 * sizeof(float);
+    /* The beauty image and the 7 layers, and the AOV images. */
+    double film = (8.0 + aovs) * (double)sc->view.width * (double)sc->view.height * 3.0 * sizeof(float);
     /* Solids count one primitive each, plus their mesh leaves' triangles
      * (which get BVHs of their own). */
     double prims = (double)rt_prim_total(sc) + (double)sc->ncsg_tris;

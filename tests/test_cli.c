@@ -17,6 +17,7 @@
 #include <unistd.h>
 
 #include "img.h"
+#include "scene.h"
 #include "test_cli_run.h"
 #include "rr_core.h"
 
@@ -372,6 +373,21 @@ static void aovs_and_metadata(void **state)
     assert_int_equal(img_read_exr(out, "object_id", &oid, NULL), RR_OK);
     int w = alb.width, hits = 0, misses = 0;
     assert_true(fabs(rr_image_get(&dep, w / 2, w / 2).r - 6.0) < 1e-5);
+    /* Every pixel's depth is the distance from E along its centre ray to the
+     * plane z = -1, where that meets the quad ([-3, 3]^2). */
+    scene *s = NULL;
+    assert_int_equal(scene_load(sc, NULL, &s, NULL), RR_OK);
+    for (int y = 0; y < w; y++)
+        for (int x = 0; x < w; x++) {
+            rr_ray r = rr_view_ray(&s->view, x, y, 0.0, 0.0);
+            double t = (-1.0 - r.o.z) / r.d.z;
+            rr_vec3 p = rr_ray_at(r, t);
+            double want = fabs(p.x) < 3 - 1e-9 && fabs(p.y) < 3 - 1e-9 ? t * rr_v3_len(r.d) : 0.0;
+            if (fabs(fabs(p.x) - 3) < 1e-9 || fabs(fabs(p.y) - 3) < 1e-9)
+                continue; /* on the quad's edge */
+            assert_true(fabs(rr_image_get(&dep, x, y).r - want) <= 1e-5 * (1.0 + want));
+        }
+    scene_destroy(s);
     for (int y = 0; y < w; y++)
         for (int x = 0; x < w; x++) {
             rr_rgb id = rr_image_get(&oid, x, y), d = rr_image_get(&dep, x, y), n = rr_image_get(&nrm, x, y);
