@@ -52,6 +52,7 @@ static const char compare_usage[] =
     "                         display). No difference row: layers are parts, not estimates.\n"
     "      --width N          image width in pixels; the height keeps the aspect ratio\n"
     "      --spp N            samples per pixel of every mode but secondary (render.spp)\n"
+    "      --spp-of MODE=N    samples per pixel of one mode (repeatable), e.g. --spp-of hybrid=16\n"
     "      --secondary-spp N  samples per pixel of the secondary mode (default 16 x spp):\n"
     "                         secondary rays are Monte Carlo, and at the spp that suffices\n"
     "                         for anti-aliasing their noise would fill the difference images\n"
@@ -185,6 +186,7 @@ typedef struct job {
     int filter;             /* --filter */
     int quiet, nmodes, nlayers, modes[MAX_PANELS], layers[MAX_PANELS];
     long width, secondary_spp;
+    long spp_mode[MAX_MODES]; /* --spp-of MODE=N (0: the default) */
     char **sets;
     size_t nsets;
     char out_default[4200];
@@ -210,10 +212,29 @@ enum {
     OPT_CACHE,
     OPT_FILTER,
     OPT_CONVERGENCE,
+    OPT_SPP_OF,
     OPT_KEY /* an option that sets a scene key (app_option_key) */
 };
 
 static int settle_panels(job *j);
+
+/* --spp-of MODE=N: samples per pixel of one mode; 0, or -1 after the error. */
+static int parse_spp_of(job *j, const char *arg)
+{
+    const char *eq = strchr(arg, '=');
+    char name[64];
+    long n = 0;
+    snprintf(name, sizeof name, "%.*s", eq ? (int)(eq - arg) : 0, arg);
+    const ig_integrator *ig = eq ? ig_find(name) : NULL;
+    if (!ig || app_parse_int(eq + 1, 1, 1 << 20, &n)) {
+        char names[128];
+        app_error("--spp-of: expected MODE=N with MODE one of %s and N in [1, %d], got '%s'",
+                  ig_names(names, sizeof names), 1 << 20, arg);
+        return -1;
+    }
+    j->spp_mode[ig - ig_table] = n;
+    return 0;
+}
 
 /* Reads the command line into j; returns -1 to go on, or the exit code. */
 static int parse_options(job *j, int argc, char **argv)
@@ -229,7 +250,7 @@ static int parse_options(job *j, int argc, char **argv)
         {"solver", required_argument, NULL, OPT_KEY},       {"ff", required_argument, NULL, OPT_KEY},
         {"ff-samples", required_argument, NULL, OPT_KEY},   {"filter", required_argument, NULL, OPT_FILTER},
         {"radiosity-cache", required_argument, NULL, OPT_CACHE}, {"stats", required_argument, NULL, OPT_STATS},
-        {"convergence", required_argument, NULL, OPT_CONVERGENCE},
+        {"convergence", required_argument, NULL, OPT_CONVERGENCE}, {"spp-of", required_argument, NULL, OPT_SPP_OF},
         {"quiet", no_argument, NULL, 'q'},                  {"help", no_argument, NULL, 'h'},
         {NULL, 0, NULL, 0}};
     static const char *const filters[] = {"box", "tent", NULL};
@@ -291,6 +312,10 @@ static int parse_options(job *j, int argc, char **argv)
                 app_error("--width: expected an integer in [1, 4096], got '%s'", optarg);
                 return APP_EXIT_USAGE;
             }
+            break;
+        case OPT_SPP_OF:
+            if (parse_spp_of(j, optarg) != 0)
+                return APP_EXIT_USAGE;
             break;
         case OPT_SECONDARY_SPP:
             if (app_parse_int(optarg, 1, 1 << 20, &j->secondary_spp)) {
@@ -482,7 +507,9 @@ static int render_panels(job *j)
                 j->pass_secs = rr_now_seconds() - t0;
             }
         }
-        if (ig->indirect == RT_INDIRECT_SECONDARY)
+        if (j->spp_mode[m])
+            sc->settings.spp = (int)j->spp_mode[m];
+        else if (ig->indirect == RT_INDIRECT_SECONDARY)
             sc->settings.spp = (int)(j->secondary_spp ? j->secondary_spp : fmin(16.0 * base_spp, 1 << 20));
         j->spp_of[m] = sc->settings.spp;
         ig_render_opts ro = {(rt_filter)j->filter, NULL, NULL, NULL};

@@ -278,13 +278,15 @@ static void external_reference_and_stats(void **state)
     char conv[256];
     snprintf(conv, sizeof conv, "%s", path_in("conv.svg"));
     const char *cv[] = {"compare", scene("cornell.json"), "--width", "24", "--spp", "2", "--modes", "hybrid,whitted",
-                        "--reference", ref, "--radiosity-cache", cache, "--convergence", conv, "-o", fig, NULL};
+                        "--spp-of", "whitted=4", "--reference", ref, "--radiosity-cache", cache, "--convergence", conv,
+                        "-o", fig, NULL};
     assert_int_equal(run(cv), 0);
     assert_true(exists(conv));
     assert_non_null(strstr(g_out, "convergence against reference"));
-    const char *l1 = strstr(g_out, "  hybrid            1 "), *l2 = strstr(g_out, "  whitted           2 ");
+    const char *l1 = strstr(g_out, "  hybrid            1 "), *l2 = strstr(g_out, "  whitted           4 ");
     assert_non_null(l1);
-    assert_non_null(l2);
+    assert_non_null(l2); /* --spp-of whitted=4: its series goes on to 4 spp */
+    assert_null(strstr(g_out, "  hybrid            4 "));
     /* At 2 spp the hybrid is the reference itself: relMSE 0. */
     const char *l3 = strstr(g_out, "  hybrid            2 ");
     assert_non_null(l3);
@@ -312,6 +314,9 @@ static void external_reference_and_stats(void **state)
     const char *h[] = {"compare", scene("cornell.json"), "--reference", ref, "--stats", ref, "-o", fig2, NULL};
     static const char *const wh2[] = {"--stats", NULL};
     expect_usage(h, wh2);
+    const char *so[] = {"compare", scene("cornell.json"), "--spp-of", "raytraced=4", "-o", fig2, NULL};
+    static const char *const wso[] = {"--spp-of", "raytraced=4", "hybrid", NULL};
+    expect_usage(so, wso);
     const char *k[] = {"compare", scene("cornell.json"), "--convergence", path_in("c.jpg"), "-o", fig2, NULL};
     static const char *const wk[] = {"--convergence", ".png", ".svg", NULL};
     expect_usage(k, wk);
