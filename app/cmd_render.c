@@ -484,9 +484,10 @@ static void print_stats(const ig_session *ses, const render_stats *rs)
     if (sol && ses->sol_cached)
         printf("radiosity  %zu patches, read from %s (%.2f s)\n", sol->P->n, ses->cache_path, ses->seconds_pass);
     else if (sol)
-        printf("radiosity  %zu patches, %zu form factors; patches %.2f s, form factors %.2f s, solve %.2f s "
-               "(%s, %d iteration(s))\n",
-               sol->P->n, sol->nnz, sol->seconds_patches, sol->seconds_ff, sol->seconds_solve,
+        printf("radiosity  %zu patches, %zu form factors; patches %.2f s, form factors %.2f s (%.4g M rays), "
+               "solve %.2f s (%s, %d iteration(s))\n",
+               sol->P->n, sol->nnz, sol->seconds_patches, sol->seconds_ff,
+               ((double)sol->ff_rays.closest + (double)sol->ff_rays.occluded) * 1e-6, sol->seconds_solve,
                sol->stats.used == RAD_SOLVER_DIRECT ? "direct" : "iterative", sol->stats.iterations);
     printf("total      %.2f s, peak memory %s\n", rs->seconds, rr_size_text(rs->peak_bytes, peak, sizeof peak));
 }
@@ -517,9 +518,10 @@ static int write_stats(const char *path, const render_args *A, const scene *sc, 
     if (sol)
         fprintf(f, "\"patches\": %zu, \"form_factors\": %zu, \"radiosity_cached\": %s, "
                    "\"seconds_radiosity\": %.6g, \"seconds_patches\": %.6g, \"seconds_form_factors\": %.6g, "
-                   "\"seconds_solve\": %.6g, \"solver_iterations\": %d}\n",
+                   "\"seconds_solve\": %.6g, \"solver_iterations\": %d, \"form_factor_rays\": %llu}\n",
                 sol->P->n, sol->nnz, ses->sol_cached ? "true" : "false", ses->seconds_pass, sol->seconds_patches,
-                sol->seconds_ff, sol->seconds_solve, sol->stats.iterations);
+                sol->seconds_ff, sol->seconds_solve, sol->stats.iterations,
+                (unsigned long long)(sol->ff_rays.closest + sol->ff_rays.occluded));
     else
         fprintf(f, "\"patches\": 0}\n");
     int bad = ferror(f);

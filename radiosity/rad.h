@@ -147,6 +147,8 @@ typedef struct rad_ff_opts {
                           the raw row's again (rad_ff.c, "Row sums") */
     int mirror_depth;  /* Monte Carlo: reflections a form-factor ray follows off mirrors
                           (extended form factors; 0 = mirrors end rays like any surface) */
+    /* When set, receives the rays the form factors traced (all threads). */
+    rt_ray_counts *rays;
     /* Progress: rows done of all, called from one thread at a time (NULL: none). */
     void (*progress)(void *user, size_t done, size_t total);
     void *progress_user;
@@ -282,6 +284,7 @@ typedef struct rad_solution {
     rad_solve_stats stats;
     double seconds_patches, seconds_ff, seconds_solve;
     size_t nnz;          /* stored form factors */
+    rt_ray_counts ff_rays; /* rays the form factors traced (0 when read from a cache) */
 } rad_solution;
 
 /* Patches, form factors, solve, vertex radiosity: everything the display and

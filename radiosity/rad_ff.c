@@ -754,8 +754,10 @@ rr_status rad_ff_compute(const scene *s, const rt_accel *a, const rad_patches *P
     int failed = 0; /* 1: out of memory, 2: interrupted */
     size_t done = 0;
     int nthreads = o->threads > 0 ? o->threads : omp_get_max_threads();
+    rt_ray_counts total = {0, 0};
 #pragma omp parallel num_threads(nthreads)
     {
+        rt_ray_counts before = rt_ray_counts_of_thread();
         ff_scratch w;
         int ok = scratch_alloc(&w, &c, o->method, n);
         if (!ok) {
@@ -792,7 +794,14 @@ rr_status rad_ff_compute(const scene *s, const rt_accel *a, const rad_patches *P
             report_row(o, &done, n);
         }
         scratch_free(&w);
+        rt_ray_counts after = rt_ray_counts_of_thread();
+#pragma omp atomic
+        total.closest += after.closest - before.closest;
+#pragma omp atomic
+        total.occluded += after.occluded - before.occluded;
     }
+    if (o->rays)
+        *o->rays = total;
     if (failed == 2) {
         for (size_t i = 0; i < n; i++) {
             free(rows[i].col);

@@ -172,6 +172,7 @@ rr_status rad_pass_run(const scene *s, const rt_accel *a, const rad_pass_opts *o
     if (fo.mirror_depth <= 0)
         fo.mirror_depth = s->settings.max_depth;
     mirror_warnings(s, &fo, &o->warn);
+    fo.rays = &sol->ff_rays;
     if ((st = rad_ff_compute(s, a, sol->P, &fo, &sol->F, err)) != RR_OK)
         goto fail;
     sol->nnz = sol->F->rowptr[sol->F->n];

@@ -448,6 +448,18 @@ static void aovs_and_metadata(void **state)
     }
     assert_string_equal(counts[0], counts[1]);
     assert_null(strstr(counts[0], "\"rays_closest\": 0,"));
+    /* The radiosity pass traces one Monte Carlo ray per form-factor sample:
+     * patches x ff_samples (512 by default; no mirror to extend them). */
+    const char *e[] = {"render", lit, "-o", out, "--stats", st, "-q", NULL};
+    assert_int_equal(run(e), 0);
+    assert_int_equal(rr_file_read_all(st, &text, &len, NULL), RR_OK);
+    const char *pa = strstr(text, "\"patches\": "), *fr = strstr(text, "\"form_factor_rays\": ");
+    assert_non_null(pa);
+    assert_non_null(fr);
+    long long patches = atoll(pa + strlen("\"patches\": ")), rays = atoll(fr + strlen("\"form_factor_rays\": "));
+    free(text);
+    assert_true(patches > 100);
+    assert_int_equal(rays, patches * 512);
     /* An unknown AOV: exit 2 naming it, nothing written. */
     char bad[256];
     snprintf(bad, sizeof bad, "%s/bad.exr", g_dir);
