@@ -89,7 +89,7 @@ int main(int argc, char **argv)
         rad_solve_stats st;
         memset(&st, 0, sizeof st);
         if (P->n <= 16384) {
-            rad_solve_opts so = {RAD_SOLVER_DIRECT, 1e-9, 0, 0, 0};
+            rad_solve_opts so = {RAD_SOLVER_DIRECT, 1e-9, 0, 0, 0, NULL};
             double d0 = now();
             if (rad_solve(P, F, &so, B, &st, &err) != RR_OK)
                 die(&err);
@@ -97,7 +97,7 @@ int main(int argc, char **argv)
             rd = st.residual;
             free(st.history);
         }
-        rad_solve_opts go = {RAD_SOLVER_ITERATIVE, 1e-9, 0, 0, 0};
+        rad_solve_opts go = {RAD_SOLVER_ITERATIVE, 1e-9, 0, 0, 0, NULL};
         memset(&st, 0, sizeof st);
         double g0 = now();
         if (rad_solve(P, F, &go, B, &st, &err) != RR_OK)

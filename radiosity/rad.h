@@ -180,6 +180,10 @@ typedef struct rad_solve_opts {
     int max_iterations;
     int allow_rho_ge_1;   /* for tests only: accept reflectance >= 1 */
     size_t auto_direct_max; /* auto picks direct up to this many patches (0 = default) */
+    /* Checked before every Gauss-Seidel sweep (a fraction of a second on 100k
+     * patches): non-zero stops the solve with RR_ERR_INTERRUPTED. The direct
+     * solver (at most a few thousand patches by default) is not interrupted. */
+    const volatile sig_atomic_t *interrupt;
 } rad_solve_opts;
 
 typedef struct rad_solve_stats {

@@ -837,6 +837,12 @@ rr_status rad_ff_compute(const scene *s, const rt_accel *a, const rad_patches *P
     if (!F)
         return rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory for form factors (%zu patches)", s->path,
                             n);
+    /* Reciprocity and row balancing are serial (seconds on 100k patches): an
+     * interrupt that came during them stops the pass here. */
+    if (o->interrupt && *o->interrupt) {
+        rad_ff_destroy(F);
+        return rr_error_set(err, RR_ERR_INTERRUPTED, "%s: radiosity pass interrupted (form factors)", s->path);
+    }
     *out = F;
     return RR_OK;
 }

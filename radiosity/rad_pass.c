@@ -182,6 +182,8 @@ rr_status rad_pass_run(const scene *s, const rt_accel *a, const rad_pass_opts *o
         so.solver = (rad_solver)s->radiosity.solver;
     if (!(so.tolerance > 0))
         so.tolerance = s->radiosity.tolerance;
+    if (!so.interrupt)
+        so.interrupt = o->ff.interrupt; /* one interrupt for the whole pass */
     size_t n = sol->P->n;
     rr_rgb *Hind = malloc(n * sizeof *Hind);
     if (rad__solution_arrays(sol) != 0 || !Hind) {

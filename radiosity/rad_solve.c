@@ -176,8 +176,8 @@ static void gs_sweep(const rad_patches *P, const rad_ff *F, rr_rgb *X)
     }
 }
 
-static rr_status solve_iterative(const rad_patches *P, const rad_ff *F, double tol, int maxit, rr_rgb *X,
-                                 rad_solve_stats *st, rr_error *err)
+static rr_status solve_iterative(const rad_patches *P, const rad_ff *F, double tol, int maxit,
+                                 const volatile sig_atomic_t *interrupt, rr_rgb *X, rad_solve_stats *st, rr_error *err)
 {
     for (size_t i = 0; i < P->n; i++)
         X[i] = P->p[i].emission;
@@ -187,6 +187,9 @@ static rr_status solve_iterative(const rad_patches *P, const rad_ff *F, double t
         return rr_error_set(err, RR_ERR_NOMEM, "out of memory for the residual history");
     double r = INFINITY;
     for (int it = 1; it <= maxit; it++) {
+        if (interrupt && *interrupt)
+            return rr_error_set(err, RR_ERR_INTERRUPTED, "interrupted in the solve, after %d sweeps",
+                                it - 1);
         gs_sweep(P, F, X);
         r = residual(P, F, X);
         if (st->nhistory == cap) {
@@ -476,7 +479,7 @@ rr_status rad_solve(const rad_patches *P, const rad_ff *F, const rad_solve_opts 
                     rr_error *err)
 {
     double t0 = rr_now_seconds();
-    static const rad_solve_opts defaults = {RAD_SOLVER_AUTO, 0.0, 0, 0, 0};
+    static const rad_solve_opts defaults = {RAD_SOLVER_AUTO, 0.0, 0, 0, 0, NULL};
     if (!o)
         o = &defaults;
     if (!B)
@@ -508,7 +511,7 @@ rr_status rad_solve(const rad_patches *P, const rad_ff *F, const rad_solve_opts 
                 st = rr_error_set(err, RR_ERR_INVALID, "the direct solve produced non-finite radiosities");
         }
     } else {
-        st = solve_iterative(P, F, tol, maxit, X, &s, err);
+        st = solve_iterative(P, F, tol, maxit, o->interrupt, X, &s, err);
     }
     if (st != RR_OK) {
         free(X);

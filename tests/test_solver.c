@@ -7,6 +7,8 @@
 #include <stdint.h>
 #include <cmocka.h>
 
+#include <signal.h>
+
 #include <stdlib.h>
 #include <string.h>
 
@@ -169,7 +171,7 @@ static sys *random_system(size_t n, int deg, uint64_t seed)
 
 static rr_rgb *solve_ok(const sys *S, rad_solver solver, double tol, rad_solve_stats *st)
 {
-    rad_solve_opts o = {solver, tol, 0, 0, 0};
+    rad_solve_opts o = {solver, tol, 0, 0, 0, NULL};
     rr_rgb *B = malloc(S->P.n * sizeof *B);
     rr_error err = {0};
     rad_solve_stats local;
@@ -339,7 +341,7 @@ static void auto_choice_and_history(void **state)
     rr_rgb *B = malloc(S->P.n * sizeof *B);
     rad_solve_stats st;
     rr_error err;
-    rad_solve_opts o = {RAD_SOLVER_AUTO, 0, 0, 0, 0};
+    rad_solve_opts o = {RAD_SOLVER_AUTO, 0, 0, 0, 0, NULL};
     assert_int_equal(rad_solve(&S->P, &S->F, &o, B, &st, &err), RR_OK);
     assert_int_equal(st.used, RAD_SOLVER_DIRECT);
     free(st.history);
@@ -388,7 +390,7 @@ static void bad_inputs(void **state)
     S->P.p[0].rho = rr_rgb_make(0.5, 0.5, 0.5);
     S->P.p[1].rho = rr_rgb_make(0.5, 1.0, 0.5);
     S->P.p[1].object = 3;
-    rad_solve_opts o = {RAD_SOLVER_AUTO, 0, 0, 0, 0};
+    rad_solve_opts o = {RAD_SOLVER_AUTO, 0, 0, 0, 0, NULL};
     expect_fail(S, &o, RR_ERR_INVALID, "patch 1 (object 3) has reflectance >= 1 in channel G");
     expect_fail(S, &o, RR_ERR_INVALID, "no physical solution");
 
@@ -419,9 +421,22 @@ static void bad_inputs(void **state)
     S->F.val[0] = S->F.val[1] = 1.0;
     o.max_iterations = 50;
     expect_fail(S, &o, RR_ERR_LIMIT, "did not converge in 50 sweeps");
-    o = (rad_solve_opts){RAD_SOLVER_AUTO, 0, 0, 0, 0};
+    o = (rad_solve_opts){RAD_SOLVER_AUTO, 0, 0, 0, 0, NULL};
     S->P.p[0].rho = S->P.p[1].rho = rr_rgb_make(0.5, 0.5, 0.5);
     S->F.val[0] = S->F.val[1] = 0.5;
+    /* Interrupted (Ctrl-C): the iterative solver stops before its next sweep. */
+    volatile sig_atomic_t stop = 1;
+    o.solver = RAD_SOLVER_ITERATIVE;
+    o.interrupt = &stop;
+    expect_fail(S, &o, RR_ERR_INTERRUPTED, "interrupted in the solve, after 0 sweeps");
+    stop = 0;
+    {
+        rr_rgb B[2];
+        rad_solve_stats st;
+        assert_int_equal(rad_solve(&S->P, &S->F, &o, B, &st, NULL), RR_OK);
+        free(st.history);
+    }
+    o = (rad_solve_opts){RAD_SOLVER_AUTO, 0, 0, 0, 0, NULL};
 
     /* No emitter. */
     S->P.p[0].emission = rr_rgb_make(0, 0, 0);
