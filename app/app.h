@@ -10,6 +10,7 @@
 #define APP_H
 
 #include <signal.h>
+#include <stdio.h>
 #include <stddef.h>
 
 #include "ig.h"
@@ -124,6 +125,43 @@ typedef struct app_metrics {
 void app_metrics_region(const rr_image *x, const rr_image *r, const int *region, int which, app_metrics *out);
 /* Mean SSIM of x against r over the image (NaN when out of memory). */
 double app_metric_ssim(const rr_image *x, const rr_image *r, double exposure);
+
+/* ---- study.c: what compare measures against a reference ---- */
+
+/* For each pixel, the object hit by the ray through its centre, or -1 when
+ * nothing is hit or a ray through one of its corners hits something else
+ * (edge pixels mix surfaces in proportions that depend on the sample count):
+ * the regions of compare's per-object table and statistics. malloc'd, NULL
+ * when out of memory. */
+int *app_pixel_regions(const scene *sc, const rt_accel *a);
+/* s as a JSON string on f (quotes, backslashes and control bytes escaped). */
+void app_json_string(FILE *f, const char *s);
+/* Panels against the reference: img[0..n), img[ref] the reference; whole[i]
+ * and ssim[i] the whole-image metrics of the others (computed once). */
+typedef struct app_study {
+    const scene *sc;
+    const rt_accel *accel;
+    const rr_image *img;
+    const char *const *titles;
+    int n, ref;
+    const app_metrics *whole;
+    const double *ssim;
+} app_study;
+/* --stats: per panel, over the whole image and over each object that fills
+ * enough whole pixels (0.1 % of the image, at least 4), as JSON or CSV by
+ * extension, through a temporary file. 0, or -1 after the error. */
+int app_write_stats(const char *path, const app_study *st, int quiet);
+/* One mode of the convergence plot: rendered at 1, 2, 4, ... up to spp, its
+ * time plus extra_seconds (the radiosity pass, for the modes that use it). */
+typedef struct app_conv_mode {
+    const ig_integrator *ig;
+    int spp;
+    double extra_seconds;
+} app_conv_mode;
+/* --convergence: each mode's relMSE against ref by time, log-log, plotted to
+ * path (and printed unless quiet); renders into film with the session. */
+rr_status app_convergence(const char *path, ig_session *ses, scene *sc, const app_conv_mode *modes, int n,
+                          const rr_image *ref, const char *ref_title, rt_film *film, int quiet, rr_error *err);
 
 /* ---- diagnose.c: warnings that name the cause of lost light ---- */
 

@@ -139,43 +139,6 @@ static int exit_code(rr_status st)
     return st == RR_ERR_INVALID ? APP_EXIT_USAGE : APP_EXIT_RUNTIME;
 }
 
-static int object_hit(const scene *sc, const rt_accel *a, int col, int row, double dx, double dy)
-{
-    rt_hit hit;
-    return rt_accel_closest(a, rr_view_ray(&sc->view, col, row, dx, dy), 0.0, INFINITY, &hit) ? (int)hit.object : -1;
-}
-
-/* The regions of the per-object table: for each pixel, the object hit by the
- * ray through its centre, or -1 when nothing is hit or when a ray through one
- * of its corners hits something else. Pixels on an edge mix two surfaces in
- * proportions that depend on the sample count, which differs between modes;
- * leaving them out makes the table compare shading, not anti-aliasing. */
-static int *classify_pixels(const scene *sc, const rt_accel *a)
-{
-    int w = sc->view.width, h = sc->view.height;
-    int *region = malloc(sizeof *region * (size_t)w * (size_t)h);
-    int *corner = malloc(sizeof *corner * (size_t)(w + 1) * (size_t)(h + 1));
-    if (!region || !corner) {
-        free(region);
-        free(corner);
-        return NULL;
-    }
-    /* Corner (i, j) is the top-left corner of pixel (i, j); the last row and
-     * column are the far corners of the last pixels. */
-    for (int j = 0; j <= h; j++)
-        for (int i = 0; i <= w; i++)
-            corner[(size_t)j * (size_t)(w + 1) + (size_t)i] =
-                object_hit(sc, a, i < w ? i : w - 1, j < h ? j : h - 1, i < w ? -0.5 : 0.5, j < h ? 0.5 : -0.5);
-    for (int y = 0; y < h; y++)
-        for (int x = 0; x < w; x++) {
-            int o = object_hit(sc, a, x, y, 0, 0);
-            const int *c0 = corner + (size_t)y * (size_t)(w + 1) + (size_t)x, *c1 = c0 + w + 1;
-            region[(size_t)y * (size_t)w + (size_t)x] = c0[0] == o && c0[1] == o && c1[0] == o && c1[1] == o ? o : -1;
-        }
-    free(corner);
-    return region;
-}
-
 /* One run of compare: the options, then what the renders leave for the figure. */
 typedef struct job {
     const char *out, *ref_name, *scene_path;
@@ -196,6 +159,8 @@ typedef struct job {
     ig_session ses;
     rt_film film;
     rr_image img[MAX_PANELS]; /* what each panel shows, linear */
+    app_metrics whole[MAX_PANELS]; /* each estimate against the reference, whole image */
+    double ssim[MAX_PANELS];
     double secs[MAX_MODES], pass_secs;
     int spp_of[MAX_MODES];
     char pass_users[64];      /* the modes that use the radiosity pass */
@@ -561,7 +526,7 @@ static int region_table(const job *j, table_store *ts, fig_table *t)
 {
     const scene *sc = j->sc;
     size_t npx = (size_t)sc->view.width * (size_t)sc->view.height;
-    int *region = classify_pixels(sc, j->accel);
+    int *region = app_pixel_regions(sc, j->accel);
     long *counts = calloc(sc->nobjects + 1, sizeof *counts);
     ts->rows = calloc(sc->nobjects + 1, sizeof *ts->rows);
     ts->pixels = calloc(sc->nobjects + 1, sizeof *ts->pixels);
@@ -631,63 +596,6 @@ static void free_job(job *j)
     free(j->sets);
 }
 
-enum { CONV_MAX = 16 };
-
-/* --convergence: every estimate's relMSE against the reference at 1, 2, 4, ...
- * samples per pixel up to the spp it was rendered with, against the time it
- * took (the radiosity pass's time added to the modes that use it: that is
- * what they cost), on log-log axes; also printed. -1 or the exit code. */
-static int convergence(job *j, const fig_panel *panels)
-{
-    if (j->ref < 0 || j->npanels < 2) {
-        app_error("--convergence: it measures the modes against a reference; give two modes or --reference");
-        return APP_EXIT_USAGE;
-    }
-    scene *sc = j->sc;
-    int base_spp = sc->settings.spp, ns = 0;
-    static double xs[MAX_PANELS][CONV_MAX], ys[MAX_PANELS][CONV_MAX];
-    app_series series[MAX_PANELS];
-    rr_error err;
-    if (!j->quiet)
-        printf("convergence against %s: mode, spp, seconds, relMSE\n", panels[j->ref].title);
-    for (int i = 0; i < j->npanels; i++) {
-        if (i == j->ref || i >= j->nmodes)
-            continue;
-        int m = j->modes[i], n = 0;
-        const ig_integrator *ig = &ig_table[m];
-        double extra = ig_uses_pass(ig, sc) ? j->pass_secs : 0.0;
-        for (long spp = 1; spp <= j->spp_of[m] && n < CONV_MAX; spp *= 2) {
-            sc->settings.spp = (int)spp;
-            double secs = 0;
-            rr_status st = ig_render(&j->ses, ig, NULL, &j->film, &secs, &err);
-            sc->settings.spp = base_spp;
-            if (st != RR_OK) {
-                app_error("%s", err.msg);
-                return exit_code(st);
-            }
-            app_metrics mt;
-            app_metrics_region(&j->film.beauty, &j->img[j->ref], NULL, 0, &mt);
-            xs[ns][n] = secs + extra;
-            ys[ns][n] = mt.relmse.value;
-            if (!j->quiet)
-                printf("  %-10s %8ld %10.3f %12.4g\n", ig->name, spp, xs[ns][n], ys[ns][n]);
-            n++;
-        }
-        series[ns] = (app_series){ig->name, xs[ns], ys[ns], n};
-        ns++;
-    }
-    char title[160];
-    snprintf(title, sizeof title, "relMSE against %s by render time (spp 1, 2, 4, ...)", panels[j->ref].title);
-    if (rr_file_make_parent_dirs(j->conv_path, &err) != RR_OK ||
-        app_plot_lines(j->conv_path, series, ns, title, "seconds (radiosity pass included)", "relMSE", 1, &err)) {
-        app_error("%s", err.msg);
-        return APP_EXIT_RUNTIME;
-    }
-    if (!j->quiet)
-        printf("wrote %s (convergence plot)\n", j->conv_path);
-    return -1;
-}
-
 /* Titles and captions: the mode (or layer), its samples and time; the image
  * reference by its file name; with a reference, each estimate's relMSE and
  * SSIM against it. */
@@ -711,121 +619,55 @@ static void label_panels(const job *j, fig_panel *panels, const char **cols)
             continue;
         }
         int k = snprintf(panels[i].caption, sizeof panels[i].caption, "%d spp, %.2f s", j->spp_of[m], j->secs[m]);
-        if (j->ref >= 0 && i != j->ref && j->npanels > 1) {
-            app_metrics mt;
-            app_metrics_region(&j->img[i], &j->img[j->ref], NULL, 0, &mt);
+        if (j->ref >= 0 && i != j->ref && j->npanels > 1)
             snprintf(panels[i].caption + k, sizeof panels[i].caption - (size_t)k, ", relMSE %.3g, SSIM %.3f",
-                     mt.relmse.value, app_metric_ssim(&j->img[i], &j->img[j->ref], j->sc->settings.exposure));
-        }
+                     j->whole[i].relmse.value, j->ssim[i]);
     }
 }
 
-/* s as a JSON string (object names may hold quotes or backslashes). */
-static void json_text(FILE *f, const char *s)
+/* The estimates against the reference, once for the captions and --stats. */
+static void measure_panels(job *j)
 {
-    fputc('"', f);
-    for (; *s; s++) {
-        unsigned char c = (unsigned char)*s;
-        if (c == '"' || c == '\\')
-            fprintf(f, "\\%c", c);
-        else if (c < 0x20)
-            fprintf(f, "\\u%04x", c);
-        else
-            fputc(c, f);
-    }
-    fputc('"', f);
-}
-
-static void json_metric(FILE *f, const char *name, app_metric m)
-{
-    fprintf(f, "\"%s\": %.9g, \"%s_se\": %.9g", name, m.value, name, m.se);
-}
-
-/* One row of the statistics: panel i against the reference over region
- * `which` of region (NULL: the whole image), as JSON or CSV. */
-static void stats_row(FILE *f, int json, const job *j, const fig_panel *panels, int i, const char *area,
-                      const int *region, int which, int first)
-{
-    app_metrics mt;
-    app_metrics_region(&j->img[i], &j->img[j->ref], region, which, &mt);
-    double ssim = region ? NAN : app_metric_ssim(&j->img[i], &j->img[j->ref], j->sc->settings.exposure);
-    if (!json) {
-        fprintf(f, "%s,%s,%ld,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g\n", panels[i].title, area, mt.pixels,
-                mt.relmse.value, mt.relmse.se, mt.mare.value, mt.mare.se, mt.bias.value, mt.bias.se, ssim);
-        return;
-    }
-    fprintf(f, "%s\n    {\"panel\": \"%s\", \"region\": ", first ? "" : ",", panels[i].title);
-    json_text(f, area);
-    fprintf(f, ", \"pixels\": %ld, ", mt.pixels);
-    json_metric(f, "relmse", mt.relmse);
-    fputs(", ", f);
-    json_metric(f, "mare", mt.mare);
-    fputs(", ", f);
-    json_metric(f, "bias", mt.bias);
-    if (isfinite(ssim))
-        fprintf(f, ", \"ssim\": %.9g", ssim);
-    fputs("}", f);
-}
-
-/* --stats: every estimate against the reference, over the whole image and
- * over each object that fills enough whole pixels (the figure's table rows),
- * written through a temporary file. 0, or -1 after the error. */
-static int write_stats(const job *j, const fig_panel *panels)
-{
-    if (j->ref < 0 || j->nlayers) {
-        app_error("--stats: the statistics compare estimates with a reference; layers have none");
-        return -1;
-    }
-    const scene *sc = j->sc;
-    int *region = classify_pixels(sc, j->accel);
-    long *count = calloc(sc->nobjects + 1, sizeof *count);
-    rr_error err;
-    FILE *f = NULL;
-    char tmp[4096];
-    int json = app_ends_with(j->stats_path, ".json"), rc = -1;
-    if (!region || !count) {
-        app_error("out of memory");
-        goto done;
-    }
-    size_t npx = (size_t)sc->view.width * (size_t)sc->view.height;
-    for (size_t p = 0; p < npx; p++)
-        if (region[p] >= 0)
-            count[region[p]]++;
-    if (rr_file_make_parent_dirs(j->stats_path, &err) != RR_OK ||
-        rr_file_tmpname(j->stats_path, tmp, sizeof tmp, &err) != RR_OK || !(f = fopen(tmp, "w"))) {
-        app_error("--stats %s: cannot write it", j->stats_path);
-        goto done;
-    }
-    if (json)
-        fprintf(f, "{\"reference\": \"%s\", \"eps\": %g, \"rows\": [", panels[j->ref].title, APP_METRIC_EPS);
-    else
-        fputs("panel,region,pixels,relmse,relmse_se,mare,mare_se,bias,bias_se,ssim\n", f);
-    long threshold = (long)fmax(4.0, 0.001 * (double)npx);
-    int first = 1;
     for (int i = 0; i < j->npanels; i++) {
+        j->ssim[i] = NAN;
+        if (j->ref < 0 || i == j->ref || j->nlayers)
+            continue;
+        app_metrics_region(&j->img[i], &j->img[j->ref], NULL, 0, &j->whole[i]);
+        j->ssim[i] = app_metric_ssim(&j->img[i], &j->img[j->ref], j->sc->settings.exposure);
+    }
+}
+
+/* --stats and --convergence (study.c); -1 to go on, or the exit code. */
+static int write_studies(job *j, const fig_panel *panels)
+{
+    const char *titles[MAX_PANELS];
+    for (int i = 0; i < j->npanels; i++)
+        titles[i] = panels[i].title;
+    if ((j->stats_path || j->conv_path) && (j->ref < 0 || j->npanels < 2)) {
+        app_error("%s: it measures the modes against a reference; give two modes or --reference",
+                  j->stats_path ? "--stats" : "--convergence");
+        return APP_EXIT_USAGE;
+    }
+    app_study st = {j->sc, j->accel, j->img, titles, j->npanels, j->ref, j->whole, j->ssim};
+    if (j->stats_path && app_write_stats(j->stats_path, &st, j->quiet) != 0)
+        return APP_EXIT_RUNTIME;
+    if (!j->conv_path)
+        return -1;
+    app_conv_mode cm[MAX_PANELS];
+    int n = 0;
+    for (int i = 0; i < j->nmodes; i++) {
         if (i == j->ref)
             continue;
-        stats_row(f, json, j, panels, i, "(all pixels)", NULL, 0, first);
-        first = 0;
-        for (size_t o = 0; o < sc->nobjects; o++)
-            if (count[o] >= threshold)
-                stats_row(f, json, j, panels, i, sc->objects[o].name, region, (int)o, 0);
+        const ig_integrator *ig = &ig_table[j->modes[i]];
+        cm[n++] = (app_conv_mode){ig, j->spp_of[j->modes[i]], ig_uses_pass(ig, j->sc) ? j->pass_secs : 0.0};
     }
-    if (json)
-        fputs("\n]}\n", f);
-    int bad = ferror(f);
-    if (fclose(f) != 0 || bad || rename(tmp, j->stats_path) != 0) {
-        remove(tmp);
-        app_error("--stats %s: write failed", j->stats_path);
-        goto done;
-    }
-    if (!j->quiet)
-        printf("wrote %s (statistics against %s)\n", j->stats_path, panels[j->ref].title);
-    rc = 0;
-done:
-    free(region);
-    free(count);
-    return rc;
+    rr_error err;
+    rr_status s = app_convergence(j->conv_path, &j->ses, j->sc, cm, n, &j->img[j->ref], titles[j->ref], &j->film,
+                                  j->quiet, &err);
+    if (s == RR_OK)
+        return -1;
+    app_error("%s", err.msg);
+    return exit_code(s);
 }
 
 int app_cmd_compare(int argc, char **argv)
@@ -851,10 +693,9 @@ int app_cmd_compare(int argc, char **argv)
         goto done;
     rc = APP_EXIT_RUNTIME;
 
+    measure_panels(&j);
     label_panels(&j, panels, cols);
-    if (j.stats_path && write_stats(&j, panels) != 0)
-        goto done;
-    if (j.conv_path && (rc = convergence(&j, panels)) >= 0)
+    if ((rc = write_studies(&j, panels)) >= 0)
         goto done;
     rc = APP_EXIT_RUNTIME;
     if (region_table(&j, &ts, &d.table) != 0) {

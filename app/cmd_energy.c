@@ -73,20 +73,6 @@ static void json_rgb(const char *key, rr_rgb c, int last)
     printf("\"%s\": [%.10g, %.10g, %.10g]%s", key, c.r, c.g, c.b, last ? "" : ", ");
 }
 
-static void json_string(const char *s)
-{
-    putchar('"');
-    for (; *s; s++) {
-        if (*s == '"' || *s == '\\')
-            printf("\\%c", *s);
-        else if ((unsigned char)*s < 0x20)
-            printf("\\u%04x", *s);
-        else
-            putchar(*s);
-    }
-    putchar('"');
-}
-
 /* 0: go on; else the exit code. */
 static int parse_args(int argc, char **argv, energy_args *A)
 {
@@ -312,7 +298,7 @@ static void json_ledger_rows(const energy_result *R)
     for (size_t i = 0; i < R->nrows; i++) {
         const rad_energy_row *r = &R->rows[i];
         printf("%s{\"name\": ", i ? ", " : "");
-        json_string(r->name);
+        app_json_string(stdout, r->name);
         printf(", \"object\": %lld, \"light\": %lld, \"area\": %.10g, ", (long long)r->object, (long long)r->light,
                r->area);
         json_rgb("emitted", r->emitted, 0);
@@ -340,7 +326,7 @@ static void json_particles(const energy_result *R)
     printf("\"rows\": [");
     for (size_t r = 0; r < g->nobjects + g->nlights; r++) {
         printf("%s{\"name\": ", r ? ", " : "");
-        json_string(r < g->nobjects ? R->s->objects[r].name : R->s->lights[r - g->nobjects].name);
+        app_json_string(stdout, r < g->nobjects ? R->s->objects[r].name : R->s->lights[r - g->nobjects].name);
         printf(", \"object\": %lld, \"light\": %lld, ", r < g->nobjects ? (long long)r : -1LL,
                r < g->nobjects ? -1LL : (long long)(r - g->nobjects));
         for (int c = 0; c < RT_LEDGER_COLUMNS; c++) {
@@ -356,7 +342,7 @@ static void json_particles(const energy_result *R)
     for (size_t i = 0; i < R->ncmp; i++) {
         const rad_energy_cmp *c = &R->cmp[i];
         printf("%s{\"name\": ", i ? ", " : "");
-        json_string(c->name);
+        app_json_string(stdout, c->name);
         printf(", \"object\": %lld, \"light\": %lld, \"column\": \"%s\", \"radiosity\": %.10g, \"particles\": %.10g, "
                "\"se\": %.6g, \"z\": %.6g, \"checked\": %s, \"pass\": %s}",
                (long long)c->object, (long long)c->light, column_name(c->column), c->rad, c->part, c->se,
@@ -369,7 +355,7 @@ static void print_json(const energy_result *R, int agree)
 {
     const rad_solution *sol = R->sol;
     printf("{\"scene\": ");
-    json_string(R->s->path);
+    app_json_string(stdout, R->s->path);
     printf(", \"patches\": %zu, \"form_factors\": %zu, \"solver\": \"%s\", \"iterations\": %d, "
            "\"residual\": %.3g, \"balance_relative_error\": %.3g, \"balanced\": %s, \"power_created\": %s, ",
            sol->P->n, sol->nnz, sol->stats.used == RAD_SOLVER_DIRECT ? "direct" : "iterative", sol->stats.iterations,

@@ -794,11 +794,7 @@ rr_status rad_ff_compute(const scene *s, const rt_accel *a, const rad_patches *P
             report_row(o, &done, n);
         }
         scratch_free(&w);
-        rt_ray_counts after = rt_ray_counts_of_thread();
-#pragma omp atomic
-        total.closest += after.closest - before.closest;
-#pragma omp atomic
-        total.occluded += after.occluded - before.occluded;
+        rt_ray_counts_add_since(&total, before);
     }
     if (o->rays)
         *o->rays = total;

@@ -212,6 +212,9 @@ typedef struct rt_ray_counts {
     uint64_t closest, occluded;
 } rt_ray_counts;
 rt_ray_counts rt_ray_counts_of_thread(void);
+/* Adds to *total (atomically: threads of one parallel region share it) what
+ * this thread has traced since the reading `before`. */
+void rt_ray_counts_add_since(rt_ray_counts *total, rt_ray_counts before);
 
 /* ---- the shadow-ray rule (rt_light.c) ----
  *

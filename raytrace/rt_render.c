@@ -454,11 +454,7 @@ rr_status rt_render(const scene *s, const rt_accel *a, const rt_render_opts *o, 
             o->progress(o->progress_user, now, ntiles);
         }
     }
-    rt_ray_counts after = rt_ray_counts_of_thread();
-#pragma omp atomic
-    total.closest += after.closest - before.closest;
-#pragma omp atomic
-    total.occluded += after.occluded - before.occluded;
+    rt_ray_counts_add_since(&total, before);
     }
     if (o->rays)
         *o->rays = total;

@@ -72,6 +72,15 @@ static _Thread_local rt_ray_counts t_counts;
 
 rt_ray_counts rt_ray_counts_of_thread(void) { return t_counts; }
 
+void rt_ray_counts_add_since(rt_ray_counts *total, rt_ray_counts before)
+{
+    uint64_t dc = t_counts.closest - before.closest, dn = t_counts.occluded - before.occluded;
+#pragma omp atomic
+    total->closest += dc;
+#pragma omp atomic
+    total->occluded += dn;
+}
+
 int rt_accel_closest(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_hit *hit)
 {
     t_counts.closest++;
