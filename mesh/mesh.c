@@ -210,6 +210,84 @@ static uint32_t *mesh__weld(const mesh_tri *m)
     return weld;
 }
 
+/* One vertex of the result of mesh_weld: a welded position seen by faces
+ * whose normals are within the crease angle of n. */
+typedef struct mesh__wcand {
+    double n[3];
+    uint32_t idx, next; /* new index; next candidate at the same position */
+} mesh__wcand;
+
+/* Index of the candidate at position rep whose normal is within cos_max of
+ * n (a zero n, a degenerate face, takes the first), a new one if none. */
+static uint32_t mesh__wfind(uint32_t *head, mesh__wcand *cand, size_t *ncand, uint32_t rep, const double *n,
+                            double cos_max)
+{
+    int zero = n[0] == 0 && n[1] == 0 && n[2] == 0;
+    for (uint32_t c = head[rep]; c != UINT32_MAX; c = cand[c].next)
+        if (zero || cand[c].n[0] * n[0] + cand[c].n[1] * n[1] + cand[c].n[2] * n[2] >= cos_max)
+            return c;
+    uint32_t c = (uint32_t)(*ncand)++;
+    memcpy(cand[c].n, n, sizeof cand[c].n);
+    cand[c].idx = c;
+    cand[c].next = head[rep];
+    head[rep] = c;
+    return c;
+}
+
+rr_status mesh_weld(mesh_tri *m, double crease_deg, rr_error *err)
+{
+    if (m->ntris > UINT32_MAX / 3)
+        return rr_error_set(err, RR_ERR_LIMIT, "mesh_weld: too many triangles (%zu)", m->ntris);
+    uint32_t *weld = mesh__weld(m), *head = mesh__malloc_array(m->nverts, sizeof *head);
+    uint32_t *src = mesh__malloc_array(3 * m->ntris, sizeof *src); /* new vertex -> old vertex */
+    mesh__wcand *cand = mesh__malloc_array(3 * m->ntris, sizeof *cand);
+    mesh_tri *out = NULL;
+    rr_status st = RR_OK;
+    if (!weld || !head || !src || !cand) {
+        st = rr_error_set(err, RR_ERR_NOMEM, "out of memory welding %zu vertices", m->nverts);
+        goto done;
+    }
+    for (size_t v = 0; v < m->nverts; v++)
+        head[v] = UINT32_MAX;
+    double cos_max = cos(crease_deg * (RR_PI / 180.0));
+    size_t ncand = 0;
+    for (size_t t = 0; t < m->ntris; t++) {
+        rr_vec3 c = mesh__tri_cross(m, t);
+        double len = rr_v3_len(c), n[3] = {0, 0, 0};
+        if (len > 0)
+            n[0] = c.x / len, n[1] = c.y / len, n[2] = c.z / len;
+        for (int k = 0; k < 3; k++) {
+            uint32_t v = m->tris[3 * t + k];
+            size_t before = ncand;
+            uint32_t w = mesh__wfind(head, cand, &ncand, weld[v], n, cos_max);
+            if (ncand != before)
+                src[w] = v;
+            m->tris[3 * t + k] = w;
+        }
+    }
+    out = mesh__alloc(ncand, 0, m->normals != NULL);
+    if (!out) {
+        st = rr_error_set(err, RR_ERR_NOMEM, "out of memory welding %zu vertices", m->nverts);
+        goto done;
+    }
+    for (size_t w = 0; w < ncand; w++) {
+        memcpy(out->pos + 3 * w, m->pos + 3 * (size_t)src[w], 3 * sizeof *out->pos);
+        if (m->normals)
+            memcpy(out->normals + 3 * w, m->normals + 3 * (size_t)src[w], 3 * sizeof *out->normals);
+    }
+    free(m->pos);
+    free(m->normals);
+    m->pos = out->pos, m->normals = out->normals, m->nverts = ncand;
+    free(out->tris);
+    free(out);
+done:
+    free(weld);
+    free(head);
+    free(src);
+    free(cand);
+    return st;
+}
+
 /* One directed use of an undirected edge {lo, hi}: key = lo << 32 | hi. */
 typedef struct mesh__edge {
     uint64_t key;

@@ -73,6 +73,16 @@ void mesh_destroy(mesh_tri *m);
  * RR_ERR_NOMEM). */
 rr_status mesh_analyze(const mesh_tri *m, mesh_report *rep, rr_error *err);
 
+/* Re-indexes m's vertices so that corners at exactly the same position
+ * share one vertex when their faces meet at less than crease_deg (normals
+ * within that angle of the first face to claim the vertex; faces in order):
+ * the smooth parts of a surface share vertices, creases do not. For readers
+ * that hand back every corner as its own vertex (Assimp's OBJ reader): the
+ * radiosity display averages over shared vertices only. Vertex normals
+ * follow the first corner of each new vertex. Triangles keep their order
+ * and winding. */
+rr_status mesh_weld(mesh_tri *m, double crease_deg, rr_error *err);
+
 /* Area of triangle i (half the cross product length). */
 double mesh_tri_area(const mesh_tri *m, size_t i);
 

@@ -165,6 +165,7 @@ void scene_destroy(scene *s)
         return;
     free(s->materials);
     free(s->lights);
+    free(s->models);
     free(s->objects);
     free(s->verts);
     free(s->normals);

@@ -17,11 +17,13 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "imp.h"
 #include "mesh.h"
 #include "rr_core.h"
 
 #define SCENE_FORMAT "radray-scene/1"
 #define SCENE_NAME_MAX 64
+#define SCENE_NONE UINT32_MAX /* "no model": scene_material.model, scene_object.model */
 
 typedef struct scene_material {
     char name[SCENE_NAME_MAX];
@@ -31,6 +33,9 @@ typedef struct scene_material {
     double k;         /* the lecture's k: Phong exponent, >= 0 */
     rr_rgb mirror;    /* mirror reflectance, each channel in [0, 1] */
     rr_rgb emission;  /* emitted radiance; non-zero makes every surface using it an area light */
+    uint32_t model;   /* imported by scene->models[model], or SCENE_NONE (from "materials") */
+    unsigned notes;   /* imported: what the mapping approximated or dropped (IMP_NOTE_* bits, imp.h) */
+    int overridden;   /* imported, then replaced by the model object's "materials" entry */
 } scene_material;
 
 typedef enum scene_light_type { SCENE_LIGHT_DIRECTIONAL = 0, SCENE_LIGHT_POINT = 1 } scene_light_type;
@@ -52,6 +57,9 @@ typedef enum scene_object_kind {
     SCENE_OBJ_SPHERE = 4,    /* analytic sphere (not tessellated) */
     SCENE_OBJ_CSG = 5        /* a solid: a CSG tree ("csg") or one quadric ("quadric"); see scene_csg_node */
 } scene_object_kind;
+/* A "model" object (a whole file imported, notes/import.md) is no kind of its
+ * own: it becomes one SCENE_OBJ_MESH object per mesh of the file (its
+ * materials and lights join the scene's), and a scene_model record. */
 
 /* ---- solids: CSG trees over spheres, quadrics, boxes and closed meshes ----
  *
@@ -123,7 +131,8 @@ typedef struct scene_object {
     rr_vec3 center;            /* spheres: world-space centre and radius */
     double radius;
     uint32_t csg_root;         /* solids (SCENE_OBJ_CSG): root node in scene->csg */
-    char source[4096];         /* meshes: the resolved file path; "" otherwise */
+    char source[4096];         /* meshes and imported meshes: the resolved file path; "" otherwise */
+    uint32_t model;            /* imported by scene->models[model], or SCENE_NONE */
     mesh_report report;        /* topology of this object's triangles (meshes, boxes, quads, triangles) */
     size_t dropped_degenerate; /* zero-area triangles dropped at load */
 } scene_object;
@@ -133,6 +142,19 @@ typedef struct scene_tri {
     uint32_t object;  /* index into scene->objects */
     uint32_t material;
 } scene_tri;
+
+/* One "model" object: the file and what came from it. */
+typedef struct scene_model {
+    char name[SCENE_NAME_MAX];  /* the object's "name" (default: the file name without extension) */
+    char source[4096];          /* resolved path */
+    char format[16];            /* "gltf", "glb", "obj", "fbx", ... */
+    size_t object_first, object_count;     /* its objects in scene->objects */
+    size_t material_first, material_count; /* its materials in scene->materials (0 with "material") */
+    size_t light_first, light_count;       /* its lights in scene->lights */
+    size_t triangles;           /* as imported (zero-area ones included) */
+    size_t dropped_prims, dropped_lights, dropped_cameras; /* what radray does not render (points, lines,
+                                   spot lights, the file's cameras) */
+} scene_model;
 
 typedef struct scene_settings {
     int spp;                /* samples per pixel, >= 1 (default 1) */
@@ -179,6 +201,8 @@ typedef struct scene {
     size_t nmaterials;
     scene_light *lights;
     size_t nlights;
+    scene_model *models;
+    size_t nmodels;
     scene_object *objects;
     size_t nobjects;
     rr_vec3 *verts;         /* world space */

@@ -9,6 +9,7 @@
  *   scene_xform.c    an object's transform steps
  *   scene_objects.c  objects: shapes, transforms, triangles into the scene
  *   scene_csg.c      solids: "quadric" and "csg" objects into scene->csg
+ *   scene_model.c    "model" objects: a whole file through import/ (imp.h)
  *   scene.c          the public API, the top level, and the finishing passes
  *                    (bounding box, emissive triangle list)
  *
@@ -105,6 +106,8 @@ rr_status sp_parse_camera(const sp_ctx *c, const cJSON *root, scene *s);
 rr_status sp_parse_render(const sp_ctx *c, const cJSON *root, scene *s);
 rr_status sp_parse_radiosity(const sp_ctx *c, const cJSON *root, scene *s);
 rr_status sp_parse_materials(const sp_ctx *c, const cJSON *root, scene *s);
+/* One material object at path into *m (its name is the caller's). */
+rr_status sp_parse_material(const sp_ctx *c, const cJSON *v, const char *path, scene_material *m);
 rr_status sp_parse_lights(const sp_ctx *c, const cJSON *root, scene *s);
 
 /* ---- scene_xform.c ---- */
@@ -118,6 +121,7 @@ rr_status sp_parse_transform(const sp_ctx *c, const cJSON *obj, const char *opat
 
 /* Capacities of the scene arrays that grow while objects are parsed. */
 typedef struct sp_build {
+    size_t cap_objects;                 /* s->objects */
     size_t cap_verts, cap_tris;         /* s->verts (and s->normals), s->tris */
     size_t cap_csg;                     /* s->csg */
     size_t cap_csg_verts, cap_csg_tris; /* s->csg_verts, s->csg_tris */
@@ -126,6 +130,23 @@ typedef struct sp_build {
 /* Fills s->objects, s->verts, s->normals and s->tris (and, through
  * sp_parse_solid, s->csg, s->csg_verts, s->csg_tris). Needs s->materials. */
 rr_status sp_parse_objects(const sp_ctx *c, const cJSON *root, scene *s);
+
+/* Appends a zeroed object (model SCENE_NONE) to s->objects; *oi its index.
+ * Pointers into s->objects are invalid afterwards. */
+rr_status sp_new_object(const sp_ctx *c, scene *s, sp_build *b, const char *opath, size_t *oi);
+
+/* obj's "cull": -1 auto (also when absent), 0 off, 1 on. */
+rr_status sp_parse_cull(const sp_ctx *c, const cJSON *obj, const char *opath, int *cull);
+
+/* The "auto" culling rule (notes/scene-format.md, "Back-face culling"):
+ * closed and not a mirror. first_node: the object's first CSG node. */
+int sp_cull_auto(const scene *s, size_t oi, size_t first_node);
+
+/* Object oi (material and name set) gets m's triangles, through the same
+ * path as a "mesh" object: transformed by x (in place: m's arrays change),
+ * analysed, zero-area triangles dropped with a warning. */
+rr_status sp_add_mesh_object(const sp_ctx *c, scene *s, sp_build *b, size_t oi, const char *opath,
+                             const rr_xform *x, int has_x, mesh_tri *m);
 
 /* obj's required "material" (a name from s->materials) into *out. */
 rr_status sp_find_material(const sp_ctx *c, const cJSON *obj, const char *opath, const scene *s, uint32_t *out);
@@ -140,6 +161,12 @@ int sp_tri_degenerate(rr_vec3 a, rr_vec3 b, rr_vec3 c);
  * kept; nothing is analysed. */
 rr_status sp_load_mesh(const sp_ctx *c, const cJSON *obj, const char *opath, const rr_xform *x, int has_x, int flip,
                        char *source, mesh_tri **out);
+
+/* ---- scene_model.c ---- */
+
+/* A "model" object at objects[ji] (opath): imports its file and appends its
+ * objects, materials and lights, and a scene_model. */
+rr_status sp_parse_model(const sp_ctx *c, const cJSON *obj, const char *opath, size_t ji, scene *s, sp_build *b);
 
 /* ---- scene_csg.c ---- */
 

@@ -6,7 +6,8 @@
  * mirrors), analyse the topology, then append the non-degenerate triangles to
  * the scene. Spheres stay analytic. Transforms are parsed in scene_xform.c;
  * solids ("quadric", "csg") are built in scene_csg.c, whose mesh leaves load
- * through the same mesh path (sp_load_mesh).
+ * through the same mesh path (sp_load_mesh); "model" objects in
+ * scene_model.c, whose meshes join through sp_add_mesh_object.
  */
 #include <math.h>
 #include <stdint.h>
@@ -33,10 +34,10 @@ static const obj_type k_types[] = {
     {"mesh", SCENE_OBJ_MESH, k_mesh},       {"triangles", SCENE_OBJ_TRIANGLES, k_triangles},
     {"quad", SCENE_OBJ_QUAD, k_quad},       {"box", SCENE_OBJ_BOX, k_box},
     {"sphere", SCENE_OBJ_SPHERE, k_sphere}, {"quadric", SCENE_OBJ_CSG, NULL},
-    {"csg", SCENE_OBJ_CSG, NULL},
+    {"csg", SCENE_OBJ_CSG, NULL},           {"model", SCENE_OBJ_MESH, NULL},
 };
 #define N_TYPES (sizeof k_types / sizeof k_types[0])
-#define TYPE_LIST "mesh, triangles, quad, box, sphere, quadric, csg"
+#define TYPE_LIST "mesh, triangles, quad, box, sphere, quadric, csg, model"
 
 /* A triangle is dropped as zero-area when twice its area is below 1e-12 of
  * its longest edge squared: repeated or collinear vertices, up to the
@@ -293,6 +294,8 @@ rr_status sp_find_material(const sp_ctx *c, const cJSON *obj, const char *opath,
         for (size_t i = 0; i < s->nmaterials && len < sizeof known; i++)
             len += (size_t)snprintf(known + len, sizeof known - len, "%s%s", i ? ", " : "", s->materials[i].name);
         snprintf(name, sizeof name, "%s", v->valuestring);
+        if (s->nmaterials == 0)
+            return sp_fail(c, RR_ERR_INVALID, p, "unknown material '%s' (the scene has no \"materials\")", name);
         return sp_fail(c, RR_ERR_INVALID, p, "unknown material '%s' (known: %s)", name, known);
     }
     char got[96];
@@ -300,7 +303,7 @@ rr_status sp_find_material(const sp_ctx *c, const cJSON *obj, const char *opath,
 }
 
 /* -1 auto, 0 off, 1 on. */
-static rr_status parse_cull(const sp_ctx *c, const cJSON *obj, const char *opath, int *cull)
+rr_status sp_parse_cull(const sp_ctx *c, const cJSON *obj, const char *opath, int *cull)
 {
     const cJSON *v = sp_get(obj, "cull");
     *cull = -1;
@@ -481,10 +484,52 @@ static rr_status finish_triangles(const sp_ctx *c, scene *s, sp_build *b, size_t
     return RR_OK;
 }
 
-static rr_status parse_object(const sp_ctx *c, const cJSON *obj, size_t oi, scene *s, sp_build *b)
+rr_status sp_add_mesh_object(const sp_ctx *c, scene *s, sp_build *b, size_t oi, const char *opath,
+                             const rr_xform *x, int has_x, mesh_tri *m)
+{
+    obj_geom g;
+    memset(&g, 0, sizeof g);
+    g.m = *m; /* a view: transformed in place */
+    return finish_triangles(c, s, b, oi, opath, x, has_x, 0, &g);
+}
+
+int sp_cull_auto(const scene *s, size_t oi, size_t first_node)
+{
+    const scene_object *o = &s->objects[oi];
+    int closed = scene_object_closed(s, (uint32_t)oi);
+    int mirror = rr_rgb_max(s->materials[o->material].mirror) > 0.0;
+    /* A solid is closed by construction; its leaves may bring their own
+     * materials, and a mirror on any of them is a mirror path. */
+    if (o->kind == SCENE_OBJ_CSG) {
+        for (size_t i = first_node; i < s->ncsg; i++)
+            if (s->csg[i].op == SCENE_CSG_LEAF && rr_rgb_max(s->materials[s->csg[i].material].mirror) > 0.0)
+                mirror = 1;
+    }
+    return closed && !mirror;
+}
+
+rr_status sp_new_object(const sp_ctx *c, scene *s, sp_build *b, const char *opath, size_t *oi)
+{
+    if (s->nobjects == b->cap_objects) {
+        size_t cap = b->cap_objects ? 2 * b->cap_objects : 16;
+        if (cap > UINT32_MAX)
+            return sp_fail(c, RR_ERR_LIMIT, opath, "the scene would exceed %u objects", (unsigned)UINT32_MAX);
+        scene_object *o = realloc(s->objects, cap * sizeof *o);
+        if (!o)
+            return sp_fail(c, RR_ERR_NOMEM, opath, "out of memory for %zu objects", cap);
+        s->objects = o;
+        b->cap_objects = cap;
+    }
+    *oi = s->nobjects++;
+    memset(&s->objects[*oi], 0, sizeof s->objects[*oi]);
+    s->objects[*oi].model = SCENE_NONE;
+    return RR_OK;
+}
+
+static rr_status parse_object(const sp_ctx *c, const cJSON *obj, size_t ji, scene *s, sp_build *b)
 {
     char opath[SP_PATH_MAX], got[96];
-    sp_idx(opath, "objects", oi);
+    sp_idx(opath, "objects", ji);
     if (!cJSON_IsObject(obj))
         return sp_fail(c, RR_ERR_INVALID, opath, "expected an object (got %s)", sp_describe(obj, got, sizeof got));
     const cJSON *type = sp_get(obj, "type");
@@ -501,18 +546,21 @@ static rr_status parse_object(const sp_ctx *c, const cJSON *obj, size_t oi, scen
             ty = &k_types[i];
     if (!ty)
         return sp_fail(c, RR_ERR_INVALID, tpath, "unknown type '%.64s' (known: " TYPE_LIST ")", type->valuestring);
+    if (strcmp(ty->name, "model") == 0)
+        return sp_parse_model(c, obj, opath, ji, s, b);
     rr_status st = ty->keys ? sp_check_object(c, obj, opath, ty->keys) : sp_solid_check_keys(c, obj, opath, 1);
-    if (st != RR_OK)
+    size_t oi;
+    if (st != RR_OK || (st = sp_new_object(c, s, b, opath, &oi)) != RR_OK)
         return st;
 
     scene_object *o = &s->objects[oi];
     o->kind = ty->kind;
-    snprintf(o->name, sizeof o->name, "objects[%zu]", oi);
+    snprintf(o->name, sizeof o->name, "objects[%zu]", ji);
     int cull, has_x, flip = 0;
     rr_xform x;
     if ((st = sp_string(c, obj, opath, "name", SP_OPTIONAL, 1, o->name, sizeof o->name)) != RR_OK ||
         (st = sp_find_material(c, obj, opath, s, &o->material)) != RR_OK ||
-        (st = parse_cull(c, obj, opath, &cull)) != RR_OK ||
+        (st = sp_parse_cull(c, obj, opath, &cull)) != RR_OK ||
         (st = sp_parse_transform(c, obj, opath, &x, &has_x)) != RR_OK)
         return st;
 
@@ -541,21 +589,7 @@ static rr_status parse_object(const sp_ctx *c, const cJSON *obj, size_t oi, scen
     if (st != RR_OK)
         return st;
 
-    /* "auto": cull back faces of closed solids only, and not of mirrors; the
-     * reasons are in notes/scene-format.md ("Back-face culling"). */
-    if (cull < 0) {
-        int closed = scene_object_closed(s, (uint32_t)oi);
-        int mirror = rr_rgb_max(s->materials[o->material].mirror) > 0.0;
-        /* A solid is closed by construction; its leaves may bring their own
-         * materials, and a mirror on any of them is a mirror path. */
-        if (ty->kind == SCENE_OBJ_CSG) {
-            for (size_t i = first_node; i < s->ncsg; i++)
-                if (s->csg[i].op == SCENE_CSG_LEAF && rr_rgb_max(s->materials[s->csg[i].material].mirror) > 0.0)
-                    mirror = 1;
-        }
-        cull = closed && !mirror;
-    }
-    o->cull_backfaces = cull;
+    o->cull_backfaces = cull < 0 ? sp_cull_auto(s, oi, first_node) : cull;
     return RR_OK;
 }
 
@@ -580,14 +614,10 @@ rr_status sp_parse_objects(const sp_ctx *c, const cJSON *root, scene *s)
     size_t n = (size_t)cJSON_GetArraySize(objs);
     if (n == 0)
         return sp_fail(c, RR_ERR_INVALID, "objects", "expected at least one object");
-    s->objects = calloc(n, sizeof *s->objects);
-    if (!s->objects)
-        return sp_fail(c, RR_ERR_NOMEM, "objects", "out of memory");
     sp_build b;
     memset(&b, 0, sizeof b);
     size_t i = 0;
     for (const cJSON *it = objs->child; it; it = it->next, i++) {
-        s->nobjects = i + 1; /* counted before parsing, so destroy sees partial state */
         rr_status st = parse_object(c, it, i, s, &b);
         if (st != RR_OK)
             return st;

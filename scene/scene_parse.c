@@ -249,7 +249,7 @@ rr_status sp_parse_radiosity(const sp_ctx *c, const cJSON *root, scene *s)
 
 static const char *const k_material[] = {"diffuse", "ambient", "specular", "k", "mirror", "emission", NULL};
 
-static rr_status parse_material(const sp_ctx *c, const cJSON *v, const char *path, scene_material *m)
+rr_status sp_parse_material(const sp_ctx *c, const cJSON *v, const char *path, scene_material *m)
 {
     rr_status st = sp_check_object(c, v, path, k_material);
     if (st != RR_OK)
@@ -263,6 +263,8 @@ static rr_status parse_material(const sp_ctx *c, const cJSON *v, const char *pat
     m->k = 1.0;
     m->mirror = rr_rgb_make(0, 0, 0);
     m->emission = rr_rgb_make(0, 0, 0);
+    m->model = SCENE_NONE;
+    m->notes = 0;
     if ((st = sp_color(c, v, path, "diffuse", SP_OPTIONAL, 0, 1, &m->diffuse)) != RR_OK ||
         (st = sp_number_range(c, v, path, "ambient", SP_OPTIONAL, 0, INFINITY, &m->ambient)) != RR_OK ||
         (st = sp_color(c, v, path, "specular", SP_OPTIONAL, 0, INFINITY, &m->specular)) != RR_OK ||
@@ -291,14 +293,14 @@ rr_status sp_parse_materials(const sp_ctx *c, const cJSON *root, scene *s)
 {
     const cJSON *mats = sp_get(root, "materials");
     char got[96];
-    if (!mats)
-        return sp_missing(c, "", "materials", "an object mapping material names to materials");
+    if (!mats) /* a scene of imported models brings its own */
+        return RR_OK;
     if (!cJSON_IsObject(mats))
         return sp_fail(c, RR_ERR_INVALID, "materials", "expected an object mapping names to materials (got %s)",
                        sp_describe(mats, got, sizeof got));
     size_t n = (size_t)cJSON_GetArraySize(mats);
     if (n == 0)
-        return sp_fail(c, RR_ERR_INVALID, "materials", "expected at least one material");
+        return RR_OK;
     s->materials = calloc(n, sizeof *s->materials);
     if (!s->materials)
         return sp_fail(c, RR_ERR_NOMEM, "materials", "out of memory");
@@ -316,7 +318,7 @@ rr_status sp_parse_materials(const sp_ctx *c, const cJSON *root, scene *s)
             if (strcmp(s->materials[j].name, it->string) == 0)
                 return sp_fail(c, RR_ERR_INVALID, path, "material '%s' is defined twice", it->string);
         memcpy(s->materials[i].name, it->string, len + 1);
-        rr_status st = parse_material(c, it, path, &s->materials[i]);
+        rr_status st = sp_parse_material(c, it, path, &s->materials[i]);
         if (st != RR_OK)
             return st;
         s->nmaterials++;

@@ -152,7 +152,9 @@ static void bad_inputs(void **state)
          RR_ERR_INVALID, "bad.json: camera: the up vector U is parallel to the view direction"},
         /* materials */
         {0, "[]", 0, 0, 0, 0, RR_ERR_INVALID, "bad.json: materials: expected an object mapping names to materials (got an array of 0 items)"},
-        {0, "{}", 0, 0, 0, 0, RR_ERR_INVALID, "bad.json: materials: expected at least one material"},
+        /* no materials at all is allowed (models bring theirs): an object that names one is the error */
+        {0, "{}", 0, 0, 0, 0, RR_ERR_INVALID,
+         "bad.json: objects[0].material: unknown material 'white' (the scene has no \"materials\")"},
         {0, "{\"white\":{\"difuse\":0.5}}", 0, 0, 0, 0, RR_ERR_INVALID,
          "bad.json: materials.white: unknown key 'difuse' (allowed: diffuse, ambient, specular, k, mirror, emission)"},
         {0, "{\"white\":{\"diffuse\":[1.5,0,0]}}", 0, 0, 0, 0, RR_ERR_INVALID, "bad.json: materials.white.diffuse[0]: must be in [0, 1] (got 1.5)"},
@@ -191,7 +193,7 @@ static void bad_inputs(void **state)
         {0, 0, 0, "[3]", 0, 0, RR_ERR_INVALID, "bad.json: objects[0]: expected an object (got the number 3)"},
         {0, 0, 0, OBJ1("\"material\":\"white\""), 0, 0, RR_ERR_INVALID, "bad.json: objects[0].type: missing"},
         {0, 0, 0, OBJ1("\"type\":\"cube\",\"material\":\"white\""), 0, 0, RR_ERR_INVALID,
-         "bad.json: objects[0].type: unknown type 'cube' (known: mesh, triangles, quad, box, sphere, quadric, csg)"},
+         "bad.json: objects[0].type: unknown type 'cube' (known: mesh, triangles, quad, box, sphere, quadric, csg, model)"},
         /* solids in detail: test_scene_csg.c */
         {0, 0, 0, "[" QUAD("white") "},{\"type\":\"csg\",\"material\":\"white\"}]", 0, 0, RR_ERR_INVALID,
          "bad.json: objects[1].op: missing (expected one of union, intersection, difference)"},
