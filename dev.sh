@@ -10,7 +10,7 @@
 set -euo pipefail
 cd "$(dirname "$0")"
 
-PACKAGES=(cmake make gcc g++ pkg-config libopenmesh-dev libsuitesparse-dev libopenexr-dev
+PACKAGES=(cmake make gcc g++ pkg-config libopenmesh-dev libsuitesparse-dev libopenexr-dev libassimp-dev libtinygltf-dev libstb-dev
           libcmocka-dev libcjson-dev libpng-dev libcairo2-dev)
 JOBS=$(nproc 2>/dev/null || echo 2)
 

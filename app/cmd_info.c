@@ -83,6 +83,44 @@ static void print_topology(const scene *s, const scene_object *o)
         printf(", %zu zero-area triangle(s) dropped", o->dropped_degenerate);
 }
 
+
+/* The "model" objects: what each file brought, and every material whose
+ * mapping approximated or dropped something, grouped by what. */
+static void print_models(const scene *s)
+{
+    if (s->nmodels == 0)
+        return;
+    printf("models     %zu\n", s->nmodels);
+    for (size_t i = 0; i < s->nmodels; i++) {
+        const scene_model *md = &s->models[i];
+        printf("  %-16s %s, %zu object(s), %zu triangle(s), %zu material(s), %zu light(s)  [%s]\n", md->name,
+               md->format, md->object_count, md->triangles, md->material_count, md->light_count, md->source);
+        if (md->dropped_prims || md->dropped_lights || md->dropped_cameras)
+            printf("    dropped: %zu point/line primitive(s), %zu spot light(s), %zu camera(s) (not rendered)\n",
+                   md->dropped_prims, md->dropped_lights, md->dropped_cameras);
+        for (unsigned b = 0; b < IMP_NOTE_BITS; b++) {
+            int any = 0;
+            for (size_t m = md->material_first; m < md->material_first + md->material_count; m++) {
+                const scene_material *x = &s->materials[m];
+                if (x->overridden || !(x->notes & (1u << b)))
+                    continue;
+                printf(any ? ", %s" : "    %s: %s", any ? x->name : imp_note_text(1u << b), x->name);
+                any = 1;
+            }
+            if (any)
+                printf("\n");
+        }
+        int any = 0;
+        for (size_t m = md->material_first; m < md->material_first + md->material_count; m++)
+            if (s->materials[m].overridden) {
+                printf(any ? ", %s" : "    replaced by the scene's \"materials\": %s", s->materials[m].name);
+                any = 1;
+            }
+        if (any)
+            printf("\n");
+    }
+}
+
 int app_cmd_info(int argc, char **argv)
 {
     static const struct option longopts[] = {
@@ -152,6 +190,7 @@ int app_cmd_info(int argc, char **argv)
             printf("  specular (%g, %g, %g) k %g", m->specular.r, m->specular.g, m->specular.b, m->k);
         printf("\n");
     }
+    print_models(s);
     size_t ndir = 0, npoint = 0;
     for (size_t i = 0; i < s->nlights; i++)
         *(s->lights[i].type == SCENE_LIGHT_DIRECTIONAL ? &ndir : &npoint) += 1;
@@ -163,7 +202,7 @@ int app_cmd_info(int argc, char **argv)
         printf("  %-16s %-9s %7zu tri  material %-10s cull %-3s  ", o->name, kind_name(o->kind), o->tri_count,
                s->materials[o->material].name, o->cull_backfaces ? "yes" : "no");
         print_topology(s, o);
-        if (o->source[0])
+        if (o->source[0] && o->model == SCENE_NONE) /* a model's file is in "models" */
             printf("  [%s]", o->source);
         printf("\n");
     }

@@ -33,6 +33,7 @@
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
+#include <memory>
 #include <new>
 #include <string>
 #include <vector>
@@ -43,7 +44,8 @@ extern "C" {
 
 namespace {
 
-const int GLTF_MAX_DEPTH = 64;
+const int GLTF_MAX_DEPTH = 64;       /* node tree */
+const int GLTF_MAX_JSON_DEPTH = 512; /* arrays and objects in the JSON */
 const char *const GLTF_SUPPORTED[] = {"KHR_lights_punctual", "KHR_materials_emissive_strength", "KHR_materials_unlit",
                                       "KHR_texture_transform"};
 
@@ -156,15 +158,88 @@ bool gltf_keep_image(tinygltf::Image *img, const int index, std::string *err, st
     return true;
 }
 
+/* Deepest nesting of [ and { in JSON text, strings skipped. */
+size_t gltf_json_depth(const unsigned char *p, size_t n)
+{
+    size_t depth = 0, deepest = 0;
+    bool in_string = false;
+    for (size_t i = 0; i < n; i++) {
+        unsigned char ch = p[i];
+        if (in_string) {
+            if (ch == '\\')
+                i++;
+            else if (ch == '"')
+                in_string = false;
+        } else if (ch == '"') {
+            in_string = true;
+        } else if (ch == '[' || ch == '{') {
+            deepest = ++depth > deepest ? depth : deepest;
+        } else if ((ch == ']' || ch == '}') && depth > 0) {
+            depth--;
+        }
+    }
+    return deepest;
+}
+
+/* The file's JSON: all of a .gltf, the first chunk of a .glb (as much of it
+ * as the file holds; a malformed header is left to tinygltf). */
+size_t gltf_json_depth_of_file(const unsigned char *d, size_t n, int binary)
+{
+    if (!binary)
+        return gltf_json_depth(d, n);
+    if (n < 20)
+        return 0;
+    uint32_t len;
+    memcpy(&len, d + 12, sizeof len);
+    return gltf_json_depth(d + 20, len < n - 20 ? len : n - 20);
+}
+
+/* tinygltf's error text as an rr_status: IO only when a referenced file is
+ * not there or cannot be read. */
+rr_status gltf_load_status(const std::string &terr)
+{
+    if (terr.find("File is empty") != std::string::npos || terr.find("'uri' is missing") != std::string::npos)
+        return RR_ERR_PARSE;
+    if (terr.find("File not found") != std::string::npos || terr.find("File open error") != std::string::npos ||
+        terr.find("File read error") != std::string::npos)
+        return RR_ERR_IO;
+    return RR_ERR_PARSE;
+}
+
+/* The file is read here rather than by tinygltf's LoadBinaryFromFile /
+ * LoadASCIIFromFile: rr_file_read_all refuses FIFOs and devices (tinygltf
+ * would block on a FIFO), and the JSON's nesting is bounded first, because
+ * tinygltf 2.7.0 parses extras and extensions recursively and overflows the
+ * stack at some 30000 levels. Referenced files are looked for where
+ * tinygltf's own file loaders look: next to the file, then in the current
+ * folder. */
 rr_status gltf_read(const char *path, int binary, tinygltf::Model *g, rr_error *err)
 {
+    char *raw = nullptr;
+    size_t size = 0;
+    rr_status s = rr_file_read_all(path, &raw, &size, err);
+    if (s != RR_OK)
+        return s;
+    std::unique_ptr<char, void (*)(void *)> hold(raw, free);
+    const unsigned char *bytes = reinterpret_cast<const unsigned char *>(raw);
+    if (size == 0)
+        return rr_error_set(err, RR_ERR_PARSE, "%s: the file is empty", path);
+    if (size > UINT32_MAX)
+        return rr_error_set(err, RR_ERR_LIMIT, "%s: the file is larger than 4 GiB, more than tinygltf reads", path);
+    if (gltf_json_depth_of_file(bytes, size, binary) > GLTF_MAX_JSON_DEPTH)
+        return rr_error_set(err, RR_ERR_PARSE, "%s: the JSON nests arrays and objects more than %d deep", path,
+                            GLTF_MAX_JSON_DEPTH);
+    std::string p(path);
+    size_t slash = p.find_last_of('/');
+    std::string base = slash == std::string::npos ? std::string() : p.substr(0, slash);
     tinygltf::TinyGLTF loader;
     loader.SetImageLoader(gltf_keep_image, g);
     std::string terr, twarn;
     bool ok;
     try {
-        ok = binary ? loader.LoadBinaryFromFile(g, &terr, &twarn, path)
-                    : loader.LoadASCIIFromFile(g, &terr, &twarn, path);
+        unsigned n = static_cast<unsigned>(size);
+        ok = binary ? loader.LoadBinaryFromMemory(g, &terr, &twarn, bytes, n, base)
+                    : loader.LoadASCIIFromString(g, &terr, &twarn, raw, n, base);
     } catch (const std::bad_alloc &) {
         throw;
     } catch (const std::exception &e) {
@@ -173,12 +248,7 @@ rr_status gltf_read(const char *path, int binary, tinygltf::Model *g, rr_error *
     }
     if (ok)
         return RR_OK;
-    rr_status code = RR_ERR_PARSE; /* IO only for a file that is not there or not readable */
-    if (terr.find("File is empty") == std::string::npos && terr.find("'uri' is missing") == std::string::npos &&
-        (terr.find("File not found") != std::string::npos || terr.find("File open error") != std::string::npos ||
-         terr.find("File read error") != std::string::npos || terr.find("Failed to read file") != std::string::npos))
-        code = RR_ERR_IO;
-    return rr_error_set(err, code, "%s: %s", path, gltf_one_line(terr).c_str());
+    return rr_error_set(err, gltf_load_status(terr), "%s: %s", path, gltf_one_line(terr).c_str());
 }
 
 rr_status gltf_check_extensions(const gltf_ctx &c)
