@@ -53,6 +53,7 @@ typedef struct imp_caps {
 typedef struct imp_model_full {
     imp_model m; /* first: imp_model * and imp_model_full * are the same address */
     imp_caps cap;
+    size_t triangles; /* over every mesh so far */
 } imp_model_full;
 
 imp_material *imp__add_material(imp_model *m)
@@ -82,6 +83,14 @@ imp_light *imp__add_light(imp_model *m)
 rr_status imp__add_mesh(imp_model *m, const char *name, uint32_t material, mesh_tri *tri, rr_error *err)
 {
     imp_model_full *f = (imp_model_full *)m;
+    /* A small file can instance one big mesh from many nodes: the total is
+     * bounded before it becomes memory. */
+    if (tri->ntris > IMP_MAX_TRIANGLES - f->triangles) {
+        mesh_destroy(tri);
+        return rr_error_set(err, RR_ERR_LIMIT, "the file has more than %u triangles (nodes instancing meshes count "
+                            "each time)", (unsigned)IMP_MAX_TRIANGLES);
+    }
+    f->triangles += tri->ntris;
     imp_mesh *a = grow(m->meshes, m->nmeshes, &f->cap.meshes, sizeof *a);
     if (!a) {
         mesh_destroy(tri);

@@ -30,6 +30,9 @@
 #include "rr_core.h"
 
 #define IMP_NAME_MAX 64
+/* The most triangles a file may bring (over every node's instance of every
+ * mesh): 2^27, about 10 GiB once in a scene. More is RR_ERR_LIMIT. */
+#define IMP_MAX_TRIANGLES (1u << 27)
 
 /* What the mapping approximated or dropped, one bit each (imp_note_text). */
 enum {

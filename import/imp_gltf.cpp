@@ -696,31 +696,28 @@ rr_status gltf_read_indices(gltf_ctx &c, const std::string &prim, int index, siz
 rr_status gltf_assemble(gltf_ctx &c, const std::string &prim, int mode, bool flip)
 {
     const std::vector<uint32_t> &v = c.idx;
-    size_t n = v.size(), ntris = 0;
+    size_t n = v.size();
     if (mode == TINYGLTF_MODE_TRIANGLES) {
         if (n % 3)
             return gltf_fail(c, RR_ERR_INVALID, "%s: TRIANGLES with %zu indices, not a multiple of 3", prim.c_str(), n);
-        ntris = n / 3;
+        c.tris.swap(c.idx); /* already a triangle list */
     } else {
-        ntris = n >= 3 ? n - 2 : 0;
-    }
-    c.tris.resize(3 * ntris);
-    uint32_t *t = c.tris.data();
-    for (size_t i = 0; i < ntris; i++, t += 3) {
-        if (mode == TINYGLTF_MODE_TRIANGLES) {
-            t[0] = v[3 * i], t[1] = v[3 * i + 1], t[2] = v[3 * i + 2];
-        } else if (mode == TINYGLTF_MODE_TRIANGLE_STRIP) {
-            /* glTF: {v[i], v[i + 1 + i%2], v[i + 2 - i%2]} */
-            t[0] = v[i], t[1] = v[i + 1 + i % 2], t[2] = v[i + 2 - i % 2];
-        } else {
-            t[0] = v[0], t[1] = v[i + 1], t[2] = v[i + 2];
-        }
-        if (flip) {
-            uint32_t tmp = t[1];
-            t[1] = t[2];
-            t[2] = tmp;
+        size_t ntris = n >= 3 ? n - 2 : 0;
+        c.tris.resize(3 * ntris);
+        uint32_t *t = c.tris.data();
+        for (size_t i = 0; i < ntris; i++, t += 3) {
+            if (mode == TINYGLTF_MODE_TRIANGLE_STRIP) /* glTF: {v[i], v[i + 1 + i%2], v[i + 2 - i%2]} */
+                t[0] = v[i], t[1] = v[i + 1 + i % 2], t[2] = v[i + 2 - i % 2];
+            else
+                t[0] = v[0], t[1] = v[i + 1], t[2] = v[i + 2];
         }
     }
+    if (flip)
+        for (size_t i = 0; i < c.tris.size(); i += 3) {
+            uint32_t tmp = c.tris[i + 1];
+            c.tris[i + 1] = c.tris[i + 2];
+            c.tris[i + 2] = tmp;
+        }
     return RR_OK;
 }
 
@@ -830,7 +827,9 @@ rr_status gltf_add_primitive(gltf_ctx &c, size_t ni, size_t mi, size_t pi, const
     std::string name = node.empty() ? "nodes[" + std::to_string(ni) + "]" : node;
     if (mesh.primitives.size() > 1)
         name += "." + std::to_string(pi);
-    return imp__add_mesh(c.m, name.c_str(), material, tri, c.err);
+    if ((s = imp__add_mesh(c.m, name.c_str(), material, tri, c.err)) != RR_OK) /* it freed tri */
+        rr_error_prefix(c.err, "%s", c.path);
+    return s;
 }
 
 /* ---- lights ------------------------------------------------------------- */
