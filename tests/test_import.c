@@ -18,6 +18,9 @@
  *    illum 3 mirror with the diffuse lowered, d < 1, a PNG texture's mean;
  *    glTF emissive strength, metallic mirror, rough metal, alpha blend.
  *  - overrides ("materials", "material"), "scale" and "up".
+ *  - the example assets load as their descriptions say: scenes/interior.json
+ *    (glTF: mirror, emitters, approximations noted, a watertight bunny),
+ *    scenes/bunny.json and scenes/bunny-csg.json (the bunny as a CSG leaf).
  *  - bad input: clear messages (file, material or line, cause), and at the
  *    command line exit code 2 and no output file.
  */
@@ -161,12 +164,13 @@ static double mean_over(const world *w, const rr_image *im, const char *suffix, 
 
 /* ---- the OBJ Cornell box against cornell.json ---- */
 
-static scene *load_file(const char *rel)
+/* small: the Cornell box's lecture camera at 48 x 48 pixels. */
+static scene *load_file(const char *rel, int small)
 {
-    static const char *const small[] = {"camera.w=48", "camera.h=48", "camera.s=0.52083333"};
+    static const char *const px48[] = {"camera.w=48", "camera.h=48", "camera.s=0.52083333"};
     scene_load_opts o = {0};
-    o.overrides = small;
-    o.noverrides = 3;
+    o.overrides = small ? px48 : NULL;
+    o.noverrides = small ? 3 : 0;
     char path[1024];
     snprintf(path, sizeof path, "%s/%s", RR_SOURCE_DIR, rel);
     scene *s = NULL;
@@ -180,8 +184,8 @@ static void obj_cornell_every_mode(void **state)
 {
     (void)state;
     world a, b;
-    world_open(&a, load_file("scenes/cornell.json"));
-    world_open(&b, load_file("scenes/cornell-obj.json"));
+    world_open(&a, load_file("scenes/cornell.json", 1));
+    world_open(&b, load_file("scenes/cornell-obj.json", 1));
     assert_int_equal(a.s->ntris, b.s->ntris);
     assert_int_equal(b.s->nmodels, 1);
     static const char *const objects[] = {"floor", "ceiling", "back_wall", "left_wall", "right_wall", "short_block",
@@ -432,6 +436,51 @@ static void overrides_and_frame(void **state)
     scene_destroy(s);
 }
 
+/* ---- the example scenes made of real assets ---- */
+
+static const scene_object *object_named(const scene *s, const char *name)
+{
+    for (size_t i = 0; i < s->nobjects; i++)
+        if (strcmp(s->objects[i].name, name) == 0)
+            return &s->objects[i];
+    fail_msg("no object %s", name);
+    return NULL;
+}
+
+static void example_assets(void **state)
+{
+    (void)state;
+    /* scenes/interior.json: the glTF interior, nothing typed in JSON */
+    scene *s = load_file("scenes/interior.json", 0);
+    assert_int_equal(s->nmodels, 1);
+    assert_true(s->ntris > 300000);
+    assert_true(fabs(material_named(s, "interior/Mirror")->mirror.r - 0.9) < 1e-6);
+    assert_true(material_named(s, "interior/Ceiling_Panel")->emission.r > 1);
+    assert_true(material_named(s, "interior/Window_Sky")->emission.b > 1);
+    assert_true(material_named(s, "interior/Vase")->notes & IMP_NOTE_TRANSPARENT);
+    assert_true(material_named(s, "interior/Lamp_Metal")->notes & IMP_NOTE_ROUGH);
+    const scene_object *bunny = object_named(s, "interior/Bunny");
+    assert_true(bunny->report.watertight && bunny->report.consistently_oriented && bunny->cull_backfaces);
+    assert_true(s->nemissive >= 4);
+    scene_destroy(s);
+    /* the bunny as a mesh object, and as a CSG leaf */
+    s = load_file("scenes/bunny.json", 0);
+    int found = 0;
+    for (size_t i = 0; i < s->nobjects; i++)
+        if (s->objects[i].kind == SCENE_OBJ_MESH && s->objects[i].tri_count == 3674) {
+            assert_true(s->objects[i].report.watertight && s->objects[i].report.consistently_oriented);
+            found = 1;
+        }
+    assert_true(found);
+    scene_destroy(s);
+    s = load_file("scenes/bunny-csg.json", 0);
+    found = 0;
+    for (size_t i = 0; i < s->ncsg; i++)
+        found |= s->csg[i].op == SCENE_CSG_LEAF && s->csg[i].solid == SCENE_SOLID_MESH && s->csg[i].tri_count == 3674;
+    assert_true(found);
+    scene_destroy(s);
+}
+
 /* ---- bad input ---- */
 
 static void bad_obj_and_mtl(void **state)
@@ -519,7 +568,8 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(obj_cornell_every_mode), cmocka_unit_test(gltf_room_no_material_typed),
         cmocka_unit_test(mtl_mapping),           cmocka_unit_test(gltf_mapping),
-        cmocka_unit_test(overrides_and_frame),   cmocka_unit_test(bad_obj_and_mtl),
+        cmocka_unit_test(overrides_and_frame),   cmocka_unit_test(example_assets),
+        cmocka_unit_test(bad_obj_and_mtl),
         cmocka_unit_test(bad_gltf),              cmocka_unit_test(cli_bad_model_exit_2),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
