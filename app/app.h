@@ -27,6 +27,27 @@ enum { APP_EXIT_INTERRUPTED = 130 };
 /* The same for SIGTERM (128 + 15). */
 enum { APP_EXIT_TERMINATED = 143 };
 
+/* ---- mpi.c: several ranks (mpirun), notes/distributed.md ---- */
+
+/* MPI_Init_thread (built with RADRAY_MPI), else nothing; 0 on success. */
+int app_mpi_init(int *argc, char ***argv);
+void app_mpi_finalize(void);
+int app_mpi_rank(void);  /* 0 without MPI */
+int app_mpi_ranks(void); /* 1 without MPI */
+/* The work lists and merges of rr_dist.h over the ranks; NULL for one. */
+rr_dist *app_mpi_dist(void);
+/* On a rank other than 0: keeps msg (NULL: nothing) instead of printing
+ * it and returns 1; on rank 0 returns 0 (print it). */
+int app_mpi_muted(const char *msg);
+/* Every rank's exit code so far -> the largest (all ranks call it once,
+ * before any collective work); a rank that failed where rank 0 did not
+ * prints its kept message. */
+int app_mpi_agree(int rc);
+/* After agreement: a failure (rc != 0) on this rank ends the whole job. */
+void app_mpi_abort(int rc);
+/* Bytes this rank sent in merges and gathers so far. */
+double app_mpi_traffic(void);
+
 int app_cmd_render(int argc, char **argv);
 int app_cmd_info(int argc, char **argv);
 int app_cmd_energy(int argc, char **argv);

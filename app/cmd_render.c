@@ -104,13 +104,15 @@ enum {
     OPT_CACHE,
     OPT_MAX_MEMORY,
     OPT_AOV,
-    OPT_STATS
+    OPT_STATS,
+    OPT_REPRODUCIBLE
 };
 
 /* The command line, parsed. */
 typedef struct render_args {
     const char *scene_path, *out_exr, *out_png, *plot, *cache_path, *stats;
     int no_png, quiet, filter;
+    int reproducible; /* --reproducible: no timings in the EXR header */
     unsigned aovs; /* --aov: 1u << RT_AOV_* */
     long width;
     const ig_integrator *ig;
@@ -169,6 +171,7 @@ static int parse_option(render_args *A, int c, const char *arg, const char *name
     case OPT_PLOT: A->plot = arg; return -1;
     case OPT_CACHE: A->cache_path = arg; return -1;
     case 'q': A->quiet = 1; return -1;
+    case OPT_REPRODUCIBLE: A->reproducible = 1; return -1;
     case 'h': fputs(render_usage, stdout); return APP_EXIT_OK;
     case OPT_SET: A->sets[A->nsets++] = strdup(arg); return -1;
     case ':': app_error("option '%s' needs a value (try 'radray render --help')", name); return APP_EXIT_USAGE;
@@ -239,7 +242,7 @@ static int parse_args(render_args *A, int argc, char **argv)
         {"ff-samples", required_argument, NULL, OPT_FF_SAMPLES}, {"plot", required_argument, NULL, OPT_PLOT},
         {"radiosity-cache", required_argument, NULL, OPT_CACHE},
         {"max-memory", required_argument, NULL, OPT_MAX_MEMORY}, {"aov", required_argument, NULL, OPT_AOV},
-        {"stats", required_argument, NULL, OPT_STATS},
+        {"stats", required_argument, NULL, OPT_STATS}, {"reproducible", no_argument, NULL, OPT_REPRODUCIBLE},
         {NULL, 0, NULL, 0}};
     const ig_integrator *by_indirect = NULL;
     A->ig = ig_default();
@@ -424,13 +427,16 @@ static int write_outputs(const render_args *A, const scene *sc, const ig_session
     file_hash(sc->path, hash, sizeof hash);
     snprintf(camera, sizeof camera, "E (%.17g, %.17g, %.17g) O (%.17g, %.17g, %.17g) U (%.17g, %.17g, %.17g) s %.17g, %d x %d",
              v->E.x, v->E.y, v->E.z, v->O.x, v->O.y, v->O.z, v->U.x, v->U.y, v->U.z, v->s, v->width, v->height);
+    /* The timings last: --reproducible leaves them out, so that the bytes
+     * depend on the inputs alone (any thread or rank count). */
     const img_attr attrs[] = {
         {"radray:version", RADRAY_VERSION}, {"radray:mode", A->ig->name},     {"radray:spp", spp},
-        {"radray:seed", seed},              {"radray:seconds", t_all},        {"radray:radiosity_seconds", t_pass},
-        {"radray:scene", sc->path},         {"radray:scene_name", sc->name},  {"radray:scene_hash", hash},
-        {"radray:camera", camera},
+        {"radray:seed", seed},              {"radray:scene", sc->path},       {"radray:scene_name", sc->name},
+        {"radray:scene_hash", hash},        {"radray:camera", camera},        {"radray:seconds", t_all},
+        {"radray:radiosity_seconds", t_pass},
     };
-    app_exr_extra extra = {layers, nl, attrs, (int)(sizeof attrs / sizeof attrs[0])};
+    int nattrs = (int)(sizeof attrs / sizeof attrs[0]) - (A->reproducible ? 2 : 0);
+    app_exr_extra extra = {layers, nl, attrs, nattrs};
     if (app_write_film(A->out_exr, A->no_png ? NULL : A->out_png, film, sc->settings.half_float,
                        sc->settings.exposure, &extra, &err) != RR_OK) {
         app_error("%s", err.msg);
@@ -547,10 +553,11 @@ static int render_and_write(const render_args *A, scene *sc, ig_session *ses, rt
         prog.t0 = rr_now_seconds();
         st = ig_render(ses, A->ig, &ro, film, &rs.seconds_render, &err);
     }
+    int writer = app_mpi_rank() == 0; /* under mpirun, rank 0 writes every output */
     if (st == RR_ERR_INTERRUPTED) {
         if (prog.enabled)
             fputc('\n', stderr);
-        return write_partial(A, sc, film, &err);
+        return writer ? write_partial(A, sc, film, &err) : APP_EXIT_INTERRUPTED;
     }
     if (st != RR_OK) {
         app_error("%s", err.msg);
@@ -558,6 +565,8 @@ static int render_and_write(const render_args *A, scene *sc, ig_session *ses, rt
          * emitter) is bad input; running out of memory is not. */
         return st == RR_ERR_INVALID ? APP_EXIT_USAGE : APP_EXIT_RUNTIME;
     }
+    if (!writer)
+        return APP_EXIT_OK;
     if (A->plot && write_plot(A, ses->sol) != 0)
         return APP_EXIT_RUNTIME;
     app_scrub_film(film);
@@ -594,24 +603,39 @@ int app_cmd_render(int argc, char **argv)
         return APP_EXIT_RUNTIME;
     }
     if ((rc = parse_args(&A, argc, argv)) >= 0)
-        goto done;
+        goto agree;
+    if (app_mpi_rank() != 0)
+        A.quiet = 1;
     rc = APP_EXIT_USAGE;
-    if (!(sc = load_scene(&A)) || settle_outputs(&A, sc) != 0)
-        goto done;
+    if (!(sc = load_scene(&A)) || (app_mpi_rank() == 0 && settle_outputs(&A, sc) != 0))
+        goto agree;
     if (app_check_memory(sc, A.ig, A.cache_path, aov_count(A.aovs), A.max_memory, &err) != RR_OK) {
         app_error("%s", err.msg);
-        goto done;
+        goto agree;
     }
     rc = APP_EXIT_RUNTIME;
     if (rt_film_init(&film, sc->view.width, sc->view.height, &err) != RR_OK ||
         rt_accel_build(sc, &accel, &err) != RR_OK) {
         app_error("%s", err.msg);
-        goto done;
+        goto agree;
+    }
+    rc = -1;
+agree:
+    /* Under mpirun every rank has read the input by now: all go on, or all
+     * stop (before any collective work), with the message printed once. */
+    {
+        int all = app_mpi_agree(rc < 0 ? APP_EXIT_OK : rc);
+        if (rc >= 0 || all != APP_EXIT_OK) {
+            rc = rc >= 0 && rc > all ? rc : all;
+            goto done;
+        }
     }
     app_diagnose_light(sc, accel);
     app_session_init(&ses, sc, accel, A.cache_path);
+    ses.dist = app_mpi_dist();
     app_signals_catch(&sig); /* SIGINT and SIGTERM stop the same way (app_stop says which) */
     rc = render_and_write(&A, sc, &ses, &film);
+    app_mpi_abort(rc); /* a failure on one rank must not leave the others waiting */
 done:
     app_signals_restore(&sig);
     rt_film_free(&film);

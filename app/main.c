@@ -25,18 +25,20 @@ static const char usage[] =
 
 void app_error(const char *fmt, ...)
 {
+    char msg[RR_ERROR_MSG_MAX + 256];
     va_list ap;
     va_start(ap, fmt);
-    fputs("radray: ", stderr);
-    vfprintf(stderr, fmt, ap);
-    fputc('\n', stderr);
+    vsnprintf(msg, sizeof msg, fmt, ap);
     va_end(ap);
+    if (!app_mpi_muted(msg)) /* under mpirun, rank 0 speaks for all */
+        fprintf(stderr, "radray: %s\n", msg);
 }
 
 static void warn_to_stderr(void *user, const char *msg)
 {
     (void)user;
-    fprintf(stderr, "radray: warning: %s\n", msg);
+    if (app_mpi_rank() == 0)
+        fprintf(stderr, "radray: warning: %s\n", msg);
 }
 
 rr_warn_sink app_warn_sink(void)
@@ -56,7 +58,26 @@ int app_parse_int(const char *s, long lo, long hi, long *out)
     return 0;
 }
 
+static int run(int argc, char **argv);
+
 int main(int argc, char **argv)
+{
+    if (app_mpi_init(&argc, &argv) != 0)
+        return APP_EXIT_RUNTIME;
+    int rc;
+    if (app_mpi_ranks() > 1 && (argc < 2 || strcmp(argv[1], "render") != 0)) {
+        if (app_mpi_rank() == 0)
+            fprintf(stderr, "radray: only 'render' runs on several MPI ranks (%d here); run '%s' without mpirun\n",
+                    app_mpi_ranks(), argc >= 2 ? argv[1] : "radray");
+        rc = APP_EXIT_USAGE;
+    } else {
+        rc = run(argc, argv);
+    }
+    app_mpi_finalize();
+    return rc;
+}
+
+static int run(int argc, char **argv)
 {
     if (argc < 2) {
         fputs(usage, stderr);

@@ -8,6 +8,7 @@
  *   rr_view.h   rr_view: the lecture's view (E, O, s, w, h, U) and look-at cameras
  *   rr_file.h   atomic output files, path helpers
  *   rr_clock.h  the monotonic wall clock
+ *   rr_dist.h   rr_dist: work lists and reductions over several processes (MPI)
  *
  * Depends on nothing but libc and libm. No globals: nothing here keeps state
  * between calls.
@@ -16,6 +17,7 @@
 #define RR_CORE_H
 
 #include "rr_clock.h"
+#include "rr_dist.h"
 #include "rr_error.h"
 #include "rr_file.h"
 #include "rr_image.h"

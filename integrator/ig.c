@@ -85,6 +85,7 @@ rr_status ig_session_field(ig_session *s, rr_error *err)
     rad_pass_opts po = s->pass;
     if (!po.ff.interrupt)
         po.ff.interrupt = s->interrupt;
+    po.ff.dist = s->dist;
     rr_status st = rad_pass_run_cached(s->sc, s->accel, &po, s->cache_path, &s->sol_cached, &s->sol, err);
     s->seconds_pass = rr_now_seconds() - t0;
     return st;
@@ -105,6 +106,7 @@ rr_status ig_render(ig_session *s, const ig_integrator *ig, const ig_render_opts
     ro.indirect = ig->indirect;
     ro.show_field = ig->shows_field;
     ro.interrupt = s->interrupt;
+    ro.dist = s->dist;
     if (o) {
         ro.filter = o->filter;
         ro.progress = o->progress;

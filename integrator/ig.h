@@ -69,6 +69,7 @@ typedef struct ig_session {
     rad_solution *sol;    /* made by the first render that needs it, or by ig_session_field */
     int sol_cached;       /* sol was read from cache_path */
     double seconds_pass;  /* wall time of the pass (or of reading the cache) */
+    rr_dist *dist;        /* several processes share the pass and the renders (rr_dist.h); NULL: one */
 } ig_session;
 
 /* A session over sc and a (both must outlive it): the pass takes the scene's

@@ -155,6 +155,10 @@ typedef struct rad_ff_opts {
     /* Interrupt (a SIGINT handler's flag): when it points to a non-zero value,
      * no further row starts and rad_ff_compute returns RR_ERR_INTERRUPTED. */
     const volatile sig_atomic_t *interrupt;
+    /* Several processes (NULL: this one alone): rows come from dist's work
+     * list, then every rank receives every row (gather), so that each ends
+     * with the same matrix, bytes included. */
+    rr_dist *dist;
 } rad_ff_opts;
 
 /* Form factors between all patches, visibility by the BVH a (built over s).
@@ -307,7 +311,8 @@ void rad_solution_destroy(rad_solution *sol);
 /* rad_pass_run through a cache file (cache_path NULL: no cache). A missing
  * file is made after the pass; an existing one is used when it was made for
  * the same scene and settings (*from_cache = 1; F is then NULL), and refused
- * with RR_ERR_INVALID when not. */
+ * with RR_ERR_INVALID when not. Over several ranks (o->ff.dist) only rank 0
+ * writes the file. */
 rr_status rad_pass_run_cached(const scene *s, const rt_accel *a, const rad_pass_opts *o, const char *cache_path,
                               int *from_cache, rad_solution **out, rr_error *err);
 

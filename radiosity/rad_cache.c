@@ -267,6 +267,9 @@ rr_status rad_pass_run_cached(const scene *s, const rt_accel *a, const rad_pass_
         rr_status st = rad_pass_run(s, a, o, out, err);
         if (st != RR_OK)
             return st;
+        /* Several ranks hold the same solution: rank 0 writes it. */
+        if (o->ff.dist && o->ff.dist->rank != 0)
+            return RR_OK;
         st = cache_save(cache_path, key, *out, err);
         if (st != RR_OK) {
             rad_solution_destroy(*out);

@@ -715,6 +715,68 @@ static void report_row(const rad_ff_opts *o, size_t *done, size_t n)
     }
 }
 
+/* The rows this rank computed, as one block: per row its index, length,
+ * columns and values; then every rank's blocks, unpacked into rows. The
+ * block starts with this rank's failure code, so that all ranks agree on
+ * whether the pass failed (max over ranks). */
+static rr_status exchange_rows(rr_dist *dist, ff_row *rows, size_t n, int *failed, rr_error *err)
+{
+    size_t bytes = sizeof(uint64_t) * 2;
+    for (size_t i = 0; i < n; i++)
+        if (rows[i].n)
+            bytes += 2 * sizeof(uint64_t) + rows[i].n * (sizeof(uint32_t) + sizeof(double));
+    unsigned char *mine = malloc(bytes), *p = mine;
+    if (!mine)
+        return rr_error_set(err, RR_ERR_NOMEM, "radiosity: out of memory for the form-factor exchange");
+    uint64_t head[2] = {(uint64_t)*failed, 0};
+    for (size_t i = 0; i < n; i++)
+        head[1] += rows[i].n != 0;
+    memcpy(p, head, sizeof head), p += sizeof head;
+    for (size_t i = 0; i < n; i++) {
+        if (!rows[i].n)
+            continue;
+        uint64_t h[2] = {(uint64_t)i, (uint64_t)rows[i].n};
+        memcpy(p, h, sizeof h), p += sizeof h;
+        memcpy(p, rows[i].col, rows[i].n * sizeof(uint32_t)), p += rows[i].n * sizeof(uint32_t);
+        memcpy(p, rows[i].val, rows[i].n * sizeof(double)), p += rows[i].n * sizeof(double);
+    }
+    void *all = NULL;
+    size_t total = 0;
+    rr_status st = dist->gather(dist, mine, bytes, &all, &total, err);
+    free(mine);
+    if (st != RR_OK)
+        return st;
+    const unsigned char *q = all, *end = q + total;
+    while (st == RR_OK && q + sizeof head <= end) {
+        memcpy(head, q, sizeof head), q += sizeof head;
+        if ((int)head[0] > *failed)
+            *failed = (int)head[0];
+        for (uint64_t r = 0; r < head[1] && st == RR_OK; r++) {
+            uint64_t h[2];
+            memcpy(h, q, sizeof h), q += sizeof h;
+            size_t i = (size_t)h[0], m = (size_t)h[1];
+            if (i >= n || (size_t)(end - q) < m * (sizeof(uint32_t) + sizeof(double))) {
+                st = rr_error_set(err, RR_ERR_INTERNAL, "radiosity: a rank sent a malformed form-factor row");
+                break;
+            }
+            if (rows[i].n == 0) { /* another rank's row */
+                rows[i].col = malloc(m * sizeof *rows[i].col);
+                rows[i].val = malloc(m * sizeof *rows[i].val);
+                if (!rows[i].col || !rows[i].val) {
+                    st = rr_error_set(err, RR_ERR_NOMEM, "radiosity: out of memory for the form factors");
+                    break;
+                }
+                memcpy(rows[i].col, q, m * sizeof(uint32_t));
+                memcpy(rows[i].val, q + m * sizeof(uint32_t), m * sizeof(double));
+                rows[i].n = m;
+            }
+            q += m * (sizeof(uint32_t) + sizeof(double));
+        }
+    }
+    free(all);
+    return st;
+}
+
 rr_status rad_ff_compute(const scene *s, const rt_accel *a, const rad_patches *P, const rad_ff_opts *o, rad_ff **out,
                          rr_error *err)
 {
@@ -755,6 +817,13 @@ rr_status rad_ff_compute(const scene *s, const rt_accel *a, const rad_patches *P
     size_t done = 0;
     int nthreads = o->threads > 0 ? o->threads : omp_get_max_threads();
     rt_ray_counts total = {0, 0};
+    rr_dist *dist = o->dist;
+    rr_status st = dist ? dist->begin(dist, (long long)n, err) : RR_OK;
+    if (st != RR_OK) {
+        free(rows);
+        return st;
+    }
+    size_t next_row = 0;
 #pragma omp parallel num_threads(nthreads)
     {
         rt_ray_counts before = rt_ray_counts_of_thread();
@@ -764,8 +833,17 @@ rr_status rad_ff_compute(const scene *s, const rt_accel *a, const rad_patches *P
 #pragma omp atomic write
             failed = 1;
         }
-#pragma omp for schedule(dynamic, 1)
-        for (size_t i = 0; i < n; i++) {
+        for (;;) {
+            size_t i;
+            if (dist) {
+                long long t = dist->next(dist);
+                i = t < 0 ? n : (size_t)t;
+            } else {
+#pragma omp atomic capture
+                i = next_row++;
+            }
+            if (i >= n)
+                break;
             int stop;
 #pragma omp atomic read
             stop = failed;
@@ -798,6 +876,20 @@ rr_status rad_ff_compute(const scene *s, const rt_accel *a, const rad_patches *P
     }
     if (o->rays)
         *o->rays = total;
+    if (dist) {
+        /* Every rank learns every row; a failure anywhere fails everywhere
+         * (the exchange carries it). */
+        if ((st = dist->end(dist, err)) == RR_OK)
+            st = exchange_rows(dist, rows, n, &failed, err);
+        if (st != RR_OK) {
+            for (size_t i = 0; i < n; i++) {
+                free(rows[i].col);
+                free(rows[i].val);
+            }
+            free(rows);
+            return st;
+        }
+    }
     if (failed == 2) {
         for (size_t i = 0; i < n; i++) {
             free(rows[i].col);

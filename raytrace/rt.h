@@ -464,6 +464,12 @@ typedef struct rt_render_opts {
     const volatile sig_atomic_t *interrupt;
     /* When set, receives the rays this render traced (all threads). */
     rt_ray_counts *rays;
+    /* Several processes (NULL: this one alone): the tiles come from dist's
+     * work list, and at the end every rank's film holds the whole image
+     * (each tile rendered by exactly one rank, merged with the others'
+     * zeros: the same bytes as one process). The film must start zeroed
+     * (rt_film_init). Progress counts this rank's tiles. */
+    rr_dist *dist;
 } rt_render_opts;
 
 /* Per-component layers of a render; the beauty image is their sum. */

@@ -371,6 +371,19 @@ static void pixel_offset(int k, int n, rt_filter filter, rr_rng *rng, double *dx
     }
 }
 
+/* Ends the ranks' tile list and merges their films: every pixel was
+ * rendered by one rank and is zero bits in the others (a fresh film). */
+static rr_status gather_film(rr_dist *dist, rt_film *film, rr_error *err)
+{
+    rr_status st = dist->end(dist, err);
+    size_t n = 3 * (size_t)film->beauty.width * (size_t)film->beauty.height;
+    if (st == RR_OK)
+        st = dist->merge(dist, film->beauty.px, n, err);
+    for (int i = 0; i < RT_LAYER_COUNT && st == RR_OK; i++)
+        st = dist->merge(dist, film->layer[i].px, n, err);
+    return st;
+}
+
 rr_status rt_render(const scene *s, const rt_accel *a, const rt_render_opts *o, rt_film *film, rr_error *err)
 {
     const rr_view *v = &s->view;
@@ -397,11 +410,27 @@ rr_status rt_render(const scene *s, const rt_accel *a, const rt_render_opts *o, 
 #endif
     (void)nthreads;
     rt_ray_counts total = {0, 0};
+    rr_dist *dist = o->dist;
+    if (dist && (st = dist->begin(dist, ntiles, err)) != RR_OK) {
+        rt_lights_destroy(c.lights);
+        return st;
+    }
+    int next_tile = 0;
 #pragma omp parallel num_threads(nthreads)
     {
     rt_ray_counts before = rt_ray_counts_of_thread();
-#pragma omp for schedule(dynamic, 1)
-    for (int tile = 0; tile < ntiles; tile++) {
+    for (;;) {
+        /* The next tile: from the ranks' shared list, or this process's. */
+        int tile;
+        if (dist) {
+            long long t = dist->next(dist);
+            tile = t < 0 ? ntiles : (int)t;
+        } else {
+#pragma omp atomic capture
+            tile = next_tile++;
+        }
+        if (tile >= ntiles)
+            break;
         int x0 = (tile % tiles_x) * RT_TILE, y0 = (tile / tiles_x) * RT_TILE;
         int stopped = 0;
         for (int row = y0; row < y0 + RT_TILE && row < v->height && !stopped; row++)
@@ -459,6 +488,8 @@ rr_status rt_render(const scene *s, const rt_accel *a, const rt_render_opts *o, 
     if (o->rays)
         *o->rays = total;
     rt_lights_destroy(c.lights);
+    if (dist && (st = gather_film(dist, film, err)) != RR_OK)
+        return st;
     if (o->interrupt && *o->interrupt)
         return rr_error_set(err, RR_ERR_INTERRUPTED, "interrupted: %d of %d tiles finished", done, ntiles);
     return RR_OK;
