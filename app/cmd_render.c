@@ -50,6 +50,11 @@ static const char render_usage[] =
     "                         reflectance), normal (unit, facing the ray), depth (distance from\n"
     "                         the eye), object_id (index in the scene's objects, -1: nothing);\n"
     "                         comma-separated, or all\n"
+    "      --frames A..B      a walkthrough: frames A to B (or one frame, --frames A) of the\n"
+    "                         scene's camera_path, to OUT.0001.exr, OUT.0001.png, ...; one\n"
+    "                         radiosity solution (or --radiosity-cache) for all of them\n"
+    "      --reproducible     leave the timings out of the EXR header, so that the file's\n"
+    "                         bytes depend on the inputs alone (any thread or rank count)\n"
     "radiosity options (override the scene's \"radiosity\" block):\n"
     "      --patch-area A     largest patch area (scene units squared)\n"
     "      --patch-edge L     longest patch edge\n"
@@ -76,7 +81,10 @@ static const char render_usage[] =
     "input (the scene, a mesh, the cache) or another output is refused before any work.\n"
     "Pixels that come out NaN or infinite are written as 0 with a warning naming them.\n"
     "Exit codes: 0 ok, 1 runtime error, 2 usage error or bad input (a render over\n"
-    "--max-memory included), 130 interrupted, 143 terminated.\n";
+    "--max-memory included), 130 interrupted, 143 terminated.\n"
+    "Built with MPI (-DRADRAY_MPI=ON), 'mpirun -np N radray render ...' shares the\n"
+    "radiosity pass and the tiles (or, with --frames, the frames) over N ranks; the\n"
+    "result is the same, byte for byte, as one process (notes/distributed.md).\n";
 
 /* The tile progress of rt_render as the common progress line (with the time left). */
 static void draw_progress(void *user, int done, int total) { app_pass_progress(user, (size_t)done, (size_t)total); }
@@ -105,7 +113,8 @@ enum {
     OPT_MAX_MEMORY,
     OPT_AOV,
     OPT_STATS,
-    OPT_REPRODUCIBLE
+    OPT_REPRODUCIBLE,
+    OPT_FRAMES
 };
 
 /* The command line, parsed. */
@@ -113,6 +122,7 @@ typedef struct render_args {
     const char *scene_path, *out_exr, *out_png, *plot, *cache_path, *stats;
     int no_png, quiet, filter;
     int reproducible; /* --reproducible: no timings in the EXR header */
+    long frame_first, frame_last; /* --frames A..B of camera_path; 0, 0: one still image */
     unsigned aovs; /* --aov: 1u << RT_AOV_* */
     long width;
     const ig_integrator *ig;
@@ -172,6 +182,21 @@ static int parse_option(render_args *A, int c, const char *arg, const char *name
     case OPT_CACHE: A->cache_path = arg; return -1;
     case 'q': A->quiet = 1; return -1;
     case OPT_REPRODUCIBLE: A->reproducible = 1; return -1;
+    case OPT_FRAMES: {
+        char a[32] = "", *dots;
+        snprintf(a, sizeof a, "%s", arg);
+        if ((dots = strstr(a, ".."))) {
+            *dots = '\0';
+            if (!app_parse_int(a, 1, 999999, &A->frame_first) && !app_parse_int(dots + 2, 1, 999999, &A->frame_last) &&
+                A->frame_last >= A->frame_first)
+                return -1;
+        } else if (!app_parse_int(a, 1, 999999, &A->frame_first)) {
+            A->frame_last = A->frame_first;
+            return -1;
+        }
+        app_error("--frames: expected A..B (1 <= A <= B) or one frame number, got '%s'", arg);
+        return APP_EXIT_USAGE;
+    }
     case 'h': fputs(render_usage, stdout); return APP_EXIT_OK;
     case OPT_SET: A->sets[A->nsets++] = strdup(arg); return -1;
     case ':': app_error("option '%s' needs a value (try 'radray render --help')", name); return APP_EXIT_USAGE;
@@ -243,6 +268,7 @@ static int parse_args(render_args *A, int argc, char **argv)
         {"radiosity-cache", required_argument, NULL, OPT_CACHE},
         {"max-memory", required_argument, NULL, OPT_MAX_MEMORY}, {"aov", required_argument, NULL, OPT_AOV},
         {"stats", required_argument, NULL, OPT_STATS}, {"reproducible", no_argument, NULL, OPT_REPRODUCIBLE},
+        {"frames", required_argument, NULL, OPT_FRAMES},
         {NULL, 0, NULL, 0}};
     const ig_integrator *by_indirect = NULL;
     A->ig = ig_default();
@@ -308,6 +334,21 @@ static int settle_outputs(render_args *A, const scene *sc)
     if (A->plot && !A->ig->uses_field) {
         app_error("--plot: the convergence plot belongs to the radiosity pass: use it with --mode radiosity");
         return -1;
+    }
+    if (A->frame_first) {
+        if (sc->npath == 0) {
+            app_error("--frames: %s has no camera_path (notes/scene-format.md, \"Walkthroughs\")", sc->path);
+            return -1;
+        }
+        if (A->frame_last > sc->path_frames) {
+            app_error("--frames %ld..%ld: camera_path has frames 1..%d", A->frame_first, A->frame_last,
+                      sc->path_frames);
+            return -1;
+        }
+        if (A->stats || A->plot) {
+            app_error("--frames: --stats and --plot describe one image; render a frame alone for them");
+            return -1;
+        }
     }
     return 0;
 }
@@ -540,6 +581,64 @@ static int write_stats(const char *path, const render_args *A, const scene *sc, 
 }
 
 /* The radiosity pass (when the mode runs it), the render, the outputs; the exit code. */
+/* --frames: one radiosity solution (or its cache) for all; the frames
+ * handed out to the ranks (each renders whole frames with its threads and
+ * writes them: OUT.0001.exr, OUT.0001.png, ...). */
+static int render_frames(const render_args *A, scene *sc, ig_session *ses, rt_film *film)
+{
+    rr_error err;
+    rr_status st = ig_uses_pass(A->ig, sc) ? app_session_field(ses, A->quiet, &err) : RR_OK;
+    rr_dist *dist = ses->dist;
+    ses->dist = NULL; /* a frame is this rank's alone */
+    long n = A->frame_last - A->frame_first + 1, local = 0, done = 0;
+    if (st == RR_OK && dist)
+        st = dist->begin(dist, n, &err);
+    render_args F = *A;
+    char exr[4300], png[4300];
+    int rc = APP_EXIT_OK;
+    size_t base = strlen(A->out_exr) - 4;
+    while (st == RR_OK && rc == APP_EXIT_OK) {
+        long i = dist ? (long)dist->next(dist) : (local < n ? local++ : -1);
+        if (i < 0)
+            break;
+        int frame = (int)(A->frame_first + i);
+        rr_view v;
+        if ((st = scene_path_view(sc, frame, &v, &err)) != RR_OK)
+            break;
+        sc->view = v;
+        rt_film_free(film);
+        if ((st = rt_film_init(film, v.width, v.height, &err)) != RR_OK)
+            break;
+        double t0 = rr_now_seconds(), secs = 0;
+        if ((st = ig_render(ses, A->ig, NULL, film, &secs, &err)) != RR_OK)
+            break;
+        app_scrub_film(film);
+        snprintf(exr, sizeof exr, "%.*s.%04d.exr", (int)base, A->out_exr, frame);
+        snprintf(png, sizeof png, "%.*s.%04d.png", (int)base, A->out_exr, frame);
+        F.out_exr = exr, F.out_png = A->no_png ? NULL : png;
+        if ((rc = write_outputs(&F, sc, ses, film, rr_now_seconds() - t0)) == APP_EXIT_OK && !A->quiet)
+            printf("frame %d: %s (%.2f s)\n", frame, exr, secs);
+        done++;
+    }
+    if (dist) {
+        rr_status e = dist->end(dist, &err);
+        if (st == RR_OK)
+            st = e;
+    }
+    ses->dist = dist;
+    if (st == RR_ERR_INTERRUPTED) {
+        app_error("interrupted: %ld frame(s) of %ld written on this rank", done, n);
+        return APP_EXIT_INTERRUPTED;
+    }
+    if (st != RR_OK) {
+        app_error("%s", err.msg);
+        return st == RR_ERR_INVALID ? APP_EXIT_USAGE : APP_EXIT_RUNTIME;
+    }
+    if (rc == APP_EXIT_OK && !A->quiet)
+        printf("rendered %ld frame(s) of %s (%ld here), mode %s\n", n, A->scene_path, done, A->ig->name);
+    return rc;
+}
+
 static int render_and_write(const render_args *A, scene *sc, ig_session *ses, rt_film *film)
 {
     rr_error err;
@@ -607,7 +706,7 @@ int app_cmd_render(int argc, char **argv)
     if (app_mpi_rank() != 0)
         A.quiet = 1;
     rc = APP_EXIT_USAGE;
-    if (!(sc = load_scene(&A)) || (app_mpi_rank() == 0 && settle_outputs(&A, sc) != 0))
+    if (!(sc = load_scene(&A)) || settle_outputs(&A, sc) != 0)
         goto agree;
     if (app_check_memory(sc, A.ig, A.cache_path, aov_count(A.aovs), A.max_memory, &err) != RR_OK) {
         app_error("%s", err.msg);
@@ -634,7 +733,7 @@ agree:
     app_session_init(&ses, sc, accel, A.cache_path);
     ses.dist = app_mpi_dist();
     app_signals_catch(&sig); /* SIGINT and SIGTERM stop the same way (app_stop says which) */
-    rc = render_and_write(&A, sc, &ses, &film);
+    rc = A.frame_first ? render_frames(&A, sc, &ses, &film) : render_and_write(&A, sc, &ses, &film);
     app_mpi_abort(rc); /* a failure on one rank must not leave the others waiting */
 done:
     app_signals_restore(&sig);

@@ -6,7 +6,7 @@
 #include "scene_internal.h"
 
 static const char *const k_top[] = {"format",  "name",    "description", "camera",    "materials",
-                                    "lights",  "objects", "render",      "radiosity", NULL};
+                                    "lights",  "objects", "render",      "radiosity", "camera_path", NULL};
 
 /* The first check: a file that is not a radray scene at all (another JSON
  * file, a future version) should say so, not complain about its keys. */
@@ -101,6 +101,7 @@ static rr_status build_scene(const sp_ctx *c, cJSON *root, scene *s)
     }
     if ((st = sp_string(c, root, "", "name", SP_OPTIONAL, 1, s->name, sizeof s->name)) != RR_OK ||
         (st = sp_parse_materials(c, root, s)) != RR_OK || (st = sp_parse_camera(c, root, s)) != RR_OK ||
+        (st = sp_parse_camera_path(c, root, s)) != RR_OK ||
         (st = sp_parse_render(c, root, s)) != RR_OK ||
         (st = sp_parse_radiosity(c, root, s)) != RR_OK || (st = sp_parse_lights(c, root, s)) != RR_OK ||
         (st = sp_parse_objects(c, root, s)) != RR_OK || (st = collect_emissive(c, s)) != RR_OK)
@@ -166,6 +167,7 @@ void scene_destroy(scene *s)
     free(s->materials);
     free(s->lights);
     free(s->models);
+    free(s->path_keys);
     free(s->objects);
     free(s->verts);
     free(s->normals);

@@ -190,11 +190,22 @@ typedef struct scene_camera {
     double fov;             /* degrees, vertical */
 } scene_camera;
 
+/* A key frame of "camera_path" (a walkthrough). */
+typedef struct scene_key {
+    double frame;           /* 1..path_frames, increasing over the keys */
+    rr_vec3 eye, target;
+    double fov;             /* degrees, vertical */
+} scene_key;
+
 typedef struct scene {
     char path[4096];        /* the file it was loaded from ("<string>" names for in-memory) */
     char name[SCENE_NAME_MAX];
     rr_view view;
     scene_camera camera;
+    scene_key *path_keys;   /* "camera_path" keys (NULL, 0: none), and its frame count and up vector */
+    size_t npath;
+    int path_frames;
+    rr_vec3 path_up;
     scene_settings settings;
     scene_radiosity radiosity;
     scene_material *materials;
@@ -246,6 +257,10 @@ rr_status scene_load_string(const char *json, const char *name, const char *base
                             scene **out, rr_error *err);
 
 void scene_destroy(scene *s);
+
+/* The view of frame 1..path_frames of the camera path, at the size of
+ * s->view (so that --width applies to every frame). */
+rr_status scene_path_view(const scene *s, int frame, rr_view *out, rr_error *err);
 
 /* Geometric (face) normal of triangle i, unit length, from the winding. */
 rr_vec3 scene_tri_normal(const scene *s, size_t i);

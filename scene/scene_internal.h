@@ -103,6 +103,8 @@ rr_status sp_array(const sp_ctx *c, const cJSON *v, const char *path, int n, con
 /* ---- scene_parse.c ---- */
 
 rr_status sp_parse_camera(const sp_ctx *c, const cJSON *root, scene *s);
+/* scene_path.c: "camera_path" (after the camera). */
+rr_status sp_parse_camera_path(const sp_ctx *c, const cJSON *root, scene *s);
 rr_status sp_parse_render(const sp_ctx *c, const cJSON *root, scene *s);
 rr_status sp_parse_radiosity(const sp_ctx *c, const cJSON *root, scene *s);
 rr_status sp_parse_materials(const sp_ctx *c, const cJSON *root, scene *s);
