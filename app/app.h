@@ -45,7 +45,8 @@ int app_mpi_muted(const char *msg);
 int app_mpi_agree(int rc);
 /* After agreement: a failure (rc != 0) on this rank ends the whole job. */
 void app_mpi_abort(int rc);
-/* Bytes this rank sent in merges and gathers so far. */
+/* Bytes this rank put into merges and gathers so far (its buffers; an
+ * allreduce moves about twice that over the network). */
 double app_mpi_traffic(void);
 
 int app_cmd_render(int argc, char **argv);

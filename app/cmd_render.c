@@ -537,6 +537,11 @@ static void print_stats(const ig_session *ses, const render_stats *rs)
                ((double)sol->ff_rays.closest + (double)sol->ff_rays.occluded) * 1e-6, sol->seconds_solve,
                sol->stats.used == RAD_SOLVER_DIRECT ? "direct" : "iterative", sol->stats.iterations);
     printf("total      %.2f s, peak memory %s\n", rs->seconds, rr_size_text(rs->peak_bytes, peak, sizeof peak));
+    if (app_mpi_ranks() > 1) {
+        char sent[32];
+        printf("mpi        %d ranks; rank 0 put %s into the exchanges (film merges, form-factor rows); rays above are its own\n",
+               app_mpi_ranks(), rr_size_text(app_mpi_traffic(), sent, sizeof sent));
+    }
 }
 
 /* render --stats FILE.json: the summary's numbers, by name. */
