@@ -593,10 +593,15 @@ static int render_frames(const render_args *A, scene *sc, ig_session *ses, rt_fi
 {
     rr_error err;
     rr_status st = ig_uses_pass(A->ig, sc) ? app_session_field(ses, A->quiet, &err) : RR_OK;
+    if (st != RR_OK) { /* before the frame list opens: the caller ends every rank (app_mpi_abort) */
+        app_error("%s", err.msg);
+        return st == RR_ERR_INTERRUPTED ? APP_EXIT_INTERRUPTED
+                                        : st == RR_ERR_INVALID ? APP_EXIT_USAGE : APP_EXIT_RUNTIME;
+    }
     rr_dist *dist = ses->dist;
     ses->dist = NULL; /* a frame is this rank's alone */
     long n = A->frame_last - A->frame_first + 1, local = 0, done = 0;
-    if (st == RR_OK && dist)
+    if (dist)
         st = dist->begin(dist, n, &err);
     render_args F = *A;
     char exr[4300], png[4300];

@@ -7,7 +7,8 @@
  *
  *  - Work lists: rank 0 holds the counter. Its own threads take items
  *    under a mutex; a scheduler thread (started by begin, joined by end)
- *    answers the other ranks' requests, one message each way. MPI is
+ *    answers the other ranks' requests, one message each way, each for a
+ *    chunk of items (n / (64 ranks), at least 1). MPI is
  *    called by one thread at a time on every rank (MPI_THREAD_SERIALIZED):
  *    on rank 0 only the scheduler while a list is open, on the others the
  *    worker threads under a mutex.
@@ -63,22 +64,28 @@ enum { TAG_REQ = 11, TAG_REP = 12, TAG_DONE = 13 };
 
 typedef struct mpi_impl {
     long long n, counter;     /* the open list: items 0..n-1, the next one (rank 0) */
+    long long chunk;          /* items per request of the other ranks (>= 1) */
+    long long have, have_end; /* other ranks: the items of the last answer not yet handed out */
     pthread_mutex_t lock;     /* rank 0: the counter; other ranks: their MPI calls */
     pthread_t sched;
     int sched_running;
     double bytes;             /* what this rank sent in merges and gathers (notes) */
 } mpi_impl;
 
-static mpi_impl g_impl = {0, 0, PTHREAD_MUTEX_INITIALIZER, 0, 0, 0};
+static mpi_impl g_impl = {0, 0, 1, 0, 0, PTHREAD_MUTEX_INITIALIZER, 0, 0, 0};
 static rr_dist g_dist;
 static int g_inited = 0;
 
-static long long take(mpi_impl *m)
+/* Rank 0: the next k items [first, first + count) of the list; count 0
+ * when it is exhausted. */
+static long long take(mpi_impl *m, long long k, long long *count)
 {
     pthread_mutex_lock(&m->lock);
-    long long v = m->counter < m->n ? m->counter++ : -1;
+    long long first = m->counter, left = m->n - m->counter;
+    *count = left > 0 ? (left < k ? left : k) : 0;
+    m->counter += *count;
     pthread_mutex_unlock(&m->lock);
-    return v;
+    return first;
 }
 
 /* Rank 0's scheduler: answers requests until every other rank said done.
@@ -103,8 +110,9 @@ static void *scheduler(void *arg)
             done++;
             continue;
         }
-        long long v = take(m);
-        MPI_Send(&v, 1, MPI_LONG_LONG, st.MPI_SOURCE, TAG_REP, MPI_COMM_WORLD);
+        long long rep[2];
+        rep[0] = take(m, m->chunk, &rep[1]);
+        MPI_Send(rep, 2, MPI_LONG_LONG, st.MPI_SOURCE, TAG_REP, MPI_COMM_WORLD);
     }
     return NULL;
 }
@@ -114,6 +122,13 @@ static rr_status d_begin(rr_dist *d, long long n, rr_error *err)
     mpi_impl *m = d->impl;
     m->n = n;
     m->counter = 0;
+    m->have = m->have_end = 0;
+    /* A request costs a round trip to rank 0 (tens of microseconds): the
+     * other ranks take items in chunks, small enough that each rank still
+     * gets ~64 of them (the load stays balanced), one when items are few. */
+    m->chunk = n / (64LL * d->nranks);
+    if (m->chunk < 1)
+        m->chunk = 1;
     if (d->rank == 0 && d->nranks > 1) {
         if (pthread_create(&m->sched, NULL, scheduler, m) != 0)
             return rr_error_set(err, RR_ERR_INTERNAL, "MPI: cannot start the work scheduler thread");
@@ -125,13 +140,20 @@ static rr_status d_begin(rr_dist *d, long long n, rr_error *err)
 static long long d_next(rr_dist *d)
 {
     mpi_impl *m = d->impl;
-    if (d->rank == 0)
-        return take(m);
+    long long count;
+    if (d->rank == 0) {
+        long long v = take(m, 1, &count);
+        return count ? v : -1;
+    }
     pthread_mutex_lock(&m->lock);
-    int ask = 0;
-    long long v = -1;
-    MPI_Send(&ask, 1, MPI_INT, 0, TAG_REQ, MPI_COMM_WORLD);
-    MPI_Recv(&v, 1, MPI_LONG_LONG, 0, TAG_REP, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+    if (m->have == m->have_end) {
+        int ask = 0;
+        long long rep[2] = {0, 0};
+        MPI_Send(&ask, 1, MPI_INT, 0, TAG_REQ, MPI_COMM_WORLD);
+        MPI_Recv(rep, 2, MPI_LONG_LONG, 0, TAG_REP, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+        m->have = rep[0], m->have_end = rep[0] + rep[1];
+    }
+    long long v = m->have < m->have_end ? m->have++ : -1;
     pthread_mutex_unlock(&m->lock);
     return v;
 }

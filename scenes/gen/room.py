@@ -130,6 +130,12 @@ scene = {
     "name": "room",
     "description": "A diffuse-heavy room for the hybrid (5 x 2.8 x 5.5 m, metres): inward-facing quads for floor, ceiling and walls (the left wall blue), a 1 x 1 ceiling panel light and a window in the right wall (an emissive sky-blue quad 2 mm inside the wall, behind a white frame and cross bars), a mirror in a dark frame on the left wall (mirror 0.9, diffuse 0), a table, three chairs, a bookshelf with coloured books and a sideboard built from transformed boxes, a red rug, and glossy objects (a red ball and a blue block on the table, a green ball on the black lacquered sideboard). Look for: the ceiling, lit mostly by interreflection: warmer and brighter (light from the wooden floor and the walls) with --mode hybrid, radiosity and secondary, a flat bluish grey in --mode whitted (the window's direct light plus the constant ambient term render.ambient, which stands in for interreflection there); shadows under the table and chairs that the hybrid fills with bounced light where Whitted mode puts the same grey everywhere; the EXR layer 'indirect' (hybrid) against 'ambient' (whitted); the soft window light on the floor and wall; and the mirror showing the shaded room in every mode (light by way of the mirror is carried by both passes: images of the lamps for direct light, form-factor rays that reflect off it for interreflection). The radiosity pass has 114,898 patches (patch_area 0.002, patch_edge 0.25: the explicit edge limit keeps thin boxes such as table legs and shelves from being split far finer than the walls) and takes most of the render time.",
     "camera": {"type": "lookat", "eye": [3.1, 1.6, 5.35], "target": [2.3, 1.05, 1.2], "up": [0, 1, 0], "fov": 60, "width": 640, "height": 400},
+    # a walkthrough (render --frames 1..60): from the door along the front of the room and back
+    "camera_path": {"frames": 60, "keys": [
+        {"frame": 1, "eye": [3.1, 1.6, 5.35], "target": [2.3, 1.05, 1.2], "fov": 60},
+        {"frame": 20, "eye": [1.4, 1.6, 4.8], "target": [3.2, 1.0, 1.4], "fov": 60},
+        {"frame": 40, "eye": [0.9, 1.5, 3.6], "target": [4.2, 1.2, 1.8], "fov": 55},
+        {"frame": 60, "eye": [4.3, 1.65, 4.9], "target": [1.0, 1.0, 1.0], "fov": 62}]},
     "materials": materials,
     "objects": objs,
     "render": {"spp": 16, "seed": 1, "light_samples": 8, "exposure": -0.3, "ambient": [0.25, 0.25, 0.25]},
