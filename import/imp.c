@@ -144,6 +144,13 @@ rr_rgb imp__srgb_mean(const unsigned char *px, size_t npixels, int channels)
 void imp__texture_mean(const char *file, imp_material *x)
 {
     int w = 0, h = 0, ch = 0;
+    rr_error ignored;
+    /* a FIFO would block the read; a huge image would take gigabytes */
+    if (rr_file_check_regular(file, &ignored) != RR_OK || !stbi_info(file, &w, &h, &ch) || w <= 0 || h <= 0 ||
+        (size_t)w * (size_t)h > IMP_TEXTURE_MAX_PIXELS) {
+        x->notes |= IMP_NOTE_TEXTURE_DROP;
+        return;
+    }
     unsigned char *px = stbi_load(file, &w, &h, &ch, 0);
     if (!px || w <= 0 || h <= 0 || ch < 1 || ch > 4) {
         x->notes |= IMP_NOTE_TEXTURE_DROP;
@@ -250,7 +257,7 @@ rr_status imp_load(const char *path, imp_model **out, rr_error *err)
     else if (strcmp(m->format, "obj") == 0)
         st = imp__load_obj(path, m, err);
     else
-        st = imp__load_assimp(path, NULL, m, err);
+        st = imp__load_assimp(path, NULL, 0, NULL, m, err);
     pthread_mutex_unlock(&g_lock);
     if (st == RR_OK) {
         drop_unused_defaults(m);

@@ -304,12 +304,15 @@ static rr_status read_lights(const as_ctx *c)
     return RR_OK;
 }
 
-rr_status imp__load_assimp(const char *path, const struct imp__mtl *mtl, imp_model *m, rr_error *err)
+rr_status imp__load_assimp(const char *path, const char *text, size_t text_size, const struct imp__mtl *mtl,
+                           imp_model *m, rr_error *err)
 {
     as_ctx c = {path, "", NULL, m, err};
     rr_path_dirname(path, c.dir, sizeof c.dir);
     unsigned flags = aiProcess_Triangulate | aiProcess_SortByPType | aiProcess_ValidateDataStructure;
-    c.sc = aiImportFile(path, flags);
+    if (text && text_size > UINT32_MAX)
+        return rr_error_set(err, RR_ERR_LIMIT, "%s: the file is larger than 4 GiB", path);
+    c.sc = text ? aiImportFileFromMemory(text, (unsigned)text_size, flags, "obj") : aiImportFile(path, flags);
     if (!c.sc)
         return rr_error_set(err, RR_ERR_PARSE, "%s: %s", path, aiGetErrorString());
     rr_status st = RR_OK;

@@ -27,6 +27,7 @@
  * No C++ exception leaves this file: imp__load_gltf catches everything.
  */
 #include <tiny_gltf.h>
+#include <stb/stb_image.h>
 
 #include <cmath>
 #include <cstdarg>
@@ -378,7 +379,11 @@ rr_status gltf_texture_mean(gltf_ctx &c, const std::string &where, int tex, rr_r
         const std::vector<unsigned char> &bytes = c.g.images[i].image;
         tinygltf::Image dec;
         std::string terr, twarn;
-        bool decoded = !bytes.empty() && bytes.size() <= INT32_MAX &&
+        int w = 0, h = 0, ch = 0; /* the size first: a small file can hold a huge image */
+        bool fits = !bytes.empty() && bytes.size() <= INT32_MAX &&
+                    stbi_info_from_memory(bytes.data(), static_cast<int>(bytes.size()), &w, &h, &ch) && w > 0 &&
+                    h > 0 && static_cast<size_t>(w) * static_cast<size_t>(h) <= IMP_TEXTURE_MAX_PIXELS;
+        bool decoded = fits &&
                        tinygltf::LoadImageData(&dec, src, &terr, &twarn, 0, 0, bytes.data(),
                                                static_cast<int>(bytes.size()), nullptr);
         c.img_state[i] = decoded && gltf_image_mean(dec, &c.img_mean[i]) ? GLTF_IMG_OK : GLTF_IMG_BAD;

@@ -29,6 +29,10 @@ rr_status imp__add_mesh(imp_model *m, const char *name, uint32_t material, mesh_
  * RGBA; alpha ignored). */
 rr_rgb imp__srgb_mean(const unsigned char *px, size_t npixels, int channels);
 
+/* Images larger than this (pixels) are not decoded: the texture is
+ * dropped (noted), instead of gigabytes for one mean colour. */
+#define IMP_TEXTURE_MAX_PIXELS (1u << 26)
+
 /* x->diffuse times the mean colour of the image file (any format stb_image
  * reads: PNG, JPEG, TGA, BMP, ...), and IMP_NOTE_TEXTURE_AVG; when the file
  * cannot be read, IMP_NOTE_TEXTURE_DROP and x->diffuse unchanged. */
@@ -42,12 +46,14 @@ void imp__name(char *dst, const char *src, const char *fallback, size_t i);
 rr_status imp__load_gltf(const char *path, int binary, imp_model *m, rr_error *err);
 rr_status imp__load_obj(const char *path, imp_model *m, rr_error *err);
 /* Assimp. mtl != NULL (OBJ): materials come from it by name, Assimp's own
- * material table is ignored. */
+ * material table is ignored; the file is then read from text (text_size
+ * bytes: the .obj with its mtllib lines made comments), not from path. */
 struct imp__mtl;
 /* The MTL mapping of material name (imp_obj.c) into *out: 0 if mtl has no
  * such material. */
 int imp__mtl_material(const struct imp__mtl *mtl, const char *name, imp_material *out);
-rr_status imp__load_assimp(const char *path, const struct imp__mtl *mtl, imp_model *m, rr_error *err);
+rr_status imp__load_assimp(const char *path, const char *text, size_t text_size, const struct imp__mtl *mtl,
+                           imp_model *m, rr_error *err);
 
 #ifdef __cplusplus
 }

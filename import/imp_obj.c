@@ -87,6 +87,42 @@ static char *trim(char *s)
     return s;
 }
 
+/* Cuts the next line off *cur (NULL at the end): lines end at \n, \r\n,
+ * a lone \r or \f, as Assimp's OBJ and MTL readers end them, so that both
+ * see the same lines (a statement after a lone \r is not hidden in a
+ * comment from one of them). */
+static char *next_line(char **cur)
+{
+    char *line = *cur;
+    if (!line)
+        return NULL;
+    char *e = line + strcspn(line, "\n\r\f");
+    if (!*e) {
+        *cur = NULL;
+    } else {
+        *cur = e + 1 + (e[0] == '\r' && e[1] == '\n');
+        *e = '\0';
+    }
+    return line;
+}
+
+/* A text file of radray's readers: NUL bytes are refused (Assimp reads past
+ * them where a C string stops). */
+static rr_status read_text(const char *path, char **text, size_t *size, rr_error *err)
+{
+    rr_status st = rr_file_read_all(path, text, size, err);
+    if (st != RR_OK)
+        return st;
+    size_t len = strlen(*text);
+    if (len != *size) {
+        free(*text);
+        *text = NULL;
+        return rr_error_set(err, RR_ERR_PARSE, "%s: the file contains a NUL byte at offset %zu (not a text file?)",
+                            path, len);
+    }
+    return RR_OK;
+}
+
 static int number(const char *s, double *out)
 {
     char *end;
@@ -227,15 +263,13 @@ static rr_status read_mtl(const char *path, imp__mtl *lib, rr_error *err)
 {
     char *text = NULL, dir[4096];
     size_t size = 0;
-    rr_status st = rr_file_read_all(path, &text, &size, err);
+    rr_status st = read_text(path, &text, &size, err);
     if (st != RR_OK)
         return st;
     rr_path_dirname(path, dir, sizeof dir);
     mtl_reader r = {path, 0, NULL, err};
-    for (char *line = text, *next; line && st == RR_OK; line = next) {
-        next = strchr(line, '\n');
-        if (next)
-            *next++ = '\0';
+    char *cur = text, *line;
+    while (st == RR_OK && (line = next_line(&cur))) {
         r.line++;
         char *hash = strchr(line, '#');
         if (hash)
@@ -261,32 +295,33 @@ static rr_status read_mtl(const char *path, imp__mtl *lib, rr_error *err)
 }
 
 /* The .obj's mtllib and usemtl lines: every library must exist and read
- * cleanly, every usemtl must name one of their materials. */
-static rr_status scan_obj(const char *path, imp__mtl *lib, rr_error *err)
+ * cleanly, every usemtl must name one of their materials. text is cut
+ * into lines; in assimp_text (a copy of it) every mtllib line becomes a
+ * comment, so that Assimp never reads a material library (radray's
+ * materials replace its by name; its .mtl reader has crashed on input
+ * radray refuses). */
+static rr_status scan_obj(const char *path, char *text, char *assimp_text, imp__mtl *lib, rr_error *err)
 {
-    char *text = NULL, dir[4096];
-    size_t size = 0, lineno = 0;
-    rr_status st = rr_file_read_all(path, &text, &size, err);
-    if (st != RR_OK)
-        return st;
+    char dir[4096];
+    size_t lineno = 0;
+    rr_status st = RR_OK;
     rr_path_dirname(path, dir, sizeof dir);
     int libs = 0;
-    for (char *line = text, *next; line && st == RR_OK; line = next) {
-        char *nl = strchr(line, '\n');
-        next = nl ? nl + 1 : NULL;
+    char *cur = text, *line;
+    while (st == RR_OK && (line = next_line(&cur))) {
         lineno++;
-        if (line[0] != 'm' && line[0] != 'u') /* fast path: v, vn, vt, f, ... */
-            continue;
-        if (nl)
-            *nl = '\0';
-        int is_lib = strncmp(line, "mtllib", 6) == 0 && isspace((unsigned char)line[6]);
-        int is_use = strncmp(line, "usemtl", 6) == 0 && isspace((unsigned char)line[6]);
+        char *p = line;
+        while (*p == ' ' || *p == '\t')
+            p++;
+        int is_lib = strncmp(p, "mtllib", 6) == 0 && (isspace((unsigned char)p[6]) || !p[6]);
+        int is_use = strncmp(p, "usemtl", 6) == 0 && (isspace((unsigned char)p[6]) || !p[6]);
         if (!is_lib && !is_use)
             continue;
-        char *name = trim(line + 6);
+        char *name = trim(p + 6);
         if (is_lib) {
             char file[4096];
             libs++;
+            assimp_text[p - text] = '#';
             if ((st = rr_path_join(dir, name, file, sizeof file, err)) == RR_OK &&
                 (st = rr_file_check_regular(file, err)) != RR_OK)
                 st = rr_error_set(err, RR_ERR_IO, "%s:%zu: mtllib '%s': the material library is missing (%s)", path,
@@ -302,7 +337,6 @@ static rr_status scan_obj(const char *path, imp__mtl *lib, rr_error *err)
             st = rr_error_set(err, RR_ERR_INVALID, "%s:%zu: usemtl '%s': no such material in %s", path, lineno, name,
                               libs ? "the material libraries (mtllib) read so far" : "the file (it has no mtllib)");
     }
-    free(text);
     return st;
 }
 
@@ -355,9 +389,19 @@ int imp__mtl_material(const imp__mtl *mtl, const char *name, imp_material *out)
 rr_status imp__load_obj(const char *path, imp_model *m, rr_error *err)
 {
     imp__mtl lib = {NULL, 0, 0};
-    rr_status st = scan_obj(path, &lib, err);
+    char *text = NULL, *copy = NULL;
+    size_t size = 0;
+    rr_status st = read_text(path, &text, &size, err);
+    if (st == RR_OK && !(copy = malloc(size + 1)))
+        st = rr_error_set(err, RR_ERR_NOMEM, "%s: out of memory", path);
+    if (st == RR_OK) {
+        memcpy(copy, text, size + 1);
+        st = scan_obj(path, text, copy, &lib, err);
+    }
+    free(text);
     if (st == RR_OK)
-        st = imp__load_assimp(path, &lib, m, err);
+        st = imp__load_assimp(path, copy, size, &lib, m, err);
+    free(copy);
     free(lib.e);
     return st;
 }

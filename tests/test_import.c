@@ -499,6 +499,22 @@ static void bad_obj_and_mtl(void **state)
     expect_error("b.obj", NULL, "b.mtl:2: material 'red': Ke: expected 1 or 3 numbers");
     put_text("b.mtl", "newmtl blue\nKd 0 0 0.5\n");
     expect_error("b.obj", NULL, "b.obj:5: usemtl 'red': no such material");
+    /* a texture that is a FIFO: dropped (noted), not read (it would block) */
+    char fifo[256];
+    snprintf(fifo, sizeof fifo, "%s/pipe.png", g_dir);
+    assert_int_equal(mkfifo(fifo, 0600), 0);
+    put_text("b.mtl", "newmtl red\nKd 0.5 0 0\nmap_Kd pipe.png\n");
+    alarm(20);
+    scene *s = NULL;
+    rr_error err;
+    if (load_model("b.obj", NULL, &s, &err) != RR_OK)
+        fail_msg("%s", err.msg);
+    alarm(0);
+    assert_true(material_named(s, "b/red")->notes & IMP_NOTE_TEXTURE_DROP);
+    scene_destroy(s);
+    /* lines end at a lone CR too (as Assimp reads them): nothing hides behind one */
+    put_text("b.mtl", "# exported\rnewmtl red\rKd 0.5 0 0\rshine 2\r");
+    expect_error("b.obj", NULL, "b.mtl:4: material 'red': unknown statement 'shine'");
     put_text("c.obj", "v 0 0 0\nv 1 0 0\nv 2 0 0\nl 1 2 3\n");
     expect_error("c.obj", NULL, "c.obj: the file has no triangles (only points or lines");
 }

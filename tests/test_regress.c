@@ -77,11 +77,89 @@ static void load_mesh_seed(const char *path)
     mesh_destroy(m);
 }
 
+/* An input of fuzz_model (tests/fuzz/fuzz_model.c: byte 0 % 3 picks glTF,
+ * binary glTF or OBJ + MTL, the rest is the file, an OBJ's .mtl after
+ * "\n%%MTL\n") through imp_load; the status (or NULL on a crash-free
+ * refusal's message). */
+static rr_status load_model_input(const char *path, rr_error *err)
+{
+    char *data = NULL;
+    size_t n = 0;
+    if (rr_file_read_all(path, &data, &n, err) != RR_OK || n == 0)
+        fail_msg("cannot read %s", path);
+    static const char *const ext[] = {"gltf", "glb", "obj"};
+    char dir[] = "/tmp/rr_model_XXXXXX", file[64], mtl[64];
+    assert_non_null(mkdtemp(dir));
+    int fmt = (unsigned char)data[0] % 3;
+    snprintf(file, sizeof file, "%s/model.%s", dir, ext[fmt]);
+    snprintf(mtl, sizeof mtl, "%s/model.mtl", dir);
+    const char *body = data + 1, *split = NULL;
+    size_t len = n - 1, blen = len;
+    if (fmt == 2)
+        for (size_t i = 0; i + 7 <= len && !split; i++)
+            if (memcmp(body + i, "\n%%MTL\n", 7) == 0)
+                split = body + i, blen = i;
+    FILE *f = fopen(file, "wb");
+    assert_non_null(f);
+    fwrite(body, 1, blen, f);
+    fclose(f);
+    if (fmt == 2) {
+        f = fopen(mtl, "wb");
+        assert_non_null(f);
+        if (split)
+            fwrite(split + 7, 1, len - blen - 7, f);
+        fclose(f);
+    }
+    imp_model *m = NULL;
+    rr_status st = imp_load(file, &m, err);
+    imp_destroy(m);
+    remove(file);
+    remove(mtl);
+    rmdir(dir);
+    free(data);
+    return st;
+}
+
+static void load_model_seed(const char *path)
+{
+    rr_error err = {0};
+    if (load_model_input(path, &err) != RR_OK)
+        fail_msg("seed %s no longer loads: %s", path, err.msg);
+}
+
 static void fuzz_corpus_seeds(void **state)
 {
     (void)state;
     assert_true(for_each_file(CORPUS "/scene", load_scene_seed) >= 5);
     assert_true(for_each_file(CORPUS "/mesh", load_mesh_seed) >= 5);
+    assert_true(for_each_file(CORPUS "/model", load_model_seed) >= 5);
+}
+
+/* Fuzzing findings of the importer (notes/robustness.md): a statement
+ * after a lone CR or a NUL that radray's .mtl reader did not see made
+ * Assimp's crash (it reads the .mtl no more), an OBJ whose hidden usemtl
+ * got the default grey. Each is refused now, with the line. */
+static void model_findings_refused(void **state)
+{
+    (void)state;
+    static const struct {
+        const char *file, *want;
+    } cases[] = {
+        {"model-mtl-cr-hides-statement-assimp-segv", "before any newmtl"},
+        {"model-mtl-nul-hides-statement-assimp-segv", "NUL byte"},
+        {"model-obj-cr-hides-mtllib-assimp-segv", ""},
+        {"model-obj-cr-hides-usemtl-default-material", "usemtl"},
+    };
+    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+        char path[512];
+        snprintf(path, sizeof path, "%s/tests/fuzz/findings/%s", RR_SOURCE_DIR, cases[i].file);
+        rr_error err = {0};
+        rr_status st = load_model_input(path, &err);
+        printf("%s: %s\n", cases[i].file, st == RR_OK ? "loads" : err.msg);
+        if (cases[i].want[0] && (st == RR_OK || !strstr(err.msg, cases[i].want)))
+            fail_msg("%s: expected a refusal mentioning \"%s\", got %s", cases[i].file, cases[i].want,
+                     st == RR_OK ? "RR_OK" : err.msg);
+    }
 }
 
 /* Fuzzing finding: a PLY "format ascii <v>" line whose version is nan, inf or
@@ -121,6 +199,7 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(fuzz_corpus_seeds),
+        cmocka_unit_test(model_findings_refused),
         cmocka_unit_test(ply_version_not_a_number),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
