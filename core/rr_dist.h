@@ -43,4 +43,13 @@ struct rr_dist {
     void *impl;
 };
 
+/* The next item of a list of n for the calling thread: from d's shared
+ * list, or (d NULL) from *local, a counter this process's threads share
+ * (atomically). -1 when the list is done. */
+static inline long long rr_dist_take(rr_dist *d, long long *local, long long n)
+{
+    long long i = d ? d->next(d) : __atomic_fetch_add(local, 1, __ATOMIC_RELAXED);
+    return i >= 0 && i < n ? i : -1;
+}
+
 #endif

@@ -777,6 +777,121 @@ static rr_status exchange_rows(rr_dist *dist, ff_row *rows, size_t n, int *faile
     return st;
 }
 
+static void ctx_init(ff_ctx *c, const scene *s, const rt_accel *a, const rad_patches *P, const rad_ff_opts *o)
+{
+    c->s = s;
+    c->a = a;
+    c->P = P;
+    c->samples = o->samples;
+    c->seed = o->seed;
+    c->mirror_depth = o->method == RAD_FF_MONTE_CARLO && o->mirror_depth > 0 ? o->mirror_depth : 0;
+    /* Near pairs: RAD_FF_NEAR_REFINE times the points, but no more than
+     * RAD_FF_NEAR_MAX (nor fewer than the base set): past a few hundred
+     * points the near-field error is already below the far-field one. */
+    c->near_samples = (uint32_t)o->samples;
+    if (c->near_samples < RAD_FF_NEAR_MAX)
+        c->near_samples = c->near_samples * RAD_FF_NEAR_REFINE < RAD_FF_NEAR_MAX ? c->near_samples * RAD_FF_NEAR_REFINE
+                                                                                 : RAD_FF_NEAR_MAX;
+    c->ext = rt_scene_scale(s);
+    rr_vec3 bmax = rr_v3_max(rr_v3(fabs(s->bbox_min.x), fabs(s->bbox_min.y), fabs(s->bbox_min.z)),
+                             rr_v3(fabs(s->bbox_max.x), fabs(s->bbox_max.y), fabs(s->bbox_max.z)));
+    double mabs = fmax(bmax.x, fmax(bmax.y, bmax.z));
+    /* Coplanar patches differ from their common plane by rounding of the
+     * vertex coordinates only; anything nearer than this is "in" the plane. */
+    c->plane_tol = 1e-9 * ((isfinite(mabs) ? mabs : 0.0) + c->ext);
+}
+
+static void rows_free(ff_row *rows, size_t n)
+{
+    for (size_t i = 0; rows && i < n; i++) {
+        free(rows[i].col);
+        free(rows[i].val);
+    }
+    free(rows);
+}
+
+/* Row i into rows[i]; 0, or 1 when out of memory. */
+static int one_row(const ff_ctx *c, const rad_ff_opts *o, ff_scratch *w, size_t i, ff_row *rows)
+{
+    size_t m = o->method == RAD_FF_QUADRATURE ? quad_row(c, (uint32_t)i, w)
+                                              : mc_compress(c, w, mc_row(c, (uint32_t)i, w));
+    ff_row *r = &rows[i];
+    r->n = m;
+    if (m == 0)
+        return 0;
+    r->col = malloc(m * sizeof *r->col);
+    r->val = malloc(m * sizeof *r->val);
+    if (!r->col || !r->val)
+        return 1;
+    memcpy(r->col, w->col, m * sizeof *r->col);
+    memcpy(r->val, w->val, m * sizeof *r->val);
+    return 0;
+}
+
+/* Every row this process takes (all of them, or those of o->dist's list)
+ * into rows; *failed 1 when out of memory, 2 when interrupted. */
+static void compute_rows(const ff_ctx *c, const rad_ff_opts *o, size_t n, ff_row *rows, int *failed)
+{
+    size_t done = 0;
+    long long next_row = 0;
+    int nthreads = o->threads > 0 ? o->threads : omp_get_max_threads();
+    rt_ray_counts total = {0, 0};
+#pragma omp parallel num_threads(nthreads)
+    {
+        rt_ray_counts before = rt_ray_counts_of_thread();
+        ff_scratch w;
+        int ok = scratch_alloc(&w, c, o->method, n);
+        if (!ok) {
+#pragma omp atomic write
+            *failed = 1;
+        }
+        long long i;
+        while ((i = rr_dist_take(o->dist, &next_row, (long long)n)) >= 0) {
+            int stop;
+#pragma omp atomic read
+            stop = *failed;
+            if (!stop && o->interrupt && *o->interrupt) {
+#pragma omp atomic write
+                *failed = 2;
+                stop = 2;
+            }
+            if (stop || !ok)
+                continue;
+            if (one_row(c, o, &w, (size_t)i, rows)) {
+#pragma omp atomic write
+                *failed = 1;
+                continue;
+            }
+            report_row(o, &done, n);
+        }
+        scratch_free(&w);
+        rt_ray_counts_add_since(&total, before);
+    }
+    if (o->rays)
+        *o->rays = total;
+}
+
+/* The rows as one CSR matrix (NULL when out of memory). */
+static rad_ff *assemble(const ff_row *rows, size_t n)
+{
+    size_t nnz = 0;
+    for (size_t i = 0; i < n; i++)
+        nnz += rows[i].n;
+    rad_ff *F = ff_alloc(n, nnz);
+    if (!F)
+        return NULL;
+    size_t e = 0;
+    for (size_t i = 0; i < n; i++) {
+        if (rows[i].n) {
+            memcpy(F->col + e, rows[i].col, rows[i].n * sizeof *F->col);
+            memcpy(F->val + e, rows[i].val, rows[i].n * sizeof *F->val);
+        }
+        e += rows[i].n;
+        F->rowptr[i + 1] = e;
+    }
+    return F;
+}
+
 rr_status rad_ff_compute(const scene *s, const rt_accel *a, const rad_patches *P, const rad_ff_opts *o, rad_ff **out,
                          rr_error *err)
 {
@@ -788,139 +903,28 @@ rr_status rad_ff_compute(const scene *s, const rt_accel *a, const rad_patches *P
     if (P->n > UINT32_MAX)
         return rr_error_set(err, RR_ERR_LIMIT, "%s: radiosity: %zu patches is more than 2^32", s->path, P->n);
     ff_ctx c;
-    c.s = s;
-    c.a = a;
-    c.P = P;
-    c.samples = o->samples;
-    c.seed = o->seed;
-    c.mirror_depth = o->method == RAD_FF_MONTE_CARLO && o->mirror_depth > 0 ? o->mirror_depth : 0;
-    /* Near pairs: RAD_FF_NEAR_REFINE times the points, but no more than
-     * RAD_FF_NEAR_MAX (nor fewer than the base set): past a few hundred
-     * points the near-field error is already below the far-field one. */
-    c.near_samples = (uint32_t)o->samples;
-    if (c.near_samples < RAD_FF_NEAR_MAX)
-        c.near_samples = c.near_samples * RAD_FF_NEAR_REFINE < RAD_FF_NEAR_MAX ? c.near_samples * RAD_FF_NEAR_REFINE
-                                                                               : RAD_FF_NEAR_MAX;
-    c.ext = rt_scene_scale(s);
-    rr_vec3 bmax = rr_v3_max(rr_v3(fabs(s->bbox_min.x), fabs(s->bbox_min.y), fabs(s->bbox_min.z)),
-                             rr_v3(fabs(s->bbox_max.x), fabs(s->bbox_max.y), fabs(s->bbox_max.z)));
-    double mabs = fmax(bmax.x, fmax(bmax.y, bmax.z));
-    /* Coplanar patches differ from their common plane by rounding of the
-     * vertex coordinates only; anything nearer than this is "in" the plane. */
-    c.plane_tol = 1e-9 * ((isfinite(mabs) ? mabs : 0.0) + c.ext);
-
+    ctx_init(&c, s, a, P, o);
     size_t n = P->n;
     ff_row *rows = calloc(n ? n : 1, sizeof *rows);
     if (!rows)
         return rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory for form factors", s->path);
     int failed = 0; /* 1: out of memory, 2: interrupted */
-    size_t done = 0;
-    int nthreads = o->threads > 0 ? o->threads : omp_get_max_threads();
-    rt_ray_counts total = {0, 0};
     rr_dist *dist = o->dist;
     rr_status st = dist ? dist->begin(dist, (long long)n, err) : RR_OK;
+    if (st == RR_OK)
+        compute_rows(&c, o, n, rows, &failed);
+    /* Over several ranks every rank learns every row; a failure anywhere
+     * fails everywhere (the exchange carries it). */
+    if (st == RR_OK && dist && (st = dist->end(dist, err)) == RR_OK)
+        st = exchange_rows(dist, rows, n, &failed, err);
+    if (st == RR_OK && failed == 2)
+        st = rr_error_set(err, RR_ERR_INTERRUPTED, "%s: radiosity pass interrupted (form factors)", s->path);
     if (st != RR_OK) {
-        free(rows);
+        rows_free(rows, n);
         return st;
     }
-    size_t next_row = 0;
-#pragma omp parallel num_threads(nthreads)
-    {
-        rt_ray_counts before = rt_ray_counts_of_thread();
-        ff_scratch w;
-        int ok = scratch_alloc(&w, &c, o->method, n);
-        if (!ok) {
-#pragma omp atomic write
-            failed = 1;
-        }
-        for (;;) {
-            size_t i;
-            if (dist) {
-                long long t = dist->next(dist);
-                i = t < 0 ? n : (size_t)t;
-            } else {
-#pragma omp atomic capture
-                i = next_row++;
-            }
-            if (i >= n)
-                break;
-            int stop;
-#pragma omp atomic read
-            stop = failed;
-            if (!stop && o->interrupt && *o->interrupt) {
-#pragma omp atomic write
-                failed = 2;
-                stop = 2;
-            }
-            if (stop || !ok)
-                continue;
-            size_t m = o->method == RAD_FF_QUADRATURE ? quad_row(&c, (uint32_t)i, &w)
-                                                      : mc_compress(&c, &w, mc_row(&c, (uint32_t)i, &w));
-            ff_row *r = &rows[i];
-            r->n = m;
-            if (m == 0)
-                continue;
-            r->col = malloc(m * sizeof *r->col);
-            r->val = malloc(m * sizeof *r->val);
-            if (!r->col || !r->val) {
-#pragma omp atomic write
-                failed = 1;
-                continue;
-            }
-            memcpy(r->col, w.col, m * sizeof *r->col);
-            memcpy(r->val, w.val, m * sizeof *r->val);
-            report_row(o, &done, n);
-        }
-        scratch_free(&w);
-        rt_ray_counts_add_since(&total, before);
-    }
-    if (o->rays)
-        *o->rays = total;
-    if (dist) {
-        /* Every rank learns every row; a failure anywhere fails everywhere
-         * (the exchange carries it). */
-        if ((st = dist->end(dist, err)) == RR_OK)
-            st = exchange_rows(dist, rows, n, &failed, err);
-        if (st != RR_OK) {
-            for (size_t i = 0; i < n; i++) {
-                free(rows[i].col);
-                free(rows[i].val);
-            }
-            free(rows);
-            return st;
-        }
-    }
-    if (failed == 2) {
-        for (size_t i = 0; i < n; i++) {
-            free(rows[i].col);
-            free(rows[i].val);
-        }
-        free(rows);
-        return rr_error_set(err, RR_ERR_INTERRUPTED, "%s: radiosity pass interrupted (form factors)", s->path);
-    }
-
-    rad_ff *F = NULL;
-    if (!failed) {
-        size_t nnz = 0;
-        for (size_t i = 0; i < n; i++)
-            nnz += rows[i].n;
-        if ((F = ff_alloc(n, nnz))) {
-            size_t e = 0;
-            for (size_t i = 0; i < n; i++) {
-                if (rows[i].n) {
-                    memcpy(F->col + e, rows[i].col, rows[i].n * sizeof *F->col);
-                    memcpy(F->val + e, rows[i].val, rows[i].n * sizeof *F->val);
-                }
-                e += rows[i].n;
-                F->rowptr[i + 1] = e;
-            }
-        }
-    }
-    for (size_t i = 0; i < n; i++) {
-        free(rows[i].col);
-        free(rows[i].val);
-    }
-    free(rows);
+    rad_ff *F = failed ? NULL : assemble(rows, n);
+    rows_free(rows, n);
     F = ff_finish(P, F, o);
     if (!F)
         return rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory for form factors (%zu patches)", s->path,

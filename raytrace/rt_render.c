@@ -415,22 +415,14 @@ rr_status rt_render(const scene *s, const rt_accel *a, const rt_render_opts *o, 
         rt_lights_destroy(c.lights);
         return st;
     }
-    int next_tile = 0;
+    long long next_tile = 0;
 #pragma omp parallel num_threads(nthreads)
     {
     rt_ray_counts before = rt_ray_counts_of_thread();
-    for (;;) {
-        /* The next tile: from the ranks' shared list, or this process's. */
-        int tile;
-        if (dist) {
-            long long t = dist->next(dist);
-            tile = t < 0 ? ntiles : (int)t;
-        } else {
-#pragma omp atomic capture
-            tile = next_tile++;
-        }
-        if (tile >= ntiles)
-            break;
+    long long t;
+    /* The next tile: from the ranks' shared list, or this process's. */
+    while ((t = rr_dist_take(dist, &next_tile, ntiles)) >= 0) {
+        int tile = (int)t;
         int x0 = (tile % tiles_x) * RT_TILE, y0 = (tile / tiles_x) * RT_TILE;
         int stopped = 0;
         for (int row = y0; row < y0 + RT_TILE && row < v->height && !stopped; row++)
