@@ -513,6 +513,45 @@ static void radiosity_block(void **state)
     }
 }
 
+
+/* "camera_path": frames on the keys are the keys' lookat views exactly;
+ * between them the eye moves smoothly (the middle of a straight two-key
+ * path is its midpoint, the Hermite spline of collinear keys being the
+ * line); bad paths are refused with their JSON path. */
+static void camera_path_views(void **state)
+{
+    (void)state;
+    const char *head = "{\"format\": \"radray-scene/1\", \"camera\": {\"type\": \"lookat\", \"eye\": [0, 1, 5], "
+                       "\"target\": [0, 1, 0], \"up\": [0, 1, 0], \"fov\": 40, \"width\": 8, \"height\": 6}, "
+                       "\"materials\": {\"m\": {}}, \"objects\": [{\"type\": \"sphere\", \"material\": \"m\", "
+                       "\"center\": [0, 1, 0], \"radius\": 1}], \"camera_path\": ";
+    char json[2048];
+    snprintf(json, sizeof json, "%s{\"frames\": 9, \"keys\": [{\"frame\": 1, \"eye\": [0, 1, 5], \"target\": [0, 1, 0], "
+             "\"fov\": 40}, {\"frame\": 9, \"eye\": [4, 1, 5], \"target\": [0, 1, 0], \"fov\": 60}]}}", head);
+    scene *s = load_ok(json, NULL);
+    assert_int_equal(s->path_frames, 9);
+    rr_view v, k;
+    rr_error err;
+    assert_int_equal(scene_path_view(s, 9, &v, &err), RR_OK);
+    assert_int_equal(rr_view_lookat(rr_v3(4, 1, 5), rr_v3(0, 1, 0), rr_v3(0, 1, 0), 60, 8, 6, &k, &err), RR_OK);
+    assert_true(rr_v3_len(rr_v3_sub(v.E, k.E)) < 1e-12 && rr_v3_len(rr_v3_sub(v.O, k.O)) < 1e-12);
+    assert_int_equal(scene_path_view(s, 5, &v, &err), RR_OK);
+    assert_true(fabs(v.E.x - 2) < 1e-12 && fabs(v.E.z - 5) < 1e-12); /* the midpoint, fov 50 */
+    assert_int_equal(scene_path_view(s, 10, &v, &err), RR_ERR_INVALID);
+    scene_destroy(s);
+    snprintf(json, sizeof json, "%s{\"frames\": 9, \"keys\": [{\"frame\": 5, \"eye\": [0, 1, 5], \"target\": [0, 1, 0], "
+             "\"fov\": 40}, {\"frame\": 3, \"eye\": [4, 1, 5], \"target\": [0, 1, 0], \"fov\": 60}]}}", head);
+    expect_fail(json, RR_ERR_INVALID, "bad.json: camera_path.keys[1]: frame 3 does not come after the key before it (5)");
+    snprintf(json, sizeof json, "%s{\"frames\": 4, \"keys\": [{\"frame\": 5, \"eye\": [0, 1, 5], \"target\": [0, 1, 0], "
+             "\"fov\": 40}]}}", head);
+    expect_fail(json, RR_ERR_INVALID, "bad.json: camera_path.keys[0].frame");
+    snprintf(json, sizeof json, "%s{\"frames\": 4, \"keys\": [{\"frame\": 1, \"eye\": [0, 1, 0], \"target\": [0, 1, 0], "
+             "\"fov\": 40}]}}", head);
+    expect_fail(json, RR_ERR_INVALID, "bad.json: camera_path.keys[0]: eye and target are the same point");
+    snprintf(json, sizeof json, "%s{\"frames\": 4}}", head);
+    expect_fail(json, RR_ERR_INVALID, "bad.json: camera_path.keys: missing");
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -530,6 +569,7 @@ int main(void)
         cmocka_unit_test(normals_mixed),
         cmocka_unit_test(cornell_scene),
         cmocka_unit_test(documented_example),
+        cmocka_unit_test(camera_path_views),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

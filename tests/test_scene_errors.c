@@ -108,7 +108,7 @@ static void bad_inputs(void **state)
         {0, 0, 0, 0, 0, "{\"format\": \"radray-scene/2\"}", RR_ERR_INVALID, "bad.json: format: expected \"radray-scene/1\" (got the string \"radray-scene/2\")"},
         {0, 0, 0, 0, 0, "{\"format\": 1}", RR_ERR_INVALID, "bad.json: format: expected \"radray-scene/1\" (got the number 1)"},
         {0, 0, 0, 0, 0, "{\"format\": \"radray-scene/1\", \"lihgts\": []}", RR_ERR_INVALID,
-         "bad.json: unknown key 'lihgts' (allowed: format, name, description, camera, materials, lights, objects, render, radiosity)"},
+         "bad.json: unknown key 'lihgts' (allowed: format, name, description, camera, materials, lights, objects, render, radiosity, camera_path)"},
         {0, 0, 0, 0, 0, "{\"format\": \"radray-scene/1\", \"format\": \"radray-scene/1\"}", RR_ERR_INVALID, "bad.json: key 'format' appears twice"},
         {0, 0, 0, 0, 0, "{\"format\": \"radray-scene/1\", \"name\": 3}", RR_ERR_INVALID, "bad.json: name: expected a string (got the number 3)"},
         {0, 0, 0, 0, 0, "{\"format\": \"radray-scene/1\", \"description\": []}", RR_ERR_INVALID, "bad.json: description: expected a string"},
