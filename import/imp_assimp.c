@@ -131,11 +131,17 @@ static rr_status read_materials(const as_ctx *c, const struct imp__mtl *mtl)
             }
             continue;
         }
+        /* A material without a name (what Assimp makes up for a PLY or STL:
+         * white, diffuse 1 and specular 1) or Assimp's default one is no
+         * material of the file: radray's default grey. */
+        if (name.length == 0 || strcmp(name.data, AI_DEFAULT_MATERIAL_NAME) == 0) {
+            x->diffuse = rr_rgb_make(0.5, 0.5, 0.5), x->k = 1, x->notes = IMP_NOTE_DEFAULT;
+            imp__name(x->name, "default", "", 0);
+            continue;
+        }
         rr_status st = generic_material(c, mat, x);
         if (st != RR_OK)
             return st;
-        if (strcmp(name.data, AI_DEFAULT_MATERIAL_NAME) == 0)
-            x->notes |= IMP_NOTE_DEFAULT;
     }
     return RR_OK;
 }

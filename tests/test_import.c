@@ -473,6 +473,22 @@ static void example_assets(void **state)
         }
     assert_true(found);
     scene_destroy(s);
+    /* the bunny's PLY as a model: Assimp's generic path (no material in the
+     * file: the default grey, noted), welded watertight again */
+    char json[1024];
+    snprintf(json, sizeof json,
+             "{\"format\": \"radray-scene/1\", \"camera\": {\"type\": \"lookat\", \"eye\": [0, 5, 20], "
+             "\"target\": [0, 5, 0], \"up\": [0, 1, 0], \"fov\": 40, \"width\": 8, \"height\": 8}, "
+             "\"objects\": [{\"type\": \"model\", \"file\": \"%s/scenes/meshes/bunny.ply\"}]}", RR_SOURCE_DIR);
+    rr_error err;
+    if (scene_load_string(json, "m.json", "", NULL, &s, &err) != RR_OK)
+        fail_msg("%s", err.msg);
+    assert_int_equal(s->nobjects, 1);
+    assert_int_equal(s->objects[0].tri_count, 3674);
+    assert_true(s->objects[0].report.watertight && s->objects[0].report.consistently_oriented);
+    assert_true(s->materials[s->objects[0].material].notes & IMP_NOTE_DEFAULT);
+    assert_true(strcmp(s->models[0].format, "ply") == 0);
+    scene_destroy(s);
     s = load_file("scenes/bunny-csg.json", 0);
     found = 0;
     for (size_t i = 0; i < s->ncsg; i++)
