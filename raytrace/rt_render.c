@@ -371,6 +371,56 @@ static void pixel_offset(int k, int n, rt_filter filter, rr_rng *rng, double *dx
     }
 }
 
+/* Renders the tile at (x0, y0) into film; 0 when an interrupt stopped it
+ * (the tile is then black, like the tiles never begun). */
+static int render_tile(const render_ctx *c, int spp, int x0, int y0, rt_film *film)
+{
+    const rr_view *v = &c->s->view;
+    const rt_render_opts *o = c->o;
+    int stopped = 0;
+    for (int row = y0; row < y0 + RT_TILE && row < v->height && !stopped; row++)
+        for (int col = x0; col < x0 + RT_TILE && col < v->width; col++) {
+            if (o->interrupt && *o->interrupt) {
+                stopped = 1;
+                break;
+            }
+            rr_rng rng = rr_rng_make(o->seed, (uint64_t)row * (uint64_t)v->width + (uint64_t)col);
+            shade_out acc;
+            memset(&acc, 0, sizeof acc);
+            for (int k = 0; k < spp; k++) {
+                /* Within a pixel too: at 2^24 spp one pixel takes minutes. */
+                if ((k & 255) == 255 && o->interrupt && *o->interrupt) {
+                    stopped = 1;
+                    break;
+                }
+                double dx, dy;
+                pixel_offset(k, spp, o->filter, &rng, &dx, &dy);
+                shade_out so;
+                radiance(c, rr_view_ray(v, col, row, dx, dy), 0, 0, NULL, &rng, &so);
+                for (int i = 0; i < RT_LAYER_COUNT; i++)
+                    acc.c[i] = rr_rgb_add(acc.c[i], so.c[i]);
+            }
+            if (stopped)
+                break;
+            rr_rgb sum = rr_rgb_make(0, 0, 0);
+            for (int i = 0; i < RT_LAYER_COUNT; i++) {
+                rr_rgb mean = rr_rgb_scale(acc.c[i], 1.0 / spp);
+                rr_image_set(&film->layer[i], col, row, mean);
+                sum = rr_rgb_add(sum, mean);
+            }
+            rr_image_set(&film->beauty, col, row, sum);
+        }
+    if (!stopped)
+        return 1;
+    for (int row = y0; row < y0 + RT_TILE && row < v->height; row++)
+        for (int col = x0; col < x0 + RT_TILE && col < v->width; col++) {
+            rr_image_set(&film->beauty, col, row, rr_rgb_make(0, 0, 0));
+            for (int i = 0; i < RT_LAYER_COUNT; i++)
+                rr_image_set(&film->layer[i], col, row, rr_rgb_make(0, 0, 0));
+        }
+    return 0;
+}
+
 /* Ends the ranks' tile list and merges their films: every pixel was
  * rendered by one rank and is zero bits in the others (a fresh film). */
 static rr_status gather_film(rr_dist *dist, rt_film *film, rr_error *err)
@@ -423,50 +473,8 @@ rr_status rt_render(const scene *s, const rt_accel *a, const rt_render_opts *o, 
     /* The next tile: from the ranks' shared list, or this process's. */
     while ((t = rr_dist_take(dist, &next_tile, ntiles)) >= 0) {
         int tile = (int)t;
-        int x0 = (tile % tiles_x) * RT_TILE, y0 = (tile / tiles_x) * RT_TILE;
-        int stopped = 0;
-        for (int row = y0; row < y0 + RT_TILE && row < v->height && !stopped; row++)
-            for (int col = x0; col < x0 + RT_TILE && col < v->width; col++) {
-                if (o->interrupt && *o->interrupt) {
-                    stopped = 1;
-                    break;
-                }
-                rr_rng rng = rr_rng_make(o->seed, (uint64_t)row * (uint64_t)v->width + (uint64_t)col);
-                shade_out acc;
-                memset(&acc, 0, sizeof acc);
-                for (int k = 0; k < spp; k++) {
-                    /* Within a pixel too: at 2^24 spp one pixel takes minutes. */
-                    if ((k & 255) == 255 && o->interrupt && *o->interrupt) {
-                        stopped = 1;
-                        break;
-                    }
-                    double dx, dy;
-                    pixel_offset(k, spp, o->filter, &rng, &dx, &dy);
-                    shade_out so;
-                    radiance(&c, rr_view_ray(v, col, row, dx, dy), 0, 0, NULL, &rng, &so);
-                    for (int i = 0; i < RT_LAYER_COUNT; i++)
-                        acc.c[i] = rr_rgb_add(acc.c[i], so.c[i]);
-                }
-                if (stopped)
-                    break;
-                rr_rgb sum = rr_rgb_make(0, 0, 0);
-                for (int i = 0; i < RT_LAYER_COUNT; i++) {
-                    rr_rgb mean = rr_rgb_scale(acc.c[i], 1.0 / spp);
-                    rr_image_set(&film->layer[i], col, row, mean);
-                    sum = rr_rgb_add(sum, mean);
-                }
-                rr_image_set(&film->beauty, col, row, sum);
-            }
-        if (stopped) {
-            /* A tile begun but not finished: black, like the tiles never begun. */
-            for (int row = y0; row < y0 + RT_TILE && row < v->height; row++)
-                for (int col = x0; col < x0 + RT_TILE && col < v->width; col++) {
-                    rr_image_set(&film->beauty, col, row, rr_rgb_make(0, 0, 0));
-                    for (int i = 0; i < RT_LAYER_COUNT; i++)
-                        rr_image_set(&film->layer[i], col, row, rr_rgb_make(0, 0, 0));
-                }
+        if (!render_tile(&c, spp, (tile % tiles_x) * RT_TILE, (tile / tiles_x) * RT_TILE, film))
             continue;
-        }
         int now;
 #pragma omp atomic capture
         now = ++done;
