@@ -202,6 +202,18 @@ static void bad_input_once(void **state)
     char out[256];
     snprintf(out, sizeof out, "%s/bad.exr", g_dir);
     assert_int_not_equal(stat(out, &st), 0);
+    /* only render runs on several ranks: the others say so, once */
+    char cmd[2048];
+    snprintf(cmd, sizeof cmd, "'%s' --oversubscribe -np 2 '%s' info '%s/scenes/cornell.json' > '%s/log' 2>&1",
+             RR_MPIEXEC, RR_RADRAY_BIN, RR_SOURCE_DIR, g_dir);
+    int rc = system(cmd);
+    assert_true(WIFEXITED(rc) && WEXITSTATUS(rc) == 2);
+    log = slurp("log");
+    assert_non_null(log);
+    const char *hit = strstr(log, "only 'render' runs on several MPI ranks");
+    assert_non_null(hit);
+    assert_null(strstr(hit + 1, "only 'render' runs on several MPI ranks"));
+    free(log);
 }
 
 /* Kills the newest radray process (a rank) once the job has run a while. */
