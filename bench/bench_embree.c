@@ -357,7 +357,7 @@ static void usage(FILE *f)
     fprintf(f,
             "usage: radray-bench-embree [--quick] [--scene NAME] [--seed N]\n"
             "  --quick         256x256 rays per workload instead of 1024x1024\n"
-            "  --scene NAME    run only room-100k or mesh-1m\n"
+            "  --scene NAME    run only room-100k, mesh-1m or bunny-1m\n"
             "  --seed N        scene and ray seed (default %u)\n"
             "Threads: 1 and omp_get_max_threads() (OMP_NUM_THREADS).\n",
             BENCH_SEED);
@@ -374,8 +374,8 @@ int main(int argc, char **argv)
             quick = 1;
         } else if (!strcmp(argv[i], "--scene") && i + 1 < argc) {
             only = argv[++i];
-            if (strcmp(only, "room-100k") && strcmp(only, "mesh-1m")) {
-                fprintf(stderr, "radray-bench-embree: unknown scene '%s' (room-100k or mesh-1m)\n", only);
+            if (strcmp(only, "room-100k") && strcmp(only, "mesh-1m") && strcmp(only, "bunny-1m")) {
+                fprintf(stderr, "radray-bench-embree: unknown scene '%s' (room-100k, mesh-1m or bunny-1m)\n", only);
                 return 2;
             }
         } else if (!strcmp(argv[i], "--seed") && i + 1 < argc) {
@@ -428,13 +428,15 @@ int main(int argc, char **argv)
         return 1;
     }
     double t_all = now_s();
-    for (int k = 0; k < 2; k++) {
+    for (int k = 0; k < 3; k++) {
         bench_scene b;
         memset(&b, 0, sizeof b);
         if (k == 0)
             make_room(&b, seed);
-        else
+        else if (k == 1)
             make_mesh1m(&b, seed);
+        else
+            make_bunny1m(&b, RR_SOURCE_DIR "/scenes/meshes/bunny.ply");
         if (only && strcmp(only, b.name)) {
             soup_free(&b.mesh);
             continue;

@@ -112,7 +112,7 @@ static void usage(FILE *f)
             "usage: radray-bench [--quick] [--threads LIST] [--scene NAME] [--seed N]\n"
             "  --quick         256x256 rays per workload instead of 1024x1024\n"
             "  --threads LIST  comma-separated thread counts (default: 1,<omp_get_max_threads()>)\n"
-            "  --scene NAME    run only room-100k or mesh-1m\n"
+            "  --scene NAME    run only room-100k, mesh-1m or bunny-1m\n"
             "  --seed N        scene and ray seed (default %u; change it only to test robustness)\n",
             BENCH_SEED);
 }
@@ -229,8 +229,8 @@ int main(int argc, char **argv)
             }
         } else if (!strcmp(argv[i], "--scene") && i + 1 < argc) {
             o.only = argv[++i];
-            if (strcmp(o.only, "room-100k") && strcmp(o.only, "mesh-1m")) {
-                fprintf(stderr, "radray-bench: unknown scene '%s' (room-100k or mesh-1m)\n", o.only);
+            if (strcmp(o.only, "room-100k") && strcmp(o.only, "mesh-1m") && strcmp(o.only, "bunny-1m")) {
+                fprintf(stderr, "radray-bench: unknown scene '%s' (room-100k, mesh-1m or bunny-1m)\n", o.only);
                 return 2;
             }
         } else if (!strcmp(argv[i], "--seed") && i + 1 < argc) {
@@ -277,13 +277,15 @@ int main(int argc, char **argv)
         return 1;
     }
     double t_all = now_s();
-    for (int k = 0; k < 2; k++) {
+    for (int k = 0; k < 3; k++) {
         bench_scene b;
         memset(&b, 0, sizeof b);
         if (k == 0)
             make_room(&b, o.seed);
-        else
+        else if (k == 1)
             make_mesh1m(&b, o.seed);
+        else
+            make_bunny1m(&b, RR_SOURCE_DIR "/scenes/meshes/bunny.ply");
         if (o.only && strcmp(o.only, b.name)) {
             soup_free(&b.mesh);
             continue;

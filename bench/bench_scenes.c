@@ -217,6 +217,119 @@ void make_mesh1m(bench_scene *b, uint64_t seed)
     b->light = rr_v3(3, 4, 4);
 }
 
+/* ---- bunny-1m: the scanned Stanford bunny, Loop-subdivided ---- */
+
+typedef struct loop_edge {
+    uint64_t key; /* lo << 32 | hi */
+    uint32_t mid; /* its new vertex */
+} loop_edge;
+
+static int cmp_edge_key(const void *a, const void *b)
+{
+    uint64_t x = ((const loop_edge *)a)->key, y = ((const loop_edge *)b)->key;
+    return (x > y) - (x < y);
+}
+
+static uint64_t edge_key(uint32_t a, uint32_t b) { return a < b ? (uint64_t)a << 32 | b : (uint64_t)b << 32 | a; }
+
+/* The edge {a, b} in the sorted, unique edge array e[0..n). */
+static const loop_edge *find_edge(const loop_edge *e, size_t n, uint32_t a, uint32_t b)
+{
+    loop_edge k = {edge_key(a, b), 0};
+    return bsearch(&k, e, n, sizeof *e, cmp_edge_key);
+}
+
+/* One level of Loop subdivision of a closed, manifold mesh (pos: 3 doubles
+ * per vertex): every triangle becomes four; new edge points are 3/8 of the
+ * edge's ends plus 1/8 of the two opposite corners, old vertices move to
+ * (1 - n beta) v + beta sum(neighbours) with Warren's beta (3/16 for valence
+ * 3, else 3/(8n)). */
+static void loop_subdivide(double **pos, size_t *nv, uint32_t **tri, size_t *nt)
+{
+    size_t n_e = 3 * *nt, nu = 0;
+    loop_edge *e = xmalloc(n_e * sizeof *e);
+    for (size_t t = 0; t < *nt; t++)
+        for (int k = 0; k < 3; k++)
+            e[3 * t + k] = (loop_edge){edge_key((*tri)[3 * t + k], (*tri)[3 * t + (k + 1) % 3]), 0};
+    qsort(e, n_e, sizeof *e, cmp_edge_key);
+    for (size_t i = 0; i < n_e; i++)
+        if (nu == 0 || e[i].key != e[nu - 1].key)
+            e[nu++] = e[i];
+    size_t nv2 = *nv + nu;
+    double *p2 = xmalloc(3 * nv2 * sizeof *p2), *sum = xmalloc(3 * *nv * sizeof *sum);
+    int *val = xmalloc(*nv * sizeof *val);
+    memset(sum, 0, 3 * *nv * sizeof *sum);
+    memset(val, 0, *nv * sizeof *val);
+    for (size_t i = 0; i < nu; i++) { /* edge points, and each vertex's ring */
+        uint32_t a = (uint32_t)(e[i].key >> 32), b = (uint32_t)e[i].key;
+        e[i].mid = (uint32_t)(*nv + i);
+        for (int c = 0; c < 3; c++)
+            p2[3 * e[i].mid + c] = 0.375 * ((*pos)[3 * a + c] + (*pos)[3 * b + c]);
+        for (int c = 0; c < 3; c++) {
+            sum[3 * a + c] += (*pos)[3 * b + c];
+            sum[3 * b + c] += (*pos)[3 * a + c];
+        }
+        val[a]++, val[b]++;
+    }
+    /* the opposite corners: every triangle adds 1/8 of its third corner to each of its edges */
+    for (size_t t = 0; t < *nt; t++)
+        for (int k = 0; k < 3; k++) {
+            uint32_t a = (*tri)[3 * t + k], b = (*tri)[3 * t + (k + 1) % 3], c = (*tri)[3 * t + (k + 2) % 3];
+            const loop_edge *x = find_edge(e, nu, a, b);
+            for (int j = 0; j < 3; j++)
+                p2[3 * x->mid + j] += 0.125 * (*pos)[3 * c + j];
+        }
+    for (size_t v = 0; v < *nv; v++) {
+        int n = val[v];
+        double beta = n == 3 ? 3.0 / 16.0 : 3.0 / (8.0 * n);
+        for (int c = 0; c < 3; c++)
+            p2[3 * v + c] = (1 - n * beta) * (*pos)[3 * v + c] + beta * sum[3 * v + c];
+    }
+    uint32_t *t2 = xmalloc(12 * *nt * sizeof *t2);
+    for (size_t t = 0; t < *nt; t++) {
+        const uint32_t *T = *tri + 3 * t;
+        uint32_t m0 = find_edge(e, nu, T[0], T[1])->mid, m1 = find_edge(e, nu, T[1], T[2])->mid,
+                 m2 = find_edge(e, nu, T[2], T[0])->mid;
+        uint32_t q[12] = {T[0], m0, m2, m0, T[1], m1, m2, m1, T[2], m0, m1, m2};
+        memcpy(t2 + 12 * t, q, sizeof q);
+    }
+    free(e), free(sum), free(val), free(*pos), free(*tri);
+    *pos = p2, *nv = nv2, *tri = t2, *nt *= 4;
+}
+
+/* bunny-1m: scenes/meshes/bunny.ply (3,674 triangles, watertight), four
+ * levels of Loop subdivision: 940,544 triangles of the same smooth shape.
+ * Camera in front, a point light above. */
+void make_bunny1m(bench_scene *b, const char *ply)
+{
+    b->name = "bunny-1m";
+    b->recipe = "the Stanford bunny (scanned, 3,674 tris), 4 levels of Loop subdivision (940,544 tris)";
+    mesh_tri *m = NULL;
+    rr_error err;
+    if (mesh_load(ply, &m, &err) != RR_OK) {
+        fprintf(stderr, "%s: %s\n", bench_prog, err.msg);
+        exit(1);
+    }
+    size_t nv = m->nverts, nt = m->ntris;
+    double *pos = xmalloc(3 * nv * sizeof *pos);
+    uint32_t *tri = xmalloc(3 * nt * sizeof *tri);
+    memcpy(pos, m->pos, 3 * nv * sizeof *pos);
+    memcpy(tri, m->tris, 3 * nt * sizeof *tri);
+    mesh_destroy(m);
+    for (int level = 0; level < 4; level++)
+        loop_subdivide(&pos, &nv, &tri, &nt);
+    for (size_t v = 0; v < nv; v++)
+        soup_vert(&b->mesh, pos[3 * v], pos[3 * v + 1], pos[3 * v + 2]);
+    for (size_t t = 0; t < nt; t++)
+        soup_tri(&b->mesh, tri[3 * t], tri[3 * t + 1], tri[3 * t + 2]);
+    free(pos);
+    free(tri);
+    b->eye = rr_v3(0.0, 6.0, 22.0); /* the bunny spans x, z in +-5, y in 0..9.7 */
+    b->target = rr_v3(0, 4.5, 0);
+    b->fov = 35.0;
+    b->light = rr_v3(8, 20, 14);
+}
+
 /* Binary little-endian PLY: float x y z, faces as "list uchar int". */
 int write_ply(const char *path, const soup *m)
 {

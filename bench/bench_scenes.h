@@ -1,7 +1,8 @@
 /* bench_scenes.h - the procedural benchmark scenes and ray sets shared by
  * radray-bench (bench_rays.c) and radray-bench-embree (bench_embree.c).
  *
- * Two scenes (room-100k, mesh-1m; recipes in bench/README.md) are generated
+ * Three scenes (room-100k, mesh-1m: procedural; bunny-1m: the scanned
+ * Stanford bunny, Loop-subdivided; recipes in bench/README.md) are built
  * from a fixed recipe and seed, written as binary PLY into a temporary folder
  * and loaded through the real scene path (scene_load_string). The three ray
  * workloads (primary, diffuse, shadow) are generated once from the primary
@@ -47,6 +48,8 @@ typedef struct bench_scene {
 
 void make_room(bench_scene *b, uint64_t seed);
 void make_mesh1m(bench_scene *b, uint64_t seed);
+/* bunny-1m from the PLY at ply (scenes/meshes/bunny.ply). */
+void make_bunny1m(bench_scene *b, const char *ply);
 int write_ply(const char *path, const soup *m);
 
 /* Writes b's mesh as PLY into tmpdir, loads it as a scene with a res x res
