@@ -40,6 +40,7 @@
 #include "ig.h"
 #include "img.h"
 #include "test_cli_run.h"
+#include "test_world.h"
 
 static char g_dir[64]; /* this run's scratch folder */
 
@@ -104,40 +105,6 @@ static void expect_error(const char *file, const char *extra, const char *want)
         fail_msg("message \"%s\"\n  does not start with the scene and object, or lacks \"%s\"", err.msg, want);
 }
 
-/* ---- rendering a scene in a mode ---- */
-
-typedef struct world {
-    scene *s;
-    rt_accel *a;
-    ig_session ses;
-} world;
-
-static void world_open(world *w, scene *s)
-{
-    memset(w, 0, sizeof *w);
-    w->s = s;
-    assert_int_equal(rt_accel_build(s, &w->a, NULL), RR_OK);
-    ig_session_init(&w->ses, s, w->a);
-    w->ses.pass.ff.seed = 3;
-}
-
-static void world_close(world *w)
-{
-    ig_session_free(&w->ses);
-    rt_accel_destroy(w->a);
-    scene_destroy(w->s);
-}
-
-static void render(world *w, const ig_integrator *ig, int spp, rt_film *film)
-{
-    w->s->settings.spp = spp;
-    w->s->settings.seed = 7;
-    assert_int_equal(rt_film_init(film, w->s->view.width, w->s->view.height, NULL), RR_OK);
-    rr_error err;
-    if (ig_render(&w->ses, ig, NULL, film, NULL, &err) != RR_OK)
-        fail_msg("%s", err.msg);
-}
-
 /* Mean luminance-free sum (r + g + b) over the pixels whose centre ray hits
  * an object whose name ends in suffix (NULL: every pixel); *n pixels. */
 static double mean_over(const world *w, const rr_image *im, const char *suffix, int *n)
@@ -193,8 +160,8 @@ static void obj_cornell_every_mode(void **state)
     for (size_t m = 0; m < ig_count(); m++) {
         const ig_integrator *ig = &ig_table[m];
         rt_film fa, fb;
-        render(&a, ig, 16, &fa);
-        render(&b, ig, 16, &fb);
+        world_render(&a, ig, 16, &fa);
+        world_render(&b, ig, 16, &fb);
         int na, nb;
         double ja = mean_over(&a, &fa.beauty, NULL, &na), ob = mean_over(&b, &fb.beauty, NULL, &nb);
         printf("%-10s image %+.2f %%", ig->name, 100 * (ob / ja - 1));
@@ -214,8 +181,8 @@ static void obj_cornell_every_mode(void **state)
         rt_film_free(&fa);
         rt_film_free(&fb);
     }
-    world_close(&a);
-    world_close(&b);
+    world_free(&a);
+    world_free(&b);
 }
 
 /* ---- a glTF room against the same room in JSON ---- */
@@ -308,8 +275,8 @@ static void gltf_room_no_material_typed(void **state)
     const char *modes[] = {"hybrid", "secondary"};
     for (int m = 0; m < 2; m++) {
         rt_film fs, fr;
-        render(&ws, ig_find(modes[m]), 16, &fs);
-        render(&wr, ig_find(modes[m]), 16, &fr);
+        world_render(&ws, ig_find(modes[m]), 16, &fs);
+        world_render(&wr, ig_find(modes[m]), 16, &fr);
         int ns, nr;
         double is = mean_over(&ws, &fs.beauty, NULL, &ns), ir = mean_over(&wr, &fr.beauty, NULL, &nr);
         double fls = mean_over(&ws, &fs.beauty, "Walls", &ns), flr = mean_over(&wr, &fr.beauty, "Walls", &nr);
@@ -321,8 +288,8 @@ static void gltf_room_no_material_typed(void **state)
         rt_film_free(&fs);
         rt_film_free(&fr);
     }
-    world_close(&ws);
-    world_close(&wr);
+    world_free(&ws);
+    world_free(&wr);
 }
 
 /* ---- the mapping table ---- */

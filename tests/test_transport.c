@@ -37,6 +37,7 @@
 
 #include "ig.h"
 #include "rad.h"
+#include "test_world.h"
 
 /* An integrator of the table (integrator/ig.h) by name. */
 static const ig_integrator *mode(const char *name)
@@ -47,39 +48,13 @@ static const ig_integrator *mode(const char *name)
     return ig;
 }
 
-typedef struct world {
-    scene *s;
-    rt_accel *a;
-    ig_session ses; /* the radiosity pass, shared by the renders of one world */
-} world;
-
 static void world_load(world *w, const char *json)
 {
-    memset(w, 0, sizeof *w);
+    scene *s = NULL;
     rr_error err;
-    if (scene_load_string(json, "transport", "", NULL, &w->s, &err) != RR_OK)
+    if (scene_load_string(json, "transport", "", NULL, &s, &err) != RR_OK)
         fail_msg("%s", err.msg);
-    assert_int_equal(rt_accel_build(w->s, &w->a, NULL), RR_OK);
-    ig_session_init(&w->ses, w->s, w->a);
-    w->ses.pass.ff.seed = 3;
-}
-
-static void world_free(world *w)
-{
-    ig_session_free(&w->ses);
-    rt_accel_destroy(w->a);
-    scene_destroy(w->s);
-}
-
-/* One render by integrator ig at spp, seed 7, as `radray render` makes it. */
-static void render(world *w, const ig_integrator *ig, int spp, rt_film *film)
-{
-    w->s->settings.spp = spp;
-    w->s->settings.seed = 7;
-    assert_int_equal(rt_film_init(film, w->s->view.width, w->s->view.height, NULL), RR_OK);
-    rr_error err;
-    if (ig_render(&w->ses, ig, NULL, film, NULL, &err) != RR_OK)
-        fail_msg("%s", err.msg);
+    world_open(w, s);
 }
 
 static rr_rgb px(const rr_image *im, int x, int y)
@@ -183,7 +158,7 @@ static void test_floor_under_sphere_lamp(void **state)
     for (size_t m = 0; m < ig_count(); m++) {
         const ig_integrator *ig = &ig_table[m];
         rt_film f;
-        render(&w, ig, ig->indirect == RT_INDIRECT_SECONDARY ? 64 : 16, &f);
+        world_render(&w, ig, ig->indirect == RT_INDIRECT_SECONDARY ? 64 : 16, &f);
         int cnt;
         double got = object_mean(&w, &f.beauty, floor, &cnt);
         assert_int_equal(cnt, n);
@@ -245,7 +220,7 @@ static void test_point_light_planar_mirror(void **state)
         if (ig->shows_field)
             continue; /* below, against the ray tracer */
         rt_film f;
-        render(&w, ig, 1, &f);
+        world_render(&w, ig, 1, &f);
         int in = 0, out = 0;
         double worst = 0;
         for (int y = 0; y < f.beauty.height; y++)
@@ -274,8 +249,8 @@ static void test_point_light_planar_mirror(void **state)
      * display of the floor (direct + its small interreflection through the
      * mirror) against the hybrid's. */
     rt_film fr, fh;
-    render(&w, mode("radiosity"), 4, &fr);
-    render(&w, mode("hybrid"), 4, &fh);
+    world_render(&w, mode("radiosity"), 4, &fr);
+    world_render(&w, mode("hybrid"), 4, &fh);
     expect_rel("floor, point light + mirror", "radiosity", object_mean(&w, &fr.beauty, floor, NULL),
                object_mean(&w, &fh.beauty, floor, NULL), 0.02);
     rt_film_free(&fr);
@@ -332,14 +307,14 @@ static void against_secondary(const char *json, const char *label, const char *o
     world_load(&w, json);
     int o = obj ? object_index(w.s, obj) : -1;
     rt_film ref;
-    render(&w, mode("secondary"), 256, &ref);
+    world_render(&w, mode("secondary"), 256, &ref);
     double want = object_mean(&w, &ref.beauty, o, NULL), want_all = object_mean(&w, &ref.beauty, -1, NULL);
     for (size_t m = 0; m < ig_count(); m++) {
         const ig_integrator *ig = &ig_table[m];
         if (!ig->uses_field)
             continue;
         rt_film f;
-        render(&w, ig, 16, &f);
+        world_render(&w, ig, 16, &f);
         double tol = ig->shows_field ? tol_r : tol_h;
         char what[96];
         snprintf(what, sizeof what, "%s: %s", label, obj ? obj : "image");
@@ -401,7 +376,7 @@ static void test_max_depth_bounds_mirror_reflections(void **state)
         for (size_t m = 0; m < ig_count(); m++) {
             const ig_integrator *ig = &ig_table[m];
             rt_film f;
-            render(&w, ig, 1, &f);
+            world_render(&w, ig, 1, &f);
             double v = rr_rgb_mean(px(&f.beauty, 4, 4));
             print_message("  max_depth %d, %-9s mirror pixel %g\n", depth, ig->name, v);
             if (ig->shows_field)
@@ -423,8 +398,8 @@ static void test_max_depth_bounds_mirror_reflections(void **state)
     world_load(&wa, a);
     world_load(&wb, b);
     rt_film fa, fb;
-    render(&wa, mode("secondary"), 4, &fa);
-    render(&wb, mode("secondary"), 4, &fb);
+    world_render(&wa, mode("secondary"), 4, &fa);
+    world_render(&wb, mode("secondary"), 4, &fb);
     assert_memory_equal(fa.beauty.px, fb.beauty.px, sizeof(float) * 3 * (size_t)fa.beauty.width * fa.beauty.height);
     rt_film_free(&fa);
     rt_film_free(&fb);
@@ -455,8 +430,8 @@ static void test_scene_emits_through_csg_leaf(void **state)
     rt_lights_destroy(L);
     int floor = object_index(w.s, "floor");
     rt_film fs, fh;
-    render(&w, mode("secondary"), 64, &fs);
-    render(&w, mode("hybrid"), 16, &fh);
+    world_render(&w, mode("secondary"), 64, &fs);
+    world_render(&w, mode("hybrid"), 16, &fh);
     double ref = object_mean(&w, &fs.beauty, floor, NULL);
     assert_true(ref > 0.01);
     expect_rel("floor under a CSG lamp", "hybrid", object_mean(&w, &fh.beauty, floor, NULL), ref, 0.03);
@@ -499,7 +474,7 @@ static void test_integrators_write_their_layers(void **state)
     for (size_t m = 0; m < ig_count(); m++) {
         const ig_integrator *ig = &ig_table[m];
         rt_film f;
-        render(&w, ig, 2, &f);
+        world_render(&w, ig, 2, &f);
         for (int l = 0; l < RT_LAYER_COUNT; l++) {
             double v = layer_max(&f.layer[l]);
             int named = (ig->layers >> l) & 1u;
