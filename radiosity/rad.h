@@ -11,6 +11,9 @@
  *   rad_ff_compute     sparse form factors F_ij with visibility (BVH rays)
  *   rad_solve          B per patch and channel (CHOLMOD, or Gauss-Seidel)
  *   rad_energy         where the emitted power went
+ * or, with radiosity.method "hierarchical" (rad_hier.c, opt-in), elements
+ * refined on demand under clusters and links in place of the three middle
+ * steps; its leaves are a rad_patches like the flat one (roots, qt below).
  *
  * Ownership: every *_build / *_compute allocates what it returns and has a
  * matching destroy (NULL is a no-op); outputs are untouched on failure.
@@ -67,7 +70,22 @@ typedef struct rad_patches {
     /* Solids (CSG and quadric objects), per object (nsolid = the scene's object count). */
     rad_solid_grid *solid;
     size_t nsolid;
+    /* Hierarchical patch sets (rad_hier.c): the patches above are the leaves
+     * of a quadtree over each patch of roots (its four children: the corner
+     * triangles at A, B, C, then the middle one); roots then answers the
+     * lookups above. NULL for flat patch sets. A tree entry e is a leaf patch
+     * (e & RAD_QT_LEAF, index e & ~RAD_QT_LEAF) or node e, whose four child
+     * entries are qt[4e .. 4e+3]; root r's entry is root_qt[r]. Vertices past
+     * roots->nverts are edge midpoints, made coarse to fine: vertex v's edge is
+     * (mid[2 (v - roots->nverts)], mid[2 (v - roots->nverts) + 1]). */
+    struct rad_patches *roots;
+    uint32_t *qt;
+    size_t nqt;
+    uint32_t *root_qt;
+    uint32_t *mid;
 } rad_patches;
+
+#define RAD_QT_LEAF 0x80000000u
 
 typedef struct rad_patch_opts {
     double max_area;   /* > 0 */
@@ -270,7 +288,20 @@ rr_status rad_energy_compare(const rad_energy_row *rows, size_t nrows, const rt_
 
 /* ---- the whole pass ---- */
 
+/* The pass's method: hierarchical radiosity with clustering (rad_hier.c), or
+ * the flat matrix of form factors between uniform patches (rad_ff.c). */
+typedef enum rad_method { RAD_METHOD_FLAT = 0, RAD_METHOD_HIERARCHICAL = 1 } rad_method;
+
+typedef struct rad_hier_opts {
+    double tolerance;  /* a link stays when the power it carries, times the receiver's reflectance,
+                          is under tolerance x the scene's emitted power; <= 0: from the scene */
+    double min_area;   /* elements are not split below this area; <= 0: from the scene / automatic */
+    size_t max_links;  /* refinement stops (with a warning) at this many links; 0: from the scene */
+} rad_hier_opts;
+
 typedef struct rad_pass_opts {
+    rad_method method;      /* used when !use_scene_choices */
+    rad_hier_opts hier;
     rad_patch_opts patch;   /* <= 0 fields: from the scene's "radiosity" block / automatic */
     rad_ff_opts ff;         /* samples <= 0: from the scene */
     rad_solve_opts solve;   /* tolerance <= 0: from the scene */
@@ -293,6 +324,15 @@ typedef struct rad_solution {
     double seconds_patches, seconds_ff, seconds_solve;
     size_t nnz;          /* stored form factors */
     rt_ray_counts ff_rays; /* rays the form factors traced (0 when read from a cache) */
+    /* Hierarchical solutions (P->roots set): per leaf, the irradiance gathered
+     * from other surfaces (H, without the first shot) and the effective row sum
+     * (the share of what leaves it that lands on surfaces), for the ledger in
+     * place of F; NULL when read from a cache. */
+    rr_rgb *hier_H;
+    double *hier_fsum;
+    size_t links;        /* hierarchical: links of the final hierarchy */
+    size_t elements;     /* hierarchical: elements and clusters made */
+    int refine_rounds;
 } rad_solution;
 
 /* Patches, form factors, solve, vertex radiosity: everything the display and

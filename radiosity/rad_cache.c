@@ -260,6 +260,13 @@ rr_status rad_pass_run_cached(const scene *s, const rt_accel *a, const rad_pass_
     *from_cache = 0;
     if (!cache_path)
         return rad_pass_run(s, a, o, out, err);
+    if (rad__pass_method(s, o, NULL) == RAD_METHOD_HIERARCHICAL) {
+        /* The file format holds uniform patch sets only (version 3); a
+         * hierarchical solution is recomputed rather than mistaken for one. */
+        rr_warn(&o->warn, "%s: radiosity: the cache holds flat solutions only; the hierarchical pass runs without %s",
+                s->path, cache_path);
+        return rad_pass_run(s, a, o, out, err);
+    }
     uint64_t key[K_COUNT];
     cache_key(s, o, key);
     struct stat stt;

@@ -61,6 +61,10 @@ typedef struct ledger_in {
     const rad_patches *P;
     const rad_ff *F;
     const rr_rgb *B, *emitted, *first_shot;
+    /* In place of F (hierarchical solutions): per patch the gathered
+     * irradiance H_i and the effective row sum sum_j F_ij (1 - m_j). */
+    const rr_rgb *H;
+    const double *fsum;
     size_t nl;
     const rr_rgb *power, *landed;
 } ledger_in;
@@ -72,9 +76,14 @@ static rad_energy_row patch_row(const ledger_in *in, size_t i)
     const rad_patch *p = &P->p[i];
     rr_rgb h = in->first_shot ? in->first_shot[i] : rr_rgb_make(0, 0, 0);
     double fsum = 0.0;
-    for (size_t k = F->rowptr[i]; k < F->rowptr[i + 1]; k++) {
-        h = rr_rgb_add(h, rr_rgb_scale(in->B[F->col[k]], F->val[k]));
-        fsum += F->val[k] * (1.0 - P->p[F->col[k]].mirror);
+    if (!F) {
+        h = rr_rgb_add(h, in->H[i]);
+        fsum = in->fsum[i];
+    } else {
+        for (size_t k = F->rowptr[i]; k < F->rowptr[i + 1]; k++) {
+            h = rr_rgb_add(h, rr_rgb_scale(in->B[F->col[k]], F->val[k]));
+            fsum += F->val[k] * (1.0 - P->p[F->col[k]].mirror);
+        }
     }
     rr_rgb incident = rr_rgb_scale(h, p->area);
     double m = p->mirror;
@@ -101,7 +110,9 @@ static rr_status ledger(const ledger_in *in, rad_energy_row **rows, size_t *nrow
         return rr_error_set(err, RR_ERR_INVALID, "energy ledger: missing radiosities or output");
     *rows = NULL;
     *nrows = 0;
-    rr_status st = rad_system_check(P, in->F, err);
+    rr_status st = in->F ? rad_system_check(P, in->F, err)
+                         : (in->H && in->fsum ? RR_OK
+                                              : rr_error_set(err, RR_ERR_INVALID, "missing form factors"));
     if (st != RR_OK) {
         rr_error_prefix(err, "energy ledger");
         return st;
@@ -180,7 +191,7 @@ rr_status rad_energy(const scene *s, const rad_patches *P, const rad_ff *F, cons
 
 rr_status rad_energy_solution(const struct rad_solution *sol, rad_energy_row **rows, size_t *nrows, rr_error *err)
 {
-    if (!sol || !sol->F)
+    if (!sol || (!sol->F && !(sol->hier_H && sol->hier_fsum)))
         return rr_error_set(err, RR_ERR_INVALID,
                             "energy ledger: the solution has no form factors (read from a cache?)");
     const scene *s = sol->scene;
@@ -191,7 +202,7 @@ rr_status rad_energy_solution(const struct rad_solution *sol, rad_energy_row **r
     for (size_t l = 0; l < nl; l++)
         power[l] = rt_light_power(s, l);
     ledger_in in = {.s = s, .P = sol->P, .F = sol->F, .B = sol->B, .emitted = sol->emitted,
-                    .first_shot = sol->first_shot, .nl = nl, .power = power, .landed = sol->light_landed};
+                    .first_shot = sol->first_shot, .H = sol->hier_H, .fsum = sol->hier_fsum, .nl = nl, .power = power, .landed = sol->light_landed};
     rr_status st = ledger(&in, rows, nrows, err);
     free(power);
     return st;

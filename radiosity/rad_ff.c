@@ -163,7 +163,7 @@ static rr_vec3 offset_front(const ff_ctx *c, rr_vec3 p, rr_vec3 n) { return rt_o
 /* Sutherland-Hodgman: the part of triangle tri on the positive side of the
  * plane (n, p0). Vertices within tol of the plane count as on it (kept), so a
  * shared edge does not produce slivers. A triangle gives at most 4 vertices. */
-static int clip_front(const rr_vec3 tri[3], rr_vec3 n, rr_vec3 p0, double tol, rr_vec3 out[4])
+int rad__clip_front(const rr_vec3 tri[3], rr_vec3 n, rr_vec3 p0, double tol, rr_vec3 out[4])
 {
     double d[3];
     for (int k = 0; k < 3; k++)
@@ -247,7 +247,7 @@ static double patch_radius(const rad_patches *P, const rad_patch *q)
  * of j that F_point already left out: Cornell's blocks lost 8% of their
  * factor to the floor that way. The quad's triangle is picked by the golden
  * ratio sequence in k, independent of the (u, v) stratum perm[k]. */
-static rr_vec3 poly_point(const rr_vec3 *poly, int nv, double u, double v, uint32_t k)
+rr_vec3 rad__poly_point(const rr_vec3 *poly, int nv, double u, double v, uint32_t k)
 {
     int t = 0;
     if (nv == 4) {
@@ -276,7 +276,7 @@ static double pair_ff(const ff_ctx *c, const rad_patch *pi, const rad_patch *pj,
         if (!(f > 0.0))
             continue;
         rr_vec3 ys, yn;
-        surface_at(c, pj, poly_point(poly, nv, q->tuv[2 * k], q->tuv[2 * k + 1], k), &ys, &yn);
+        surface_at(c, pj, rad__poly_point(poly, nv, q->tuv[2 * k], q->tuv[2 * k + 1], k), &ys, &yn);
         rr_vec3 o = q->xo[k], t = offset_front(c, ys, yn);
         rr_ray r = {o, rr_v3_sub(t, o)};
         /* Stop just short of the target (RT_SHADOW_END, the shadow-ray rule of
@@ -314,7 +314,7 @@ static size_t quad_row(const ff_ctx *c, uint32_t i, ff_scratch *w)
         /* Patches are planar, so every x_k has the same tangent plane: clip j
          * against it once. */
         rr_vec3 tri[3] = {P->verts[pj->v[0]], P->verts[pj->v[1]], P->verts[pj->v[2]]}, poly[4];
-        int nv = clip_front(tri, pi->normal, pi->centroid, c->plane_tol, poly);
+        int nv = rad__clip_front(tri, pi->normal, pi->centroid, c->plane_tol, poly);
         if (nv < 3)
             continue;
         const qpoints *q = &base;

@@ -88,4 +88,11 @@ static inline void rad_ff_tri_stratum(uint32_t k, uint32_t n, rr_rng *rng, doubl
  * interface's (rt_cosine_dir, the same sampling the light tracer uses). */
 static inline rr_vec3 rad_ff_cosine_dir(rr_vec3 N, double u1, double u2) { return rt_cosine_dir(N, u1, u2); }
 
+/* Sutherland-Hodgman: the part of triangle tri on the front of the plane
+ * (n, p0), vertices within tol of it kept; at most 4 vertices (rad_ff.c). */
+int rad__clip_front(const rr_vec3 tri[3], rr_vec3 n, rr_vec3 p0, double tol, rr_vec3 out[4]);
+/* Point (u, v) of a clipped polygon of 3 or 4 vertices, the quad's triangle
+ * picked by area with the golden-ratio sequence in k (rad_ff.c). */
+rr_vec3 rad__poly_point(const rr_vec3 *poly, int nv, double u, double v, uint32_t k);
+
 #endif

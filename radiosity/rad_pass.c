@@ -5,6 +5,7 @@
 #include <string.h>
 #include <time.h>
 
+#include "rad_hier_internal.h"
 #include "rad_pass_internal.h"
 
 #define FIRST_SHOT_CHUNK 256 /* patches per unit of the first shot's deterministic sums */
@@ -66,42 +67,95 @@ void rad_solution_destroy(rad_solution *sol)
     free(sol->first_shot);
     free(sol->light_landed);
     free(sol->vertex_Hind);
+    free(sol->hier_H);
+    free(sol->hier_fsum);
     free(sol->stats.history);
     free(sol);
 }
 
-/* H0: irradiance at patch k from every point and directional light and
- * their images in planar mirrors (the light interface, rt_light.c),
- * averaged over 4 points of the patch (centroid and the three points
- * halfway to the corners), each with its shadow rays. When landed is set,
- * landed[l] += (1 - m) A times what scene light l contributes (the power of
- * light l that ends on this patch's front, for the energy ledger). */
-static rr_rgb first_shot(const scene *s, const rt_accel *a, const rt_lights *L, const rad_patches *P, size_t k,
-                         rr_rgb *landed)
+/* H0: irradiance on the triangle corner[0..2] of patch k of P (the patch
+ * itself, or a part of it) from every point and directional light and their
+ * images in planar mirrors (the light interface, rt_light.c), averaged over 4
+ * points (centroid and the three points halfway to the corners), each with its
+ * shadow rays. When landed is set, landed[l] += weight times what scene light
+ * l contributes (weight (1 - m) A: the power of light l that ends on the
+ * patch's front, for the energy ledger). When spread is set, it gets the
+ * largest difference between two of the 4 points (max over channels). */
+rr_rgb rad__first_shot(const scene *s, const rt_accel *a, const rt_lights *L, const rad_patches *P, uint32_t k,
+                       const rr_vec3 corner[3], rr_rgb *landed, double weight, double *spread)
 {
     static const double w[4][3] = {{1. / 3, 1. / 3, 1. / 3}, {2. / 3, 1. / 6, 1. / 6}, {1. / 6, 2. / 3, 1. / 6},
                                    {1. / 6, 1. / 6, 2. / 3}};
-    const rad_patch *p = &P->p[k];
-    rr_rgb H = rr_rgb_make(0, 0, 0);
+    rr_rgb H = rr_rgb_make(0, 0, 0), lo = rr_rgb_make(INFINITY, INFINITY, INFINITY), hi = rr_rgb_make(0, 0, 0);
     size_t nd = rt_lights_delta_count(L);
     for (int q = 0; q < 4; q++) {
-        rr_vec3 xf = rr_v3_add(rr_v3_add(rr_v3_scale(P->verts[p->v[0]], w[q][0]), rr_v3_scale(P->verts[p->v[1]], w[q][1])),
-                               rr_v3_scale(P->verts[p->v[2]], w[q][2]));
+        rr_vec3 xf = rr_v3_add(rr_v3_add(rr_v3_scale(corner[0], w[q][0]), rr_v3_scale(corner[1], w[q][1])),
+                               rr_v3_scale(corner[2], w[q][2]));
         rr_vec3 x, N;
-        rad_patch_surface(P, s, a, (uint32_t)k, xf, &x, &N);
+        rad_patch_surface(P, s, a, k, xf, &x, &N);
+        rr_rgb Hq = rr_rgb_make(0, 0, 0);
         for (size_t i = 0; i < nd; i++) {
             rt_light_sample ls;
             if (!rt_lights_delta(L, i, x, N, &ls))
                 continue;
             rr_rgb e = rr_rgb_scale(ls.E, 0.25 * rr_v3_dot(N, ls.L));
-            H = rr_rgb_add(H, e);
+            H = rr_rgb_add(H, e); /* summed as before the spread was added: the same bits */
+            Hq = rr_rgb_add(Hq, e);
             if (landed) {
                 rr_rgb *d = &landed[rt_lights_delta_source(L, i)];
-                *d = rr_rgb_add(*d, rr_rgb_scale(e, (1.0 - p->mirror) * p->area));
+                *d = rr_rgb_add(*d, rr_rgb_scale(e, weight));
             }
         }
+        lo = rr_rgb_make(fmin(lo.r, Hq.r), fmin(lo.g, Hq.g), fmin(lo.b, Hq.b));
+        hi = rr_rgb_make(fmax(hi.r, Hq.r), fmax(hi.g, Hq.g), fmax(hi.b, Hq.b));
     }
+    if (spread)
+        *spread = 4.0 * fmax(hi.r - lo.r, fmax(hi.g - lo.g, hi.b - lo.b)); /* Hq holds a quarter of each point's */
     return H;
+}
+
+static rr_rgb first_shot(const scene *s, const rt_accel *a, const rt_lights *L, const rad_patches *P, size_t k,
+                         rr_rgb *landed)
+{
+    const rad_patch *p = &P->p[k];
+    rr_vec3 c[3] = {P->verts[p->v[0]], P->verts[p->v[1]], P->verts[p->v[2]]};
+    return rad__first_shot(s, a, L, P, (uint32_t)k, c, landed, (1.0 - p->mirror) * p->area, NULL);
+}
+
+rr_status rad__first_shots(const scene *s, const rt_accel *a, rad_solution *sol, rr_error *err)
+{
+    size_t n = sol->P->n;
+    rr_status st;
+    rt_lights *L = NULL;
+    if ((st = rt_lights_build(s, a, s->settings.max_depth, &L, err)) != RR_OK)
+        return st;
+    /* Chunks of patches, each summing its lights' landed power in patch
+     * order, reduced in chunk order: the same sums for any thread count. */
+    size_t nl = s->nlights, nchunks = (n + FIRST_SHOT_CHUNK - 1) / FIRST_SHOT_CHUNK;
+    rr_rgb *part = nl ? calloc(nchunks * nl, sizeof *part) : NULL;
+    free(sol->light_landed);
+    sol->light_landed = calloc(nl ? nl : 1, sizeof *sol->light_landed);
+    if ((nl && !part) || !sol->light_landed) {
+        free(part);
+        rt_lights_destroy(L);
+        return rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory for %zu patches", s->path, n);
+    }
+#pragma omp parallel for schedule(dynamic, 1) if (nl > 0)
+    for (long c = 0; c < (long)nchunks; c++) {
+        size_t hi = ((size_t)c + 1) * FIRST_SHOT_CHUNK < n ? ((size_t)c + 1) * FIRST_SHOT_CHUNK : n;
+        for (size_t k = (size_t)c * FIRST_SHOT_CHUNK; k < hi; k++) {
+            rad_patch *p = &sol->P->p[k];
+            sol->emitted[k] = p->emission;
+            sol->first_shot[k] = nl ? first_shot(s, a, L, sol->P, k, part + (size_t)c * nl) : rr_rgb_make(0, 0, 0);
+            p->emission = rr_rgb_add(p->emission, rr_rgb_mul(p->rho, sol->first_shot[k]));
+        }
+    }
+    for (size_t c = 0; c < nchunks && nl; c++)
+        for (size_t l = 0; l < nl; l++)
+            sol->light_landed[l] = rr_rgb_add(sol->light_landed[l], part[c * nl + l]);
+    free(part);
+    rt_lights_destroy(L);
+    return RR_OK;
 }
 
 /* Says what the pass does not carry of this scene's mirrors. */
@@ -125,25 +179,29 @@ static void mirror_warnings(const scene *s, const rad_ff_opts *fo, const rr_warn
                 s->path);
 }
 
-/* Area-weighted mean of per-patch values at the shared vertices. */
-static rr_status to_vertices(const rad_patches *P, const rr_rgb *per_patch, rr_rgb *per_vertex)
+static int scene_has_mirrors(const scene *s)
 {
-    double *wsum = calloc(P->nverts ? P->nverts : 1, sizeof *wsum);
-    if (!wsum)
-        return RR_ERR_NOMEM;
-    for (size_t v = 0; v < P->nverts; v++)
-        per_vertex[v] = rr_rgb_make(0, 0, 0);
-    for (size_t k = 0; k < P->n; k++)
-        for (int e = 0; e < 3; e++) {
-            uint32_t v = P->p[k].v[e];
-            per_vertex[v] = rr_rgb_add(per_vertex[v], rr_rgb_scale(per_patch[k], P->p[k].area));
-            wsum[v] += P->p[k].area;
-        }
-    for (size_t v = 0; v < P->nverts; v++)
-        if (wsum[v] > 0)
-            per_vertex[v] = rr_rgb_scale(per_vertex[v], 1.0 / wsum[v]);
-    free(wsum);
-    return RR_OK;
+    for (size_t i = 0; i < s->nmaterials; i++)
+        if (rr_rgb_max(s->materials[i].mirror) > 0)
+            return 1;
+    return 0;
+}
+
+rad_method rad__pass_method(const scene *s, const rad_pass_opts *o, const rr_warn_sink *warn)
+{
+    rad_method m = o->use_scene_choices ? (s->radiosity.method == SCENE_RAD_FLAT ? RAD_METHOD_FLAT
+                                                                                 : RAD_METHOD_HIERARCHICAL)
+                                        : o->method;
+    if (m == RAD_METHOD_HIERARCHICAL && scene_has_mirrors(s)) {
+        /* Links through mirrors (virtual images) are not built yet; the flat
+         * Monte Carlo form factors carry them (extended form factors). */
+        if (warn)
+            rr_warn(warn, "%s: radiosity: the scene has mirrors: the flat method (Monte Carlo form factors through "
+                          "mirrors) is used instead of the hierarchical one",
+                    s->path);
+        m = RAD_METHOD_FLAT;
+    }
+    return m;
 }
 
 rr_status rad_pass_run(const scene *s, const rt_accel *a, const rad_pass_opts *o, rad_solution **out, rr_error *err)
@@ -157,6 +215,12 @@ rr_status rad_pass_run(const scene *s, const rt_accel *a, const rad_pass_opts *o
     if (!sol)
         return rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory", s->path);
     rr_status st;
+    if (rad__pass_method(s, o, &o->warn) == RAD_METHOD_HIERARCHICAL) {
+        if ((st = rad__hier_run(s, a, o, sol, err)) != RR_OK)
+            goto fail;
+        *out = sol;
+        return RR_OK;
+    }
     double t0 = rr_now_seconds();
     rad_patch_opts po = rad_pass_patch_limits(s, o);
     po.accel = a;
@@ -191,38 +255,10 @@ rr_status rad_pass_run(const scene *s, const rt_accel *a, const rad_pass_opts *o
         st = rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory for %zu patches", s->path, n);
         goto fail;
     }
-    rt_lights *L = NULL;
-    if ((st = rt_lights_build(s, a, s->settings.max_depth, &L, err)) != RR_OK) {
+    if ((st = rad__first_shots(s, a, sol, err)) != RR_OK) {
         free(Hind);
         goto fail;
     }
-    /* Chunks of patches, each summing its lights' landed power in patch
-     * order, reduced in chunk order: the same sums for any thread count. */
-    size_t nl = s->nlights, nchunks = (n + FIRST_SHOT_CHUNK - 1) / FIRST_SHOT_CHUNK;
-    rr_rgb *part = nl ? calloc(nchunks * nl, sizeof *part) : NULL;
-    sol->light_landed = calloc(nl ? nl : 1, sizeof *sol->light_landed);
-    if ((nl && !part) || !sol->light_landed) {
-        free(part);
-        free(Hind);
-        rt_lights_destroy(L);
-        st = rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory for %zu patches", s->path, n);
-        goto fail;
-    }
-#pragma omp parallel for schedule(dynamic, 1) if (nl > 0)
-    for (long c = 0; c < (long)nchunks; c++) {
-        size_t hi = ((size_t)c + 1) * FIRST_SHOT_CHUNK < n ? ((size_t)c + 1) * FIRST_SHOT_CHUNK : n;
-        for (size_t k = (size_t)c * FIRST_SHOT_CHUNK; k < hi; k++) {
-            rad_patch *p = &sol->P->p[k];
-            sol->emitted[k] = p->emission;
-            sol->first_shot[k] = nl ? first_shot(s, a, L, sol->P, k, part + (size_t)c * nl) : rr_rgb_make(0, 0, 0);
-            p->emission = rr_rgb_add(p->emission, rr_rgb_mul(p->rho, sol->first_shot[k]));
-        }
-    }
-    for (size_t c = 0; c < nchunks && nl; c++)
-        for (size_t l = 0; l < nl; l++)
-            sol->light_landed[l] = rr_rgb_add(sol->light_landed[l], part[c * nl + l]);
-    free(part);
-    rt_lights_destroy(L);
     if ((st = rad_solve(sol->P, sol->F, &so, sol->B, &sol->stats, err)) != RR_OK) {
         free(Hind);
         rr_error_prefix(err, "%s: radiosity", s->path);
@@ -244,7 +280,7 @@ rr_status rad_pass_run(const scene *s, const rt_accel *a, const rad_pass_opts *o
     /* Vertex values: mean of the patches around a vertex, weighted by area
      * (the classic display of Cohen & Greenberg; patches of one object share
      * vertices, so the interpolated image is continuous across the object). */
-    if (to_vertices(sol->P, sol->B, sol->vertex_B) != RR_OK || to_vertices(sol->P, Hind, sol->vertex_Hind) != RR_OK) {
+    if (rad__to_vertices(sol->P, sol->B, sol->vertex_B) != RR_OK || rad__to_vertices(sol->P, Hind, sol->vertex_Hind) != RR_OK) {
         free(Hind);
         st = rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory", s->path);
         goto fail;

@@ -13,4 +13,16 @@ rad_solution *rad__solution_new(const scene *s);
  * was allocated is freed by rad_solution_destroy). */
 int rad__solution_arrays(rad_solution *sol);
 
+/* The method the pass uses for s: o's (or the scene's), except that scenes
+ * with mirrors take the flat one (said through warn, which may be NULL). */
+rad_method rad__pass_method(const scene *s, const rad_pass_opts *o, const rr_warn_sink *warn);
+
+/* H0, the first shot of point and directional lights, on triangle corner[] of
+ * patch k of P (rad_pass.c); see there for landed, weight and spread. */
+rr_rgb rad__first_shot(const scene *s, const rt_accel *a, const rt_lights *L, const rad_patches *P, uint32_t k,
+                       const rr_vec3 corner[3], rr_rgb *landed, double weight, double *spread);
+/* Fills sol->emitted, first_shot and light_landed for the patches sol->P and
+ * adds rho H0 to each patch's emission (deterministic for any thread count). */
+rr_status rad__first_shots(const scene *s, const rt_accel *a, rad_solution *sol, rr_error *err);
+
 #endif

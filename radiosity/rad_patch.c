@@ -590,6 +590,10 @@ void rad_patches_destroy(rad_patches *P)
         for (size_t i = 0; i < P->nsolid; i++)
             free(P->solid[i].cell_first);
     free(P->solid);
+    rad_patches_destroy(P->roots);
+    free(P->qt);
+    free(P->root_qt);
+    free(P->mid);
     free(P);
 }
 
@@ -668,8 +672,45 @@ static uint32_t sphere_locate(const rad_patches *P, const scene *s, int64_t tri,
     return first + row + 2 * j + ((side_p > 0) == (side_b > 0) ? 0u : 1u);
 }
 
+/* The leaf of a hierarchical patch set under p: its root patch, then down the
+ * quadtree by barycentrics (b[] of the node's corners A, B, C). A corner child
+ * takes the points with b >= 1/2 at its corner, the middle child the rest;
+ * each step maps b to the child's corners (rad.h, rad_patches.qt). */
+static uint32_t hier_locate(const rad_patches *P, const scene *s, int64_t tri, uint32_t obj, rr_vec3 p)
+{
+    const rad_patches *R = P->roots;
+    rt_prim_kind kind = tri >= 0 ? RT_PRIM_TRIANGLE : rt_prim_kind_of(s, obj);
+    uint32_t r = k_patch_kinds[kind].locate(R, s, tri, obj, p);
+    if (r >= R->n)
+        return UINT32_MAX;
+    double b[3];
+    rad_patch_barycentric(R, r, p, b);
+    uint32_t e = P->root_qt[r];
+    while (!(e & RAD_QT_LEAF)) {
+        int c = 3;
+        double best = 0.5;
+        for (int k = 0; k < 3; k++)
+            if (b[k] >= best) {
+                best = b[k];
+                c = k;
+            }
+        if (c < 3) {
+            for (int k = 0; k < 3; k++)
+                b[k] = k == c ? 2.0 * b[k] - 1.0 : 2.0 * b[k];
+        } else {
+            /* The middle child's corners are the midpoints bc, ca, ab. */
+            for (int k = 0; k < 3; k++)
+                b[k] = 1.0 - 2.0 * b[k];
+        }
+        e = P->qt[4 * (size_t)e + (size_t)c];
+    }
+    return e & ~RAD_QT_LEAF;
+}
+
 uint32_t rad_patch_locate(const rad_patches *P, const scene *s, int64_t tri, uint32_t obj, rr_vec3 p)
 {
+    if (P->roots)
+        return hier_locate(P, s, tri, obj, p);
     rt_prim_kind k = tri >= 0 ? RT_PRIM_TRIANGLE : rt_prim_kind_of(s, obj);
     return k_patch_kinds[k].locate(P, s, tri, obj, p);
 }

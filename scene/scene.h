@@ -173,6 +173,8 @@ typedef struct scene_settings {
 /* The radiosity pass ("radiosity" block; notes/scene-format.md). */
 typedef enum scene_rad_solver { SCENE_RAD_AUTO = 0, SCENE_RAD_DIRECT = 1, SCENE_RAD_ITERATIVE = 2 } scene_rad_solver;
 typedef enum scene_rad_ff { SCENE_FF_MONTE_CARLO = 0, SCENE_FF_QUADRATURE = 1 } scene_rad_ff;
+typedef enum scene_rad_method { SCENE_RAD_HIERARCHICAL = 0, SCENE_RAD_FLAT = 1 } scene_rad_method;
+#define SCENE_RAD_DEFAULT_METHOD SCENE_RAD_FLAT
 
 typedef struct scene_radiosity {
     double patch_area;      /* largest patch area; 0 = automatic (surface area / 2000) */
@@ -181,6 +183,10 @@ typedef struct scene_radiosity {
     scene_rad_ff form_factors; /* default Monte Carlo */
     int ff_samples;         /* rays (Monte Carlo) or points (quadrature) per patch, default 512 */
     double tolerance;       /* iterative solver: relative residual, default 1e-9 */
+    scene_rad_method method; /* hierarchical or flat (SCENE_RAD_DEFAULT_METHOD) */
+    double refine_tolerance; /* hierarchical: link error over emitted power, default 1e-4 */
+    double min_area;        /* hierarchical: smallest element; 0 = automatic */
+    double max_links;       /* hierarchical: links at most, default 1e8 */
 } scene_radiosity;
 
 /* The camera as the file gave it (view is always the lecture's form). */

@@ -189,7 +189,8 @@ rr_status sp_parse_render(const sp_ctx *c, const cJSON *root, scene *s)
 /* ---- radiosity settings ---- */
 
 static const char *const k_radiosity[] = {"patch_area", "patch_edge", "solver", "form_factors",
-                                          "ff_samples", "tolerance",  NULL};
+                                          "ff_samples", "tolerance",  "method",
+                                          "refine_tolerance", "min_area", "max_links", NULL};
 
 /* Looks a string value up in names (NULL-terminated); missing keeps *out. */
 static rr_status parse_choice(const sp_ctx *c, const cJSON *obj, const char *path, const char *key,
@@ -221,12 +222,16 @@ rr_status sp_parse_radiosity(const sp_ctx *c, const cJSON *root, scene *s)
     memset(r, 0, sizeof *r);
     r->ff_samples = 512;
     r->tolerance = 1e-9;
+    r->method = SCENE_RAD_DEFAULT_METHOD;
+    r->refine_tolerance = 1e-4;
+    r->max_links = 100e6;
     const cJSON *v = sp_get(root, "radiosity");
     if (!v)
         return RR_OK;
     static const char *const solvers[] = {"auto", "direct", "iterative", NULL};
     static const char *const ffs[] = {"montecarlo", "quadrature", NULL};
-    int solver = 0, ff = 0;
+    static const char *const methods[] = {"hierarchical", "flat", NULL};
+    int solver = 0, ff = 0, method = (int)r->method;
     double samples = r->ff_samples;
     rr_status st;
     if ((st = sp_check_object(c, v, "radiosity", k_radiosity)) != RR_OK ||
@@ -237,8 +242,14 @@ rr_status sp_parse_radiosity(const sp_ctx *c, const cJSON *root, scene *s)
         (st = parse_choice(c, v, "radiosity", "solver", solvers, &solver)) != RR_OK ||
         (st = parse_choice(c, v, "radiosity", "form_factors", ffs, &ff)) != RR_OK ||
         (st = sp_int(c, v, "radiosity", "ff_samples", SP_OPTIONAL, 1, 1 << 20, &samples)) != RR_OK ||
-        (st = sp_number_range(c, v, "radiosity", "tolerance", SP_OPTIONAL, 1e-15, 0.1, &r->tolerance)) != RR_OK)
+        (st = sp_number_range(c, v, "radiosity", "tolerance", SP_OPTIONAL, 1e-15, 0.1, &r->tolerance)) != RR_OK ||
+        (st = parse_choice(c, v, "radiosity", "method", methods, &method)) != RR_OK ||
+        (st = sp_number_range(c, v, "radiosity", "refine_tolerance", SP_OPTIONAL, 1e-12, 1.0, &r->refine_tolerance)) !=
+            RR_OK ||
+        (st = sp_number_range(c, v, "radiosity", "min_area", SP_OPTIONAL, 1e-300, INFINITY, &r->min_area)) != RR_OK ||
+        (st = sp_int(c, v, "radiosity", "max_links", SP_OPTIONAL, 1000, 4e9, &r->max_links)) != RR_OK)
         return st;
+    r->method = (scene_rad_method)method;
     r->solver = (scene_rad_solver)solver;
     r->form_factors = (scene_rad_ff)ff;
     r->ff_samples = (int)samples;

@@ -1,0 +1,1347 @@
+/* rad_hier.c - hierarchical radiosity with clustering, the radiosity pass's
+ * method "hierarchical" (opt-in: the flat one is still the default) (Hanrahan, Salzman & Aupperle 1991; clusters after
+ * Smits, Arvo & Greenberg 1994 and Sillion 1995). notes/radiosity.md has the
+ * design and the measurements.
+ *
+ * Elements. Every patch of a coarse patch set (the roots: the scene's
+ * triangles, spheres and solids tessellated at 16x the flat method's patch
+ * area) is the root of a quadtree of elements, split on demand into four
+ * similar triangles (corners A, B, C, then the middle).
+ *
+ * Clusters. A binary bounding-volume hierarchy over the roots (median split
+ * of the centroids on the longest axis). A cluster shoots with the intensity
+ * I(u) = (1/pi) sum_a |u_a| D[a, sign u_a], D its power split over the six
+ * axis directions by its surfaces' normals (pull_cl), and receives irradiance
+ * per axis direction, which each element under it reads with its own normal
+ * (push_cl): both exact for surfaces facing along the axes, approximate for
+ * tilted ones. Links start from the top cluster's self-link, so the first
+ * linking is not quadratic in the number of surfaces.
+ *
+ * Links and the oracle (BF refinement). A link r <- s gathers the radiosity of
+ * s into the irradiance of r. It is refined while the power it may carry,
+ * rho_max(r) A_r Fhat(r, s) B_s (Fhat an upper estimate of the form factor),
+ * exceeds eps = tolerance x the power emitted in the scene, by splitting the
+ * larger of the two (elements stop at min_area). A link whose rays see the
+ * source partly (0 < V < 1) is split further while that power exceeds eps / 8.
+ * Rounds: link with the emission, solve, re-link with the solved radiosity
+ * (what was kept is re-tested), solve again.
+ *
+ * Transport of a link, per channel (d the distance of the centres, w the unit
+ * direction from r to s, V the share of 4 shadow rays that pass, q = 1 / (d^2
+ * + A_s / pi), the disc formula that saturates for near nodes):
+ *   element <- element: F = mean over 4 points x of r (36 for near pairs) of
+ *                       F_point(x, s clipped to r's front) V(x), Lambert's
+ *                       contour integral (rad_ff_point_polygon); H_r += F B_s
+ *   element <- cluster: H_r += V q cos_r I_s(-w)
+ *   cluster <- element: R_r += V q A_s cos_s / pi B_s, split over w's axes
+ *   cluster <- cluster: R_r += V q I_s(-w), split over w's axes
+ * The shadow rays start at fixed points of an element (or at points of a
+ * cluster's surfaces drawn by area) and end at points drawn from the link's
+ * own stream rr_rng_make(seed, (r << 32) | s).
+ *
+ * Solving: Jacobi sweeps of gather (every link, receivers in parallel, each
+ * receiver's links in one fixed order) and push-pull (irradiance down to the
+ * leaves, B = E + rho k H there, radiosity back up as area means, power up
+ * the clusters) until the largest change is under the solver tolerance.
+ *
+ * Row sums. A leaf's share of the hemisphere that its links cover, sigma, is
+ * what a gather of B = 1 everywhere gives it. Where 16 cosine-distributed
+ * rays from the leaf all land on fronts of surfaces, the leaf sees a closed
+ * part of the scene, whose true share is 1: k = 1 / sigma there (so a closed
+ * furnace is exact), k = 1 elsewhere.
+ *
+ * Determinism: refinement is serial; links are evaluated in parallel, each
+ * from its own stream; sums run in a fixed order. The same result for any
+ * thread count, bit for bit.
+ */
+#include <omp.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "rad_hier_internal.h"
+#include "rad_pass_internal.h"
+#include "rad_ff_internal.h"
+
+#define NONE UINT32_MAX
+#define CLB 0x80000000u /* node reference: cluster bit */
+#define CL(x) ((x) & ~CLB)
+#define CLOSED_RAYS 16
+#define VIS_RAYS 4
+#define MAX_ROUNDS 3
+#define VIS_SHARE 0.125 /* partly visible links are split down to eps times this */
+
+/* ---- a small hash map: uint64 key -> uint32 value (open addressing) ---- */
+
+typedef struct hmap {
+    uint64_t *key;
+    uint32_t *val;
+    size_t cap; /* power of two */
+    size_t n;
+} hmap;
+
+static int hmap_init(hmap *m, size_t expect)
+{
+    m->cap = 16;
+    while (m->cap < 2 * expect + 16)
+        m->cap *= 2;
+    m->n = 0;
+    m->key = malloc(m->cap * sizeof *m->key);
+    m->val = malloc(m->cap * sizeof *m->val);
+    if (!m->key || !m->val)
+        return -1;
+    memset(m->key, 0xff, m->cap * sizeof *m->key);
+    return 0;
+}
+
+static void hmap_free(hmap *m)
+{
+    free(m->key);
+    free(m->val);
+}
+
+static size_t hmap_slot(const hmap *m, uint64_t k)
+{
+    size_t i = (size_t)rr_hash64(k) & (m->cap - 1);
+    while (m->key[i] != UINT64_MAX && m->key[i] != k)
+        i = (i + 1) & (m->cap - 1);
+    return i;
+}
+
+/* The value of k, or NONE. */
+static uint32_t hmap_get(const hmap *m, uint64_t k)
+{
+    size_t i = hmap_slot(m, k);
+    return m->key[i] == k ? m->val[i] : NONE;
+}
+
+static int hmap_put(hmap *m, uint64_t k, uint32_t v)
+{
+    if (2 * (m->n + 1) > m->cap) {
+        hmap old = *m;
+        m->cap *= 2;
+        m->n = 0;
+        m->key = malloc(m->cap * sizeof *m->key);
+        m->val = malloc(m->cap * sizeof *m->val);
+        if (!m->key || !m->val) {
+            free(m->key);
+            free(m->val);
+            *m = old;
+            return -1;
+        }
+        memset(m->key, 0xff, m->cap * sizeof *m->key);
+        for (size_t i = 0; i < old.cap; i++)
+            if (old.key[i] != UINT64_MAX) {
+                size_t j = hmap_slot(m, old.key[i]);
+                m->key[j] = old.key[i];
+                m->val[j] = old.val[i];
+                m->n++;
+            }
+        hmap_free(&old);
+    }
+    size_t i = hmap_slot(m, k);
+    if (m->key[i] != k) {
+        m->key[i] = k;
+        m->n++;
+    }
+    m->val[i] = v;
+    return 0;
+}
+
+static uint64_t edge_key(uint32_t a, uint32_t b)
+{
+    return a < b ? ((uint64_t)a << 32) | b : ((uint64_t)b << 32) | a;
+}
+
+/* ---- the leaves as a patch set ---- */
+
+rr_status rad__hier_leaves(rad_patches *roots, const rad_split_bits *bits, rad_patches **out, rr_error *err)
+{
+    rad_patches *P = calloc(1, sizeof *P);
+    size_t nr = roots->n, nsplit = 0;
+    for (size_t i = 0; i < bits->n; i++)
+        nsplit += bits->bit[i] != 0;
+    /* A tree of nr roots with nsplit splits has nr + 4 nsplit nodes. */
+    if (!P || bits->n != nr + 4 * nsplit) {
+        free(P);
+        rad_patches_destroy(roots);
+        return P ? rr_error_set(err, RR_ERR_INVALID, "radiosity: the element tree does not fit the patches")
+                 : rr_error_set(err, RR_ERR_NOMEM, "radiosity: out of memory for the element tree");
+    }
+    P->roots = roots;
+    size_t nleaf = bits->n - nsplit, nv = roots->nverts + 3 * nsplit;
+    P->p = malloc((nleaf ? nleaf : 1) * sizeof *P->p);
+    P->verts = malloc((nv ? nv : 1) * sizeof *P->verts);
+    P->qt = malloc((4 * nsplit + 1) * sizeof *P->qt);
+    P->root_qt = malloc((nr ? nr : 1) * sizeof *P->root_qt);
+    P->mid = malloc((6 * nsplit + 1) * sizeof *P->mid);
+    /* The breadth-first queue: (corner vertices, depth, root, where its entry goes). */
+    typedef struct qitem {
+        uint32_t v[3], depth, root;
+        uint32_t *slot;
+    } qitem;
+    qitem *q = malloc((bits->n ? bits->n : 1) * sizeof *q);
+    hmap mids;
+    int ok = P->p && P->verts && P->qt && P->root_qt && P->mid && q && hmap_init(&mids, 3 * nsplit) == 0;
+    if (!ok) {
+        free(q);
+        rad_patches_destroy(P);
+        return rr_error_set(err, RR_ERR_NOMEM, "radiosity: out of memory for %zu elements", bits->n);
+    }
+    memcpy(P->verts, roots->verts, roots->nverts * sizeof *P->verts);
+    P->nverts = roots->nverts;
+    for (size_t r = 0; r < nr; r++)
+        q[r] = (qitem){{roots->p[r].v[0], roots->p[r].v[1], roots->p[r].v[2]}, 0, (uint32_t)r, &P->root_qt[r]};
+    size_t head = 0, tail = nr;
+    for (; head < tail && ok; head++) {
+        qitem it = q[head];
+        const rad_patch *rp = &roots->p[it.root];
+        if (!bits->bit[head]) {
+            rad_patch *lp = &P->p[P->n];
+            *lp = *rp;
+            memcpy(lp->v, it.v, sizeof lp->v);
+            lp->area = ldexp(rp->area, -2 * (int)it.depth);
+            lp->centroid = rr_v3_scale(
+                rr_v3_add(P->verts[it.v[0]], rr_v3_add(P->verts[it.v[1]], P->verts[it.v[2]])), 1.0 / 3.0);
+            *it.slot = RAD_QT_LEAF | (uint32_t)P->n++;
+            continue;
+        }
+        uint32_t m[3]; /* midpoints of the edges ab, bc, ca */
+        for (int e = 0; e < 3 && ok; e++) {
+            uint32_t a = it.v[e], b = it.v[(e + 1) % 3];
+            uint32_t v = hmap_get(&mids, edge_key(a, b));
+            if (v == NONE) {
+                v = (uint32_t)P->nverts++;
+                P->verts[v] = rr_v3_scale(rr_v3_add(P->verts[a], P->verts[b]), 0.5);
+                P->mid[2 * (v - roots->nverts)] = a;
+                P->mid[2 * (v - roots->nverts) + 1] = b;
+                ok = hmap_put(&mids, edge_key(a, b), v) == 0;
+            }
+            m[e] = v;
+        }
+        uint32_t node = (uint32_t)P->nqt++;
+        *it.slot = node;
+        const uint32_t ch[4][3] = {
+            {it.v[0], m[0], m[2]}, {m[0], it.v[1], m[1]}, {m[2], m[1], it.v[2]}, {m[1], m[2], m[0]}};
+        for (int c = 0; c < 4; c++)
+            q[tail++] = (qitem){{ch[c][0], ch[c][1], ch[c][2]}, it.depth + 1, it.root, &P->qt[4 * (size_t)node + c]};
+    }
+    free(q);
+    hmap_free(&mids);
+    if (!ok) {
+        rad_patches_destroy(P);
+        return rr_error_set(err, RR_ERR_NOMEM, "radiosity: out of memory for %zu elements", bits->n);
+    }
+    *out = P;
+    return RR_OK;
+}
+
+int rad__hier_bits(const rad_patches *P, rad_split_bits *bits)
+{
+    size_t n = P->roots->n + 4 * P->nqt;
+    uint32_t *q = malloc((n ? n : 1) * sizeof *q);
+    bits->bit = malloc(n ? n : 1);
+    bits->n = n;
+    if (!q || !bits->bit) {
+        free(q);
+        free(bits->bit);
+        bits->bit = NULL;
+        return -1;
+    }
+    size_t tail = 0;
+    for (size_t r = 0; r < P->roots->n; r++)
+        q[tail++] = P->root_qt[r];
+    for (size_t head = 0; head < tail; head++) {
+        uint32_t e = q[head];
+        bits->bit[head] = !(e & RAD_QT_LEAF);
+        if (!(e & RAD_QT_LEAF))
+            for (int c = 0; c < 4; c++)
+                q[tail++] = P->qt[4 * (size_t)e + c];
+    }
+    free(q);
+    return 0;
+}
+
+rr_status rad__to_vertices(const rad_patches *P, const rr_rgb *per_patch, rr_rgb *per_vertex)
+{
+    double *wsum = calloc(P->nverts ? P->nverts : 1, sizeof *wsum);
+    if (!wsum)
+        return RR_ERR_NOMEM;
+    for (size_t v = 0; v < P->nverts; v++)
+        per_vertex[v] = rr_rgb_make(0, 0, 0);
+    for (size_t k = 0; k < P->n; k++)
+        for (int e = 0; e < 3; e++) {
+            uint32_t v = P->p[k].v[e];
+            per_vertex[v] = rr_rgb_add(per_vertex[v], rr_rgb_scale(per_patch[k], P->p[k].area));
+            wsum[v] += P->p[k].area;
+        }
+    for (size_t v = 0; v < P->nverts; v++)
+        if (wsum[v] > 0)
+            per_vertex[v] = rr_rgb_scale(per_vertex[v], 1.0 / wsum[v]);
+    free(wsum);
+    if (!P->roots)
+        return RR_OK;
+    /* T-vertices: a midpoint of an edge that is also a whole edge of some
+     * leaf takes the mean of the edge's ends, coarse to fine (midpoints are
+     * numbered in that order), so both sides of the edge interpolate alike. */
+    hmap edges;
+    if (hmap_init(&edges, 3 * P->n) != 0)
+        return RR_ERR_NOMEM;
+    for (size_t k = 0; k < P->n; k++)
+        for (int e = 0; e < 3; e++)
+            if (hmap_put(&edges, edge_key(P->p[k].v[e], P->p[k].v[(e + 1) % 3]), 1) != 0) {
+                hmap_free(&edges);
+                return RR_ERR_NOMEM;
+            }
+    for (size_t v = P->roots->nverts; v < P->nverts; v++) {
+        uint32_t a = P->mid[2 * (v - P->roots->nverts)], b = P->mid[2 * (v - P->roots->nverts) + 1];
+        if (hmap_get(&edges, edge_key(a, b)) != NONE)
+            per_vertex[v] = rr_rgb_scale(rr_rgb_add(per_vertex[a], per_vertex[b]), 0.5);
+    }
+    hmap_free(&edges);
+    return RR_OK;
+}
+
+/* ---- the solver's hierarchy ---- */
+
+typedef struct hel {
+    rr_vec3 c[3], ctr;
+    double area, radius;
+    uint32_t root, child, depth;
+    int closed;     /* leaf: its closedness rays all landed on fronts */
+    int fresh;      /* leaf data (first shot, closedness) still to compute */
+    double spread;  /* leaf: the first shot's largest difference between its points */
+    rr_rgb B, src, H, Hc, E, H0;
+    double k;       /* leaf: row-sum scale */
+} hel;
+
+typedef struct hcl {
+    rr_vec3 lo, hi, ctr;
+    double radius, area, rho_max;
+    uint32_t child[2]; /* node references */
+    rr_rgb P;          /* power of the current source values */
+    double D[3][6];    /* per channel, that power split over the six axis directions
+                          (+x, -x, +y, -y, +z, -z) by its surfaces' normals (axis_weights) */
+    double Rv[3][6];   /* gathered irradiance per channel and axis direction */
+} hcl;
+
+/* A unit vector's six axis weights: w[2a] = max(0, n_a), w[2a+1] = max(0, -n_a). */
+static void axis_split(rr_vec3 n, double w[6])
+{
+    double v[3] = {n.x, n.y, n.z};
+    for (int a = 0; a < 3; a++) {
+        w[2 * a] = v[a] > 0 ? v[a] : 0.0;
+        w[2 * a + 1] = v[a] < 0 ? -v[a] : 0.0;
+    }
+}
+
+typedef struct hlink {
+    uint32_t r, s;
+    float g, vis;
+    float w[3];
+} hlink;
+
+typedef struct hctx {
+    const scene *s;
+    const rt_accel *a;
+    const rad_patches *R;
+    const rt_lights *L;
+    hel *el;
+    size_t nel, capel;
+    hcl *cl;
+    size_t ncl;
+    uint32_t top;
+    uint32_t *roots; /* root element of each root patch (element index = root index) */
+    hlink *ln;
+    size_t nln, capln, first_new;
+    double eps, min_area;
+    size_t max_links;
+    int capped, nomem;
+    double ext, plane_tol;
+    uint64_t seed;
+    const volatile sig_atomic_t *interrupt;
+} hctx;
+
+static int interrupted(const hctx *c) { return c->interrupt && *c->interrupt; }
+
+static rr_vec3 el_normal(const hctx *c, uint32_t e) { return c->R->p[c->el[e].root].normal; }
+static rr_rgb el_rho(const hctx *c, uint32_t e) { return c->R->p[c->el[e].root].rho; }
+
+static double node_area(const hctx *c, uint32_t x) { return x & CLB ? c->cl[CL(x)].area : c->el[x].area; }
+static double node_radius(const hctx *c, uint32_t x) { return x & CLB ? c->cl[CL(x)].radius : c->el[x].radius; }
+static rr_vec3 node_ctr(const hctx *c, uint32_t x) { return x & CLB ? c->cl[CL(x)].ctr : c->el[x].ctr; }
+static double node_rho(const hctx *c, uint32_t x)
+{
+    return x & CLB ? c->cl[CL(x)].rho_max : rr_rgb_max(el_rho(c, x));
+}
+/* The largest channel of the mean radiosity the node shoots. */
+static double node_B(const hctx *c, uint32_t x)
+{
+    if (x & CLB) {
+        const hcl *k = &c->cl[CL(x)];
+        return k->area > 0 ? rr_rgb_max(k->P) / k->area : 0.0;
+    }
+    return rr_rgb_max(c->el[x].B);
+}
+static int splittable(const hctx *c, uint32_t x) { return (x & CLB) || c->el[x].area * 0.25 >= c->min_area; }
+
+static uint32_t el_add(hctx *c, const rr_vec3 v[3], uint32_t root, uint32_t depth)
+{
+    if (c->nel == c->capel) {
+        size_t cap = c->capel ? 2 * c->capel : 1024;
+        hel *n = cap < UINT32_MAX / 2 ? realloc(c->el, cap * sizeof *n) : NULL;
+        if (!n) {
+            c->nomem = 1;
+            return NONE;
+        }
+        c->el = n;
+        c->capel = cap;
+    }
+    hel *e = &c->el[c->nel];
+    memset(e, 0, sizeof *e);
+    memcpy(e->c, v, sizeof e->c);
+    e->ctr = rr_v3_scale(rr_v3_add(v[0], rr_v3_add(v[1], v[2])), 1.0 / 3.0);
+    for (int k = 0; k < 3; k++)
+        e->radius = fmax(e->radius, rr_v3_len(rr_v3_sub(v[k], e->ctr)));
+    e->area = ldexp(c->R->p[root].area, -2 * (int)depth);
+    e->root = root;
+    e->child = NONE;
+    e->depth = depth;
+    e->fresh = 1;
+    e->k = 1.0;
+    return (uint32_t)c->nel++;
+}
+
+/* Element x's four children (made once); 0, or -1 when out of memory. */
+static int el_split(hctx *c, uint32_t x)
+{
+    if (c->el[x].child != NONE)
+        return 0;
+    rr_vec3 A = c->el[x].c[0], B = c->el[x].c[1], C = c->el[x].c[2];
+    rr_vec3 ab = rr_v3_scale(rr_v3_add(A, B), 0.5), bc = rr_v3_scale(rr_v3_add(B, C), 0.5),
+            ca = rr_v3_scale(rr_v3_add(C, A), 0.5);
+    const rr_vec3 ch[4][3] = {{A, ab, ca}, {ab, B, bc}, {ca, bc, C}, {bc, ca, ab}};
+    uint32_t first = NONE;
+    for (int k = 0; k < 4; k++) {
+        uint32_t e = el_add(c, ch[k], c->el[x].root, c->el[x].depth + 1);
+        if (e == NONE)
+            return -1;
+        if (k == 0)
+            first = e;
+        c->el[e].B = c->el[x].B;
+    }
+    c->el[x].child = first;
+    return 0;
+}
+
+/* ---- clusters ---- */
+
+typedef struct ritem {
+    uint32_t e;
+    double key;
+} ritem;
+
+static int cmp_ritem(const void *a, const void *b)
+{
+    const ritem *x = a, *y = b;
+    if (x->key != y->key)
+        return x->key < y->key ? -1 : 1;
+    return x->e < y->e ? -1 : (x->e > y->e);
+}
+
+static uint32_t cluster_build(hctx *c, ritem *it, size_t n)
+{
+    if (n == 1)
+        return it[0].e;
+    rr_vec3 lo = rr_v3(INFINITY, INFINITY, INFINITY), hi = rr_v3(-INFINITY, -INFINITY, -INFINITY);
+    for (size_t i = 0; i < n; i++)
+        for (int k = 0; k < 3; k++) {
+            lo = rr_v3_min(lo, c->el[it[i].e].c[k]);
+            hi = rr_v3_max(hi, c->el[it[i].e].c[k]);
+        }
+    rr_vec3 d = rr_v3_sub(hi, lo);
+    int axis = d.x >= d.y && d.x >= d.z ? 0 : (d.y >= d.z ? 1 : 2);
+    for (size_t i = 0; i < n; i++) {
+        rr_vec3 m = c->el[it[i].e].ctr;
+        it[i].key = axis == 0 ? m.x : (axis == 1 ? m.y : m.z);
+    }
+    qsort(it, n, sizeof *it, cmp_ritem);
+    uint32_t id = (uint32_t)c->ncl++;
+    uint32_t a = cluster_build(c, it, n / 2), b = cluster_build(c, it + n / 2, n - n / 2);
+    hcl *k = &c->cl[id];
+    k->lo = lo;
+    k->hi = hi;
+    k->ctr = rr_v3_scale(rr_v3_add(lo, hi), 0.5);
+    k->radius = 0.5 * rr_v3_len(d);
+    k->child[0] = a;
+    k->child[1] = b;
+    k->area = node_area(c, a) + node_area(c, b);
+    k->rho_max = fmax(node_rho(c, a), node_rho(c, b));
+    return id | CLB;
+}
+
+/* ---- refinement ---- */
+
+static double plane_side_max(const rr_vec3 *pts, int n, rr_vec3 nrm, rr_vec3 p0)
+{
+    double m = -INFINITY;
+    for (int k = 0; k < n; k++)
+        m = fmax(m, rr_v3_dot(nrm, rr_v3_sub(pts[k], p0)));
+    return m;
+}
+
+static void node_points(const hctx *c, uint32_t x, rr_vec3 pts[8], int *n)
+{
+    if (x & CLB) {
+        const hcl *k = &c->cl[CL(x)];
+        for (int i = 0; i < 8; i++)
+            pts[i] = rr_v3(i & 1 ? k->hi.x : k->lo.x, i & 2 ? k->hi.y : k->lo.y, i & 4 ? k->hi.z : k->lo.z);
+        *n = 8;
+    } else {
+        memcpy(pts, c->el[x].c, 3 * sizeof *pts);
+        *n = 3;
+    }
+}
+
+/* r and s cannot exchange light: one lies wholly behind the other's plane. */
+static int culled(const hctx *c, uint32_t r, uint32_t s)
+{
+    rr_vec3 pts[8];
+    int n;
+    if (!(r & CLB)) {
+        node_points(c, s, pts, &n);
+        if (plane_side_max(pts, n, el_normal(c, r), c->el[r].ctr) <= c->plane_tol)
+            return 1;
+    }
+    if (!(s & CLB)) {
+        node_points(c, r, pts, &n);
+        if (plane_side_max(pts, n, el_normal(c, s), c->el[s].ctr) <= c->plane_tol)
+            return 1;
+    }
+    return 0;
+}
+
+/* An upper estimate of the form factor from r to s: a disc of s's area at
+ * the centres' distance, with cosines raised by the nodes' angular size. */
+static double ff_estimate(const hctx *c, uint32_t r, uint32_t s)
+{
+    rr_vec3 d = rr_v3_sub(node_ctr(c, s), node_ctr(c, r));
+    double L = rr_v3_len(d), As = node_area(c, s);
+    double spread = L > 0 ? (node_radius(c, r) + node_radius(c, s)) / L : 1.0;
+    double cr = 1.0, cs = 1.0;
+    if (!(r & CLB) && L > 0)
+        cr = fmin(1.0, fmax(0.0, rr_v3_dot(el_normal(c, r), d) / L) + spread);
+    if (!(s & CLB) && L > 0)
+        cs = fmin(1.0, fmax(0.0, -rr_v3_dot(el_normal(c, s), d) / L) + spread);
+    return As * cr * cs / (RR_PI * L * L + As);
+}
+
+static double link_power(const hctx *c, uint32_t r, uint32_t s)
+{
+    return node_rho(c, r) * node_area(c, r) * ff_estimate(c, r, s) * node_B(c, s);
+}
+
+static void link_add(hctx *c, uint32_t r, uint32_t s)
+{
+    if (c->nln == c->capln) {
+        size_t cap = c->capln ? 2 * c->capln : 4096;
+        hlink *n = realloc(c->ln, cap * sizeof *n);
+        if (!n) {
+            c->nomem = 1;
+            return;
+        }
+        c->ln = n;
+        c->capln = cap;
+    }
+    hlink *l = &c->ln[c->nln++];
+    memset(l, 0, sizeof *l);
+    l->r = r;
+    l->s = s;
+    l->g = NAN; /* evaluated later (eval_links) */
+}
+
+static void refine(hctx *c, uint32_t r, uint32_t s);
+
+/* Splits r or s (the larger that can be split) and refines the children's
+ * links; 0 when neither can be split. */
+static int split_link(hctx *c, uint32_t r, uint32_t s)
+{
+    int sr = splittable(c, r), ss = splittable(c, s);
+    if (!sr && !ss)
+        return 0;
+    int side = sr && ss ? node_radius(c, s) > node_radius(c, r) : ss;
+    uint32_t x = side ? s : r;
+    uint32_t kids[4];
+    int nk;
+    if (x & CLB) {
+        kids[0] = c->cl[CL(x)].child[0];
+        kids[1] = c->cl[CL(x)].child[1];
+        nk = 2;
+    } else {
+        if (el_split(c, x) != 0)
+            return 1;
+        for (int k = 0; k < 4; k++)
+            kids[k] = c->el[x].child + (uint32_t)k;
+        nk = 4;
+    }
+    for (int k = 0; k < nk && !c->nomem; k++) {
+        if (side)
+            refine(c, r, kids[k]);
+        else
+            refine(c, kids[k], s);
+    }
+    return 1;
+}
+
+static void refine(hctx *c, uint32_t r, uint32_t s)
+{
+    if (c->nomem)
+        return;
+    if (r == s) {
+        if (!(r & CLB))
+            return; /* a planar element does not see itself */
+        uint32_t a = c->cl[CL(r)].child[0], b = c->cl[CL(r)].child[1];
+        refine(c, a, a);
+        refine(c, a, b);
+        refine(c, b, a);
+        refine(c, b, b);
+        return;
+    }
+    if (culled(c, r, s))
+        return;
+    if (c->nln >= c->max_links)
+        c->capped = 1;
+    else if (link_power(c, r, s) > c->eps && split_link(c, r, s))
+        return;
+    link_add(c, r, s);
+}
+
+/* ---- link evaluation ---- */
+
+static const double k_pts[4][3] = {
+    {1. / 3, 1. / 3, 1. / 3}, {2. / 3, 1. / 6, 1. / 6}, {1. / 6, 2. / 3, 1. / 6}, {1. / 6, 1. / 6, 2. / 3}};
+
+static rr_vec3 tri_at(const rr_vec3 v[3], double a, double b, double g)
+{
+    return rr_v3_add(rr_v3_add(rr_v3_scale(v[0], a), rr_v3_scale(v[1], b)), rr_v3_scale(v[2], g));
+}
+
+static rr_vec3 tri_random(const rr_vec3 v[3], rr_rng *rng)
+{
+    double u = rr_rng_uniform(rng), w = rr_rng_uniform(rng);
+    if (u + w > 1.0) {
+        u = 1.0 - u;
+        w = 1.0 - w;
+    }
+    return tri_at(v, 1.0 - u - w, u, w);
+}
+
+/* A point on the surfaces of node x for a shadow ray: element points are the
+ * fixed pattern (k_pts[k]) when fixed, else random; a cluster's come from a
+ * root drawn by area. xs on the true surface, ns its normal. */
+static void node_sample(const hctx *c, uint32_t x, int k, int fixed, rr_rng *rng, rr_vec3 *xs, rr_vec3 *ns)
+{
+    while (x & CLB) {
+        const hcl *q = &c->cl[CL(x)];
+        double a0 = node_area(c, q->child[0]);
+        x = rr_rng_uniform(rng) * q->area < a0 ? q->child[0] : q->child[1];
+    }
+    const hel *e = &c->el[x];
+    rr_vec3 p = fixed ? tri_at(e->c, k_pts[k][0], k_pts[k][1], k_pts[k][2]) : tri_random(e->c, rng);
+    rad_patch_surface(c->R, c->s, c->a, e->root, p, xs, ns);
+}
+
+/* The share of VIS_RAYS shadow rays between r and s that pass. */
+static double visibility(const hctx *c, uint32_t r, uint32_t s, rr_rng *rng)
+{
+    int pass = 0;
+    for (int k = 0; k < VIS_RAYS; k++) {
+        rr_vec3 x, nx, y, ny;
+        node_sample(c, r, k, !(r & CLB), rng, &x, &nx);
+        node_sample(c, s, k, 0, rng, &y, &ny);
+        rr_vec3 d = rr_v3_sub(y, x);
+        rr_vec3 o = rt_offset_origin(c->ext, x, nx, d), t = rt_offset_origin(c->ext, y, ny, rr_v3_neg(d));
+        rr_ray ray = {o, rr_v3_sub(t, o)};
+        pass += !rt_accel_occluded(c->a, ray, 0.0, RT_SHADOW_END);
+    }
+    return (double)pass / VIS_RAYS;
+}
+
+/* The quadrature points of an element, as barycentrics: the 4 of k_pts, or
+ * for near pairs the centroids of the NEAR_M^2 similar sub-triangles. */
+#define NEAR_M 6
+#define NEAR_N (NEAR_M * NEAR_M)
+static int quad_points(int near, double (*b)[3])
+{
+    if (!near) {
+        memcpy(b, k_pts, sizeof k_pts);
+        return 4;
+    }
+    int n = 0;
+    for (int j = 0; j < NEAR_M; j++)
+        for (int i = 0; i + j < NEAR_M; i++) {
+            double u = (i + 1.0 / 3.0) / NEAR_M, v = (j + 1.0 / 3.0) / NEAR_M;
+            b[n][0] = 1.0 - u - v, b[n][1] = u, b[n][2] = v, n++;
+            if (i + j + 1 < NEAR_M) {
+                u = (i + 2.0 / 3.0) / NEAR_M, v = (j + 2.0 / 3.0) / NEAR_M;
+                b[n][0] = 1.0 - u - v, b[n][1] = u, b[n][2] = v, n++;
+            }
+        }
+    return n;
+}
+
+/* Element <- element: mean over r's quadrature points x of the exact
+ * point-to-polygon factor of s clipped to r's front, times x's shadow ray.
+ * Pairs closer than twice their radii (where F_point varies fastest, with a
+ * log-singular gradient along a shared edge) take 36 points instead of 4:
+ * with 4, the row sums of a closed cube fell 10 % short. */
+static void eval_ee(const hctx *c, hlink *l, rr_rng *rng)
+{
+    const hel *er = &c->el[l->r], *es = &c->el[l->s];
+    rr_vec3 nr = el_normal(c, l->r), ns = el_normal(c, l->s), poly[4];
+    int nv = rad__clip_front(es->c, nr, er->ctr, c->plane_tol, poly);
+    double b[NEAR_N][3];
+    int near = rr_v3_len(rr_v3_sub(er->ctr, es->ctr)) < 2.0 * (er->radius + es->radius);
+    int np = quad_points(near, b);
+    double sum = 0.0;
+    int seen = 0, pass = 0;
+    for (int k = 0; k < np && nv >= 3; k++) {
+        rr_vec3 x = tri_at(er->c, b[k][0], b[k][1], b[k][2]);
+        if (rr_v3_dot(ns, rr_v3_sub(x, es->ctr)) <= c->plane_tol)
+            continue;
+        double f = rad_ff_point_polygon(x, nr, poly, nv);
+        if (!(f > 0.0))
+            continue;
+        seen++;
+        rr_vec3 xs, xn, ys, yn;
+        double u = rr_rng_uniform(rng), v = rr_rng_uniform(rng);
+        if (u + v > 1.0) { /* fold the square onto the triangle */
+            u = 1.0 - u;
+            v = 1.0 - v;
+        }
+        rad_patch_surface(c->R, c->s, c->a, er->root, x, &xs, &xn);
+        rad_patch_surface(c->R, c->s, c->a, es->root, rad__poly_point(poly, nv, u, v, (uint32_t)k), &ys, &yn);
+        rr_vec3 o = rt_offset_origin(c->ext, xs, xn, xn), t = rt_offset_origin(c->ext, ys, yn, yn);
+        rr_ray ray = {o, rr_v3_sub(t, o)};
+        if (!rt_accel_occluded(c->a, ray, 0.0, RT_SHADOW_END)) {
+            sum += f;
+            pass++;
+        }
+    }
+    l->g = (float)(sum / np);
+    l->vis = seen ? (float)pass / (float)seen : 1.0f;
+}
+
+static void eval_link(const hctx *c, hlink *l)
+{
+    rr_rng rng = rr_rng_make(c->seed, ((uint64_t)l->r << 32) | l->s);
+    if (!(l->r & CLB) && !(l->s & CLB)) {
+        eval_ee(c, l, &rng);
+        return;
+    }
+    rr_vec3 d = rr_v3_sub(node_ctr(c, l->s), node_ctr(c, l->r));
+    double L2 = rr_v3_len2(d), L = sqrt(L2);
+    rr_vec3 w = L > 0 ? rr_v3_scale(d, 1.0 / L) : rr_v3(0, 0, 1);
+    l->w[0] = (float)w.x;
+    l->w[1] = (float)w.y;
+    l->w[2] = (float)w.z;
+    /* 1 / (d^2 + A_s / pi): a disc of s's area seen on its axis (exact there),
+     * so that links between nodes not far apart for their size saturate as
+     * form factors do instead of growing as 1 / d^2. */
+    double geo = 1.0 / (L2 + node_area(c, l->s) / RR_PI);
+    if (!(l->r & CLB))
+        geo *= fmax(0.0, rr_v3_dot(el_normal(c, l->r), w));
+    if (!(l->s & CLB))
+        geo *= node_area(c, l->s) * fmax(0.0, -rr_v3_dot(el_normal(c, l->s), w)) / RR_PI;
+    /* (A cluster source's intensity, cl_intensity, is applied in the gather.) */
+    double V = geo > 0 ? visibility(c, l->r, l->s, &rng) : 0.0;
+    l->g = (float)(geo * V);
+    l->vis = (float)V;
+}
+
+/* ---- leaf data: first shot and closedness ---- */
+
+static void leaf_data(const hctx *c, uint32_t x)
+{
+    hel *e = &c->el[x];
+    const rad_patch *rp = &c->R->p[e->root];
+    e->H0 = c->L ? rad__first_shot(c->s, c->a, c->L, c->R, e->root, e->c, NULL, 0.0, &e->spread)
+                 : rr_rgb_make(0, 0, 0);
+    e->E = rr_rgb_add(rp->emission, rr_rgb_mul(rp->rho, e->H0));
+    rr_rng rng = rr_rng_make(c->seed ^ 0x9e3779b97f4a7c15ULL, x);
+    e->closed = 1;
+    for (int k = 0; k < CLOSED_RAYS && e->closed; k++) {
+        rr_vec3 xs, ns;
+        rad_patch_surface(c->R, c->s, c->a, e->root, tri_at(e->c, k_pts[k % 4][0], k_pts[k % 4][1], k_pts[k % 4][2]),
+                          &xs, &ns);
+        double u1, u2;
+        rad_ff_square_stratum((uint32_t)k, CLOSED_RAYS, &rng, &u1, &u2);
+        rr_vec3 dir = rad_ff_cosine_dir(ns, u1, u2);
+        rr_ray ray = {rt_offset_origin(c->ext, xs, ns, dir), dir};
+        rt_hit h;
+        e->closed = rt_accel_closest(c->a, ray, 0.0, INFINITY, &h) && h.front;
+    }
+    e->fresh = 0;
+}
+
+/* ---- solving ---- */
+
+typedef enum push_mode { PUSH_SOLVE, PUSH_SIGMA, PUSH_KEEP } push_mode;
+
+static int cmp_link(const void *a, const void *b)
+{
+    const hlink *x = a, *y = b;
+    if (x->r != y->r)
+        return x->r < y->r ? -1 : 1;
+    return x->s < y->s ? -1 : (x->s > y->s);
+}
+
+/* Leaf values -> interior area means (elements); power up the clusters. */
+static rr_rgb pull_el(hctx *c, uint32_t x)
+{
+    hel *e = &c->el[x];
+    if (e->child == NONE)
+        return e->src;
+    rr_rgb m = rr_rgb_make(0, 0, 0);
+    for (uint32_t k = 0; k < 4; k++)
+        m = rr_rgb_add(m, pull_el(c, e->child + k));
+    e->src = rr_rgb_scale(m, 0.25);
+    return e->src;
+}
+
+/* Power and directional power of node x's current sources into P, D. A
+ * surface of normal n shoots its power over the axis directions in the
+ * proportions n_a^+- / |n|_1, so a cluster's intensity towards u,
+ * I(u) = (1/pi) sum_a |u_a| D[a, sign u_a], integrates to its power over the
+ * sphere and is exact for surfaces facing along the axes. */
+static rr_rgb pull_cl(hctx *c, uint32_t x, double D[3][6])
+{
+    if (!(x & CLB)) {
+        rr_rgb P = rr_rgb_scale(c->el[x].src, c->el[x].area);
+        double w[6], l1 = 0.0;
+        axis_split(el_normal(c, x), w);
+        for (int a = 0; a < 6; a++)
+            l1 += w[a];
+        double ch[3] = {P.r, P.g, P.b};
+        for (int q = 0; q < 3; q++)
+            for (int a = 0; a < 6; a++)
+                D[q][a] = l1 > 0 ? ch[q] * w[a] / l1 : 0.0;
+        return P;
+    }
+    hcl *k = &c->cl[CL(x)];
+    double D0[3][6], D1[3][6];
+    k->P = rr_rgb_add(pull_cl(c, k->child[0], D0), pull_cl(c, k->child[1], D1));
+    for (int q = 0; q < 3; q++)
+        for (int a = 0; a < 6; a++)
+            k->D[q][a] = D[q][a] = D0[q][a] + D1[q][a];
+    return k->P;
+}
+
+/* Cluster k's intensity towards unit u, per channel. */
+static rr_rgb cl_intensity(const hcl *k, rr_vec3 u)
+{
+    double w[6], I[3] = {0, 0, 0};
+    axis_split(u, w);
+    for (int q = 0; q < 3; q++)
+        for (int a = 0; a < 6; a++)
+            I[q] += w[a] * k->D[q][a];
+    return rr_rgb_scale(rr_rgb_make(I[0], I[1], I[2]), 1.0 / RR_PI);
+}
+
+static void set_leaf_src(hel *e, int unit, int indirect, const rr_rgb *own)
+{
+    if (unit)
+        e->src = rr_rgb_make(1, 1, 1);
+    else if (indirect)
+        e->src = rr_rgb_add(e->B, rr_rgb_scale(*own, -1.0));
+    else
+        e->src = e->B;
+}
+
+static void set_src(hctx *c, int unit, int indirect, uint32_t x)
+{
+    hel *e = &c->el[x];
+    if (e->child == NONE) {
+        set_leaf_src(e, unit, indirect, &c->R->p[e->root].emission);
+        return;
+    }
+    for (uint32_t k = 0; k < 4; k++)
+        set_src(c, unit, indirect, e->child + k);
+}
+
+static void sources(hctx *c, int unit, int indirect)
+{
+    size_t nr = c->R->n;
+#pragma omp parallel for schedule(dynamic, 64)
+    for (long r = 0; r < (long)nr; r++) {
+        set_src(c, unit, indirect, (uint32_t)r);
+        pull_el(c, (uint32_t)r);
+    }
+    double D[3][6];
+    pull_cl(c, c->top, D);
+}
+
+/* Every link's transport into its receiver (links sorted by receiver). */
+static void gather(hctx *c, const size_t *grp, size_t ngrp)
+{
+#pragma omp parallel for schedule(static)
+    for (long i = 0; i < (long)c->nel; i++)
+        c->el[i].H = rr_rgb_make(0, 0, 0);
+    for (size_t i = 0; i < c->ncl; i++)
+        memset(c->cl[i].Rv, 0, sizeof c->cl[i].Rv);
+#pragma omp parallel for schedule(dynamic, 64)
+    for (long gi = 0; gi < (long)ngrp; gi++) {
+        uint32_t r = c->ln[grp[gi]].r;
+        rr_rgb H = rr_rgb_make(0, 0, 0);
+        double Rv[3][6] = {{0}};
+        for (size_t j = grp[gi]; j < grp[gi + 1]; j++) {
+            const hlink *l = &c->ln[j];
+            rr_vec3 w = rr_v3(l->w[0], l->w[1], l->w[2]);
+            rr_rgb v = l->s & CLB ? cl_intensity(&c->cl[CL(l->s)], rr_v3_neg(w)) : c->el[l->s].src;
+            v = rr_rgb_scale(v, l->g);
+            if (!(r & CLB)) {
+                H = rr_rgb_add(H, v);
+            } else {
+                double aw[6], ch[3] = {v.r, v.g, v.b};
+                axis_split(w, aw);
+                for (int q = 0; q < 3; q++)
+                    for (int a = 0; a < 6; a++)
+                        Rv[q][a] += ch[q] * aw[a];
+            }
+        }
+        if (r & CLB)
+            memcpy(c->cl[CL(r)].Rv, Rv, sizeof Rv);
+        else
+            c->el[r].H = H;
+    }
+}
+
+/* Cluster irradiance down to the roots, read with each root's normal:
+ * H = sum_a n_a^+- R[a, sign n_a] (exact for normals along an axis). */
+static void push_cl(hctx *c, uint32_t x, const double R[3][6])
+{
+    if (!(x & CLB)) {
+        double w[6], H[3] = {0, 0, 0};
+        axis_split(el_normal(c, x), w);
+        for (int q = 0; q < 3; q++)
+            for (int a = 0; a < 6; a++)
+                H[q] += w[a] * R[q][a];
+        c->el[x].Hc = rr_rgb_make(H[0], H[1], H[2]);
+        return;
+    }
+    const hcl *k = &c->cl[CL(x)];
+    double W[3][6];
+    for (int q = 0; q < 3; q++)
+        for (int a = 0; a < 6; a++)
+            W[q][a] = R[q][a] + k->Rv[q][a];
+    push_cl(c, k->child[0], W);
+    push_cl(c, k->child[1], W);
+}
+
+/* Irradiance down one root's tree; at the leaves per mode: SOLVE sets
+ * B = E + rho k H (returns the largest change), SIGMA sets k from the row sum,
+ * KEEP stores k H in H. */
+static double push_el(hctx *c, uint32_t x, rr_rgb Hin, push_mode mode)
+{
+    hel *e = &c->el[x];
+    rr_rgb H = rr_rgb_add(Hin, e->H);
+    if (e->child != NONE) {
+        double m = 0.0;
+        for (uint32_t k = 0; k < 4; k++)
+            m = fmax(m, push_el(c, e->child + k, H, mode));
+        return m;
+    }
+    if (mode == PUSH_SIGMA) {
+        double sigma = (H.r + H.g + H.b) / 3.0;
+        e->k = e->closed && sigma > 0 ? 1.0 / sigma : 1.0;
+        return 0.0;
+    }
+    H = rr_rgb_scale(H, e->k);
+    if (mode == PUSH_KEEP) {
+        e->H = H;
+        return 0.0;
+    }
+    rr_rgb B = rr_rgb_add(e->E, rr_rgb_mul(el_rho(c, x), H));
+    double d = fmax(fabs(B.r - e->B.r), fmax(fabs(B.g - e->B.g), fabs(B.b - e->B.b)));
+    e->B = B;
+    return d;
+}
+
+static double push(hctx *c, push_mode mode)
+{
+    double zero[3][6] = {{0}};
+    push_cl(c, c->top, zero);
+    size_t nr = c->R->n;
+    double m = 0.0;
+#pragma omp parallel for schedule(dynamic, 64) reduction(max : m)
+    for (long r = 0; r < (long)nr; r++) {
+        double d = push_el(c, (uint32_t)r, c->el[r].Hc, mode);
+        m = d > m ? d : m;
+    }
+    return m;
+}
+
+/* Receiver groups of the sorted links: grp[0..ngrp] (one past the end). */
+static size_t *groups(const hctx *c, size_t *ngrp)
+{
+    size_t *g = malloc((c->nln + 1) * sizeof *g), n = 0;
+    if (!g)
+        return NULL;
+    for (size_t i = 0; i < c->nln; i++)
+        if (i == 0 || c->ln[i].r != c->ln[i - 1].r)
+            g[n++] = i;
+    g[n] = c->nln;
+    *ngrp = n;
+    return g;
+}
+
+static double leaves_max_B(const hctx *c)
+{
+    double m = 0.0;
+    for (size_t i = 0; i < c->nel; i++)
+        if (c->el[i].child == NONE)
+            m = fmax(m, rr_rgb_max(c->el[i].B));
+    return m;
+}
+
+/* Row sums (k), then Jacobi sweeps to the tolerance. */
+static rr_status solve(hctx *c, const rad_solve_opts *so, rad_solve_stats *st, rr_error *err)
+{
+    qsort(c->ln, c->nln, sizeof *c->ln, cmp_link);
+    size_t ngrp;
+    size_t *grp = groups(c, &ngrp);
+    if (!grp)
+        return rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory", c->s->path);
+    sources(c, 1, 0);
+    gather(c, grp, ngrp);
+    push(c, PUSH_SIGMA);
+    int maxit = so->max_iterations > 0 ? so->max_iterations : 10000;
+    double tol = so->tolerance > 0 ? so->tolerance : 1e-9;
+    st->iterations = 0;
+    for (int it = 0; it < maxit; it++) {
+        if (interrupted(c)) {
+            free(grp);
+            return rr_error_set(err, RR_ERR_INTERRUPTED, "%s: radiosity: interrupted", c->s->path);
+        }
+        sources(c, 0, 0);
+        gather(c, grp, ngrp);
+        double d = push(c, PUSH_SOLVE), bmax = leaves_max_B(c);
+        st->iterations = it + 1;
+        st->residual = bmax > 0 ? d / bmax : 0.0;
+        if (st->residual < tol)
+            break;
+    }
+    free(grp);
+    return RR_OK;
+}
+
+/* ---- the rounds ---- */
+
+/* Evaluates the links from c->first_new on, and computes the data of fresh
+ * leaves; then splits what the visibility and first-shot tests ask for, and
+ * again, until nothing changes. */
+static rr_status settle(hctx *c, void (*progress)(void *, size_t, size_t), void *user, rr_error *err)
+{
+    for (int pass = 0; pass < 32; pass++) {
+        size_t lo = c->first_new, hi = c->nln;
+#pragma omp parallel for schedule(dynamic, 256)
+        for (long i = (long)lo; i < (long)hi; i++)
+            if (!interrupted(c))
+                eval_link(c, &c->ln[i]);
+        size_t ne = c->nel;
+#pragma omp parallel for schedule(dynamic, 64)
+        for (long i = 0; i < (long)ne; i++)
+            if (c->el[i].fresh && c->el[i].child == NONE && !interrupted(c))
+                leaf_data(c, (uint32_t)i);
+        if (interrupted(c))
+            return rr_error_set(err, RR_ERR_INTERRUPTED, "%s: radiosity: interrupted", c->s->path);
+        if (progress)
+            progress(user, hi, hi);
+        /* Leaves whose first shot varies by more than eps of power split. */
+        int changed = 0;
+        for (size_t i = 0; i < ne && !c->nomem; i++) {
+            hel *e = &c->el[i];
+            if (e->child == NONE && !e->fresh && e->spread > 0 &&
+                rr_rgb_max(el_rho(c, (uint32_t)i)) * e->area * e->spread > c->eps && splittable(c, (uint32_t)i)) {
+                changed |= el_split(c, (uint32_t)i) == 0;
+            }
+        }
+        /* Partly visible links that carry enough split once more. */
+        size_t keep = lo;
+        c->first_new = c->nln;
+        size_t old_end = c->nln;
+        for (size_t i = lo; i < old_end && !c->nomem; i++) {
+            hlink l = c->ln[i];
+            int split = l.vis > 0 && l.vis < 1 && c->nln < c->max_links &&
+                        link_power(c, l.r, l.s) > VIS_SHARE * c->eps && split_link(c, l.r, l.s);
+            if (!split)
+                c->ln[keep++] = l;
+            changed |= split;
+        }
+        /* Compact: kept links of this batch, then the new ones. */
+        size_t nnew = c->nln - old_end;
+        memmove(c->ln + keep, c->ln + old_end, nnew * sizeof *c->ln);
+        c->nln = keep + nnew;
+        c->first_new = keep;
+        if (c->nomem)
+            return rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory for %zu links", c->s->path, c->nln);
+        if (!changed)
+            return RR_OK;
+    }
+    return RR_OK;
+}
+
+/* Re-tests every link with the solved radiosity; those that now carry too
+ * much are replaced by refined ones. Returns whether anything changed. */
+static int relink(hctx *c)
+{
+    size_t n = c->nln, keep = 0;
+    hlink *old = malloc((n ? n : 1) * sizeof *old);
+    if (!old) {
+        c->nomem = 1;
+        return 0;
+    }
+    memcpy(old, c->ln, n * sizeof *old);
+    c->nln = 0;
+    int changed = 0;
+    /* Kept links first (already evaluated), then the refined ones. */
+    unsigned char *split = calloc(n ? n : 1, 1);
+    if (!split) {
+        free(old);
+        c->nomem = 1;
+        return 0;
+    }
+    for (size_t i = 0; i < n; i++)
+        split[i] = link_power(c, old[i].r, old[i].s) > c->eps && splittable(c, old[i].r) | splittable(c, old[i].s);
+    for (size_t i = 0; i < n; i++)
+        if (!split[i])
+            c->ln[keep++] = old[i];
+    c->nln = keep;
+    c->first_new = keep;
+    for (size_t i = 0; i < n && !c->nomem; i++)
+        if (split[i] && c->nln < c->max_links) {
+            split_link(c, old[i].r, old[i].s);
+            changed = 1;
+        } else if (split[i]) {
+            c->capped = 1;
+            link_add(c, old[i].r, old[i].s);
+        }
+    free(split);
+    free(old);
+    return changed;
+}
+
+/* ---- output: the leaves as a patch set, their values ---- */
+
+static rr_status make_output(hctx *c, rad_patches *roots, rad_solution *sol, rr_error *err)
+{
+    /* Split bits in breadth-first order (rad__hier_leaves), and the leaf
+     * elements in the order it numbers the leaves. */
+    size_t n = c->nel;
+    uint32_t *q = malloc((n ? n : 1) * sizeof *q), *leaf = malloc((n ? n : 1) * sizeof *leaf);
+    rad_split_bits bits = {malloc(n ? n : 1), 0};
+    if (!q || !leaf || !bits.bit) {
+        free(q);
+        free(leaf);
+        free(bits.bit);
+        rad_patches_destroy(roots);
+        return rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory", c->s->path);
+    }
+    size_t tail = 0, nleaf = 0;
+    for (size_t r = 0; r < c->R->n; r++)
+        q[tail++] = (uint32_t)r;
+    for (size_t head = 0; head < tail; head++) {
+        const hel *e = &c->el[q[head]];
+        bits.bit[bits.n++] = e->child != NONE;
+        if (e->child == NONE)
+            leaf[nleaf++] = q[head];
+        else
+            for (uint32_t k = 0; k < 4; k++)
+                q[tail++] = e->child + k;
+    }
+    free(q);
+    rr_status st = rad__hier_leaves(roots, &bits, &sol->P, err);
+    free(bits.bit);
+    if (st != RR_OK) {
+        free(leaf);
+        return st;
+    }
+    RR_CHECK(sol->P->n == nleaf);
+    sol->hier_H = malloc((nleaf ? nleaf : 1) * sizeof *sol->hier_H);
+    sol->hier_fsum = malloc((nleaf ? nleaf : 1) * sizeof *sol->hier_fsum);
+    rr_rgb *Hind = malloc((nleaf ? nleaf : 1) * sizeof *Hind);
+    if (rad__solution_arrays(sol) != 0 || !sol->hier_H || !sol->hier_fsum || !Hind) {
+        free(leaf);
+        free(Hind);
+        return rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory", c->s->path);
+    }
+    if ((st = rad__first_shots(c->s, c->a, sol, err)) != RR_OK) {
+        free(leaf);
+        free(Hind);
+        return st;
+    }
+    for (size_t i = 0; i < nleaf; i++)
+        sol->B[i] = c->el[leaf[i]].B;
+    /* The gathers the ledger and the hybrid read: all that arrives (B), what
+     * arrives after a reflection (B - E), and the row sums (B = 1). */
+    size_t ngrp;
+    size_t *grp = groups(c, &ngrp);
+    if (!grp) {
+        free(leaf);
+        free(Hind);
+        return rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory", c->s->path);
+    }
+    sources(c, 0, 0);
+    gather(c, grp, ngrp);
+    push(c, PUSH_KEEP);
+    for (size_t i = 0; i < nleaf; i++)
+        sol->hier_H[i] = c->el[leaf[i]].H;
+    sources(c, 0, 1);
+    gather(c, grp, ngrp);
+    push(c, PUSH_KEEP);
+    for (size_t i = 0; i < nleaf; i++)
+        Hind[i] = c->el[leaf[i]].H;
+    sources(c, 1, 0);
+    gather(c, grp, ngrp);
+    push(c, PUSH_KEEP);
+    for (size_t i = 0; i < nleaf; i++)
+        sol->hier_fsum[i] = rr_rgb_mean(c->el[leaf[i]].H);
+    free(grp);
+    free(leaf);
+    st = rad__to_vertices(sol->P, sol->B, sol->vertex_B) != RR_OK ||
+                 rad__to_vertices(sol->P, Hind, sol->vertex_Hind) != RR_OK
+             ? rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory", c->s->path)
+             : RR_OK;
+    free(Hind);
+    return st;
+}
+
+/* The roots: the scene's primitives at 16 times the flat patch area. */
+static rad_patch_opts root_limits(const scene *s, const rad_pass_opts *o)
+{
+    rad_patch_opts p = rad_pass_patch_limits(s, o);
+    p.max_area *= 16.0;
+    p.max_edge *= 4.0;
+    return p;
+}
+
+double rad__hier_min_area(const scene *s, const rad_pass_opts *o)
+{
+    if (o && o->hier.min_area > 0)
+        return o->hier.min_area;
+    if (s->radiosity.min_area > 0)
+        return s->radiosity.min_area;
+    return rad_pass_patch_limits(s, o).max_area / 16.0;
+}
+
+static double emitted_power(const hctx *c)
+{
+    double P = 0.0;
+    for (size_t i = 0; i < c->R->n; i++)
+        P += rr_rgb_max(c->el[i].E) * c->el[i].area;
+    return P;
+}
+
+rr_status rad__hier_run(const scene *s, const rt_accel *a, const rad_pass_opts *o, rad_solution *sol, rr_error *err)
+{
+    double t0 = rr_now_seconds();
+    hctx c;
+    memset(&c, 0, sizeof c);
+    c.s = s;
+    c.a = a;
+    c.seed = o->ff.seed;
+    c.interrupt = o->ff.interrupt;
+    c.ext = rt_scene_scale(s);
+    rr_vec3 bmax = rr_v3_max(rr_v3(fabs(s->bbox_min.x), fabs(s->bbox_min.y), fabs(s->bbox_min.z)),
+                             rr_v3(fabs(s->bbox_max.x), fabs(s->bbox_max.y), fabs(s->bbox_max.z)));
+    double mabs = fmax(bmax.x, fmax(bmax.y, bmax.z));
+    c.plane_tol = 1e-9 * ((isfinite(mabs) ? mabs : 0.0) + c.ext);
+    c.min_area = rad__hier_min_area(s, o);
+    double tol = o->hier.tolerance > 0 ? o->hier.tolerance : s->radiosity.refine_tolerance;
+    c.max_links = o->hier.max_links > 0 ? o->hier.max_links : (size_t)s->radiosity.max_links;
+    rad_patch_opts po = root_limits(s, o);
+    po.accel = a;
+    rad_patches *roots = NULL;
+    rt_lights *L = NULL;
+    rr_status st = rad_patches_build(s, &po, &roots, err);
+    if (st == RR_OK && s->nlights)
+        st = rt_lights_build(s, a, s->settings.max_depth, &L, err);
+    if (st != RR_OK) {
+        rad_patches_destroy(roots);
+        return st;
+    }
+    c.R = roots;
+    c.L = rt_lights_delta_count(L) ? L : NULL;
+    size_t nr = roots->n;
+    ritem *it = malloc((nr ? nr : 1) * sizeof *it);
+    c.cl = malloc((nr ? nr : 1) * sizeof *c.cl);
+    for (size_t i = 0; i < nr && it && c.cl && !c.nomem; i++) {
+        const rad_patch *p = &roots->p[i];
+        rr_vec3 v[3] = {roots->verts[p->v[0]], roots->verts[p->v[1]], roots->verts[p->v[2]]};
+        el_add(&c, v, (uint32_t)i, 0);
+        it[i].e = (uint32_t)i;
+    }
+    if (!it || !c.cl || c.nomem || nr == 0) {
+        free(it);
+        free(c.cl);
+        free(c.el);
+        rt_lights_destroy(L);
+        rad_patches_destroy(roots);
+        return nr == 0 ? rr_error_set(err, RR_ERR_INVALID, "%s: radiosity: the scene has no surfaces", s->path)
+                       : rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory", s->path);
+    }
+    c.top = cluster_build(&c, it, nr);
+    free(it);
+    rad_solve_opts so = o->solve;
+    if (!(so.tolerance > 0))
+        so.tolerance = s->radiosity.tolerance;
+    if (!so.interrupt)
+        so.interrupt = o->ff.interrupt;
+    /* The roots' data, their radiosity E to start from, and eps. */
+#pragma omp parallel for schedule(dynamic, 64)
+    for (long i = 0; i < (long)nr; i++)
+        leaf_data(&c, (uint32_t)i);
+    for (size_t i = 0; i < c.nel; i++)
+        c.el[i].B = c.el[i].E;
+    double power = st == RR_OK ? emitted_power(&c) : 0.0;
+    if (st == RR_OK && !(power > 0))
+        st = rr_error_set(err, RR_ERR_INVALID, "%s: radiosity: nothing emits light", s->path);
+    c.eps = tol * power;
+    for (int round = 0; round < MAX_ROUNDS && st == RR_OK; round++) {
+        sources(&c, 0, 0);
+        if (round == 0) {
+            c.first_new = 0;
+            refine(&c, c.top, c.top);
+        } else if (!relink(&c)) {
+            break;
+        }
+        if (c.nomem)
+            st = rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory for %zu links", s->path, c.nln);
+        if (st == RR_OK)
+            st = settle(&c, o->ff.progress, o->ff.progress_user, err);
+        if (st == RR_OK)
+            st = solve(&c, &so, &sol->stats, err);
+        sol->refine_rounds = round + 1;
+    }
+    double t1 = rr_now_seconds();
+    if (st == RR_OK && c.capped)
+        rr_warn(&o->warn, "%s: radiosity: refinement stopped at %zu links (radiosity.max_links): the solution is "
+                          "coarser than radiosity.refine_tolerance asks",
+                s->path, c.max_links);
+    sol->links = c.nln;
+    sol->elements = c.nel + c.ncl;
+    sol->nnz = c.nln;
+    if (st == RR_OK) {
+        st = make_output(&c, roots, sol, err);
+        roots = NULL; /* make_output owns it */
+    }
+    rad_patches_destroy(roots);
+    rt_lights_destroy(L);
+    free(c.el);
+    free(c.cl);
+    free(c.ln);
+    sol->stats.used = RAD_SOLVER_ITERATIVE;
+    sol->seconds_patches = 0.0;
+    sol->seconds_ff = t1 - t0;
+    sol->seconds_solve = rr_now_seconds() - t1;
+    return st;
+}

@@ -1,0 +1,39 @@
+/* rad_hier_internal.h - private to radiosity/: the leaves of a hierarchical
+ * solution as a patch set, shared by the solver (rad_hier.c) and the cache
+ * (rad_cache.c), which stores the tree as split bits and rebuilds it. */
+#ifndef RAD_HIER_INTERNAL_H
+#define RAD_HIER_INTERNAL_H
+
+#include "rad.h"
+
+/* The quadtree as split bits, pre-order per root patch in root order: 1 = the
+ * node has four children (corner A, B, C, middle, in that order), 0 = leaf. */
+typedef struct rad_split_bits {
+    uint8_t *bit; /* one byte per node (0 or 1) */
+    size_t n;
+} rad_split_bits;
+
+/* The patch set of the leaves of roots split as bits says (rad.h,
+ * rad_patches.roots): takes ownership of roots (also on failure). RR_ERR_INVALID
+ * when bits does not describe a tree over roots. */
+rr_status rad__hier_leaves(rad_patches *roots, const rad_split_bits *bits, rad_patches **out, rr_error *err);
+
+/* The split bits of a hierarchical patch set (for the cache); -1 when out of memory. */
+int rad__hier_bits(const rad_patches *P, rad_split_bits *bits);
+
+/* Per-vertex values from per-patch ones: the area-weighted mean of the patches
+ * around each vertex; in a hierarchical set, a vertex in the middle of a
+ * leaf's edge (a T-vertex) then takes the value interpolated along that edge,
+ * so that the Gouraud-shaded surface has no cracks. */
+rr_status rad__to_vertices(const rad_patches *P, const rr_rgb *per_patch, rr_rgb *per_vertex);
+
+/* The smallest element area the hierarchical pass splits to for s given o. */
+double rad__hier_min_area(const scene *s, const rad_pass_opts *o);
+
+/* The hierarchical pass (rad_hier.c): fills sol (P, B, emitted, first_shot,
+ * light_landed, vertex_B, vertex_Hind, hier_H, hier_fsum, stats) for scene s. */
+struct rad_solution;
+rr_status rad__hier_run(const scene *s, const rt_accel *a, const rad_pass_opts *o, struct rad_solution *sol,
+                        rr_error *err);
+
+#endif
