@@ -39,7 +39,7 @@
  * cluster's surfaces drawn by area) and end at points drawn from the link's
  * own stream rr_rng_make(seed, (r << 32) | s).
  *
- * Solving: Jacobi sweeps of gather (every link, receivers in parallel, each
+ * Solving (rad_hier_solve.c): Jacobi sweeps of gather (every link, receivers in parallel, each
  * receiver's links in one fixed order) and push-pull (irradiance down to the
  * leaves, B = E + rho k H there, radiosity back up as area means, power up
  * the clusters) until the largest change is under the solver tolerance.
@@ -50,6 +50,10 @@
  * part of the scene, whose true share is 1: k = 1 / sigma there (so a closed
  * furnace is exact), k = 1 elsewhere.
  *
+ * Files: this one builds and refines the hierarchy and runs the rounds;
+ * rad_hier_solve.c solves on it (rad_hier_ctx.h, their shared types);
+ * rad_leaves.c turns the final tree into the leaves' patch set.
+ *
  * Determinism: refinement is serial; links are evaluated in parallel, each
  * from its own stream; sums run in a fixed order. The same result for any
  * thread count, bit for bit.
@@ -58,313 +62,17 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "rad_hier_ctx.h"
 #include "rad_hier_internal.h"
 #include "rad_pass_internal.h"
 #include "rad_ff_internal.h"
 
-#define NONE UINT32_MAX
-#define CLB 0x80000000u /* node reference: cluster bit */
-#define CL(x) ((x) & ~CLB)
 #define CLOSED_RAYS 16
 #define VIS_RAYS 4
 #define MAX_ROUNDS 3
 #define VIS_SHARE 0.125 /* partly visible links are split down to eps times this */
 
-/* ---- a small hash map: uint64 key -> uint32 value (open addressing) ---- */
-
-typedef struct hmap {
-    uint64_t *key;
-    uint32_t *val;
-    size_t cap; /* power of two */
-    size_t n;
-} hmap;
-
-static int hmap_init(hmap *m, size_t expect)
-{
-    m->cap = 16;
-    while (m->cap < 2 * expect + 16)
-        m->cap *= 2;
-    m->n = 0;
-    m->key = malloc(m->cap * sizeof *m->key);
-    m->val = malloc(m->cap * sizeof *m->val);
-    if (!m->key || !m->val)
-        return -1;
-    memset(m->key, 0xff, m->cap * sizeof *m->key);
-    return 0;
-}
-
-static void hmap_free(hmap *m)
-{
-    free(m->key);
-    free(m->val);
-}
-
-static size_t hmap_slot(const hmap *m, uint64_t k)
-{
-    size_t i = (size_t)rr_hash64(k) & (m->cap - 1);
-    while (m->key[i] != UINT64_MAX && m->key[i] != k)
-        i = (i + 1) & (m->cap - 1);
-    return i;
-}
-
-/* The value of k, or NONE. */
-static uint32_t hmap_get(const hmap *m, uint64_t k)
-{
-    size_t i = hmap_slot(m, k);
-    return m->key[i] == k ? m->val[i] : NONE;
-}
-
-static int hmap_put(hmap *m, uint64_t k, uint32_t v)
-{
-    if (2 * (m->n + 1) > m->cap) {
-        hmap old = *m;
-        m->cap *= 2;
-        m->n = 0;
-        m->key = malloc(m->cap * sizeof *m->key);
-        m->val = malloc(m->cap * sizeof *m->val);
-        if (!m->key || !m->val) {
-            free(m->key);
-            free(m->val);
-            *m = old;
-            return -1;
-        }
-        memset(m->key, 0xff, m->cap * sizeof *m->key);
-        for (size_t i = 0; i < old.cap; i++)
-            if (old.key[i] != UINT64_MAX) {
-                size_t j = hmap_slot(m, old.key[i]);
-                m->key[j] = old.key[i];
-                m->val[j] = old.val[i];
-                m->n++;
-            }
-        hmap_free(&old);
-    }
-    size_t i = hmap_slot(m, k);
-    if (m->key[i] != k) {
-        m->key[i] = k;
-        m->n++;
-    }
-    m->val[i] = v;
-    return 0;
-}
-
-static uint64_t edge_key(uint32_t a, uint32_t b)
-{
-    return a < b ? ((uint64_t)a << 32) | b : ((uint64_t)b << 32) | a;
-}
-
-/* ---- the leaves as a patch set ---- */
-
-rr_status rad__hier_leaves(rad_patches *roots, const rad_split_bits *bits, rad_patches **out, rr_error *err)
-{
-    rad_patches *P = calloc(1, sizeof *P);
-    size_t nr = roots->n, nsplit = 0;
-    for (size_t i = 0; i < bits->n; i++)
-        nsplit += bits->bit[i] != 0;
-    /* A tree of nr roots with nsplit splits has nr + 4 nsplit nodes. */
-    if (!P || bits->n != nr + 4 * nsplit) {
-        free(P);
-        rad_patches_destroy(roots);
-        return P ? rr_error_set(err, RR_ERR_INVALID, "radiosity: the element tree does not fit the patches")
-                 : rr_error_set(err, RR_ERR_NOMEM, "radiosity: out of memory for the element tree");
-    }
-    P->roots = roots;
-    size_t nleaf = bits->n - nsplit, nv = roots->nverts + 3 * nsplit;
-    P->p = malloc((nleaf ? nleaf : 1) * sizeof *P->p);
-    P->verts = malloc((nv ? nv : 1) * sizeof *P->verts);
-    P->qt = malloc((4 * nsplit + 1) * sizeof *P->qt);
-    P->root_qt = malloc((nr ? nr : 1) * sizeof *P->root_qt);
-    P->mid = malloc((6 * nsplit + 1) * sizeof *P->mid);
-    /* The breadth-first queue: (corner vertices, depth, root, where its entry goes). */
-    typedef struct qitem {
-        uint32_t v[3], depth, root;
-        uint32_t *slot;
-    } qitem;
-    qitem *q = malloc((bits->n ? bits->n : 1) * sizeof *q);
-    hmap mids;
-    int ok = P->p && P->verts && P->qt && P->root_qt && P->mid && q && hmap_init(&mids, 3 * nsplit) == 0;
-    if (!ok) {
-        free(q);
-        rad_patches_destroy(P);
-        return rr_error_set(err, RR_ERR_NOMEM, "radiosity: out of memory for %zu elements", bits->n);
-    }
-    memcpy(P->verts, roots->verts, roots->nverts * sizeof *P->verts);
-    P->nverts = roots->nverts;
-    for (size_t r = 0; r < nr; r++)
-        q[r] = (qitem){{roots->p[r].v[0], roots->p[r].v[1], roots->p[r].v[2]}, 0, (uint32_t)r, &P->root_qt[r]};
-    size_t head = 0, tail = nr;
-    for (; head < tail && ok; head++) {
-        qitem it = q[head];
-        const rad_patch *rp = &roots->p[it.root];
-        if (!bits->bit[head]) {
-            rad_patch *lp = &P->p[P->n];
-            *lp = *rp;
-            memcpy(lp->v, it.v, sizeof lp->v);
-            lp->area = ldexp(rp->area, -2 * (int)it.depth);
-            lp->centroid = rr_v3_scale(
-                rr_v3_add(P->verts[it.v[0]], rr_v3_add(P->verts[it.v[1]], P->verts[it.v[2]])), 1.0 / 3.0);
-            *it.slot = RAD_QT_LEAF | (uint32_t)P->n++;
-            continue;
-        }
-        uint32_t m[3]; /* midpoints of the edges ab, bc, ca */
-        for (int e = 0; e < 3 && ok; e++) {
-            uint32_t a = it.v[e], b = it.v[(e + 1) % 3];
-            uint32_t v = hmap_get(&mids, edge_key(a, b));
-            if (v == NONE) {
-                v = (uint32_t)P->nverts++;
-                P->verts[v] = rr_v3_scale(rr_v3_add(P->verts[a], P->verts[b]), 0.5);
-                P->mid[2 * (v - roots->nverts)] = a;
-                P->mid[2 * (v - roots->nverts) + 1] = b;
-                ok = hmap_put(&mids, edge_key(a, b), v) == 0;
-            }
-            m[e] = v;
-        }
-        uint32_t node = (uint32_t)P->nqt++;
-        *it.slot = node;
-        const uint32_t ch[4][3] = {
-            {it.v[0], m[0], m[2]}, {m[0], it.v[1], m[1]}, {m[2], m[1], it.v[2]}, {m[1], m[2], m[0]}};
-        for (int c = 0; c < 4; c++)
-            q[tail++] = (qitem){{ch[c][0], ch[c][1], ch[c][2]}, it.depth + 1, it.root, &P->qt[4 * (size_t)node + c]};
-    }
-    free(q);
-    hmap_free(&mids);
-    if (!ok) {
-        rad_patches_destroy(P);
-        return rr_error_set(err, RR_ERR_NOMEM, "radiosity: out of memory for %zu elements", bits->n);
-    }
-    *out = P;
-    return RR_OK;
-}
-
-int rad__hier_bits(const rad_patches *P, rad_split_bits *bits)
-{
-    size_t n = P->roots->n + 4 * P->nqt;
-    uint32_t *q = malloc((n ? n : 1) * sizeof *q);
-    bits->bit = malloc(n ? n : 1);
-    bits->n = n;
-    if (!q || !bits->bit) {
-        free(q);
-        free(bits->bit);
-        bits->bit = NULL;
-        return -1;
-    }
-    size_t tail = 0;
-    for (size_t r = 0; r < P->roots->n; r++)
-        q[tail++] = P->root_qt[r];
-    for (size_t head = 0; head < tail; head++) {
-        uint32_t e = q[head];
-        bits->bit[head] = !(e & RAD_QT_LEAF);
-        if (!(e & RAD_QT_LEAF))
-            for (int c = 0; c < 4; c++)
-                q[tail++] = P->qt[4 * (size_t)e + c];
-    }
-    free(q);
-    return 0;
-}
-
-rr_status rad__to_vertices(const rad_patches *P, const rr_rgb *per_patch, rr_rgb *per_vertex)
-{
-    double *wsum = calloc(P->nverts ? P->nverts : 1, sizeof *wsum);
-    if (!wsum)
-        return RR_ERR_NOMEM;
-    for (size_t v = 0; v < P->nverts; v++)
-        per_vertex[v] = rr_rgb_make(0, 0, 0);
-    for (size_t k = 0; k < P->n; k++)
-        for (int e = 0; e < 3; e++) {
-            uint32_t v = P->p[k].v[e];
-            per_vertex[v] = rr_rgb_add(per_vertex[v], rr_rgb_scale(per_patch[k], P->p[k].area));
-            wsum[v] += P->p[k].area;
-        }
-    for (size_t v = 0; v < P->nverts; v++)
-        if (wsum[v] > 0)
-            per_vertex[v] = rr_rgb_scale(per_vertex[v], 1.0 / wsum[v]);
-    free(wsum);
-    if (!P->roots)
-        return RR_OK;
-    /* T-vertices: a midpoint of an edge that is also a whole edge of some
-     * leaf takes the mean of the edge's ends, coarse to fine (midpoints are
-     * numbered in that order), so both sides of the edge interpolate alike. */
-    hmap edges;
-    if (hmap_init(&edges, 3 * P->n) != 0)
-        return RR_ERR_NOMEM;
-    for (size_t k = 0; k < P->n; k++)
-        for (int e = 0; e < 3; e++)
-            if (hmap_put(&edges, edge_key(P->p[k].v[e], P->p[k].v[(e + 1) % 3]), 1) != 0) {
-                hmap_free(&edges);
-                return RR_ERR_NOMEM;
-            }
-    for (size_t v = P->roots->nverts; v < P->nverts; v++) {
-        uint32_t a = P->mid[2 * (v - P->roots->nverts)], b = P->mid[2 * (v - P->roots->nverts) + 1];
-        if (hmap_get(&edges, edge_key(a, b)) != NONE)
-            per_vertex[v] = rr_rgb_scale(rr_rgb_add(per_vertex[a], per_vertex[b]), 0.5);
-    }
-    hmap_free(&edges);
-    return RR_OK;
-}
-
-/* ---- the solver's hierarchy ---- */
-
-typedef struct hel {
-    rr_vec3 c[3], ctr;
-    double area, radius;
-    uint32_t root, child, depth;
-    int closed;     /* leaf: its closedness rays all landed on fronts */
-    int fresh;      /* leaf data (first shot, closedness) still to compute */
-    double spread;  /* leaf: the first shot's largest difference between its points */
-    rr_rgb B, src, H, Hc, E, H0;
-    double k;       /* leaf: row-sum scale */
-} hel;
-
-typedef struct hcl {
-    rr_vec3 lo, hi, ctr;
-    double radius, area, rho_max;
-    uint32_t child[2]; /* node references */
-    rr_rgb P;          /* power of the current source values */
-    double D[3][6];    /* per channel, that power split over the six axis directions
-                          (+x, -x, +y, -y, +z, -z) by its surfaces' normals (axis_weights) */
-    double Rv[3][6];   /* gathered irradiance per channel and axis direction */
-} hcl;
-
-/* A unit vector's six axis weights: w[2a] = max(0, n_a), w[2a+1] = max(0, -n_a). */
-static void axis_split(rr_vec3 n, double w[6])
-{
-    double v[3] = {n.x, n.y, n.z};
-    for (int a = 0; a < 3; a++) {
-        w[2 * a] = v[a] > 0 ? v[a] : 0.0;
-        w[2 * a + 1] = v[a] < 0 ? -v[a] : 0.0;
-    }
-}
-
-typedef struct hlink {
-    uint32_t r, s;
-    float g, vis;
-    float w[3];
-} hlink;
-
-typedef struct hctx {
-    const scene *s;
-    const rt_accel *a;
-    const rad_patches *R;
-    const rt_lights *L;
-    hel *el;
-    size_t nel, capel;
-    hcl *cl;
-    size_t ncl;
-    uint32_t top;
-    uint32_t *roots; /* root element of each root patch (element index = root index) */
-    hlink *ln;
-    size_t nln, capln, first_new;
-    double eps, min_area;
-    size_t max_links;
-    int capped, nomem;
-    double ext, plane_tol;
-    uint64_t seed;
-    const volatile sig_atomic_t *interrupt;
-} hctx;
-
-static int interrupted(const hctx *c) { return c->interrupt && *c->interrupt; }
-
-static rr_vec3 el_normal(const hctx *c, uint32_t e) { return c->R->p[c->el[e].root].normal; }
-static rr_rgb el_rho(const hctx *c, uint32_t e) { return c->R->p[c->el[e].root].rho; }
+/* ---- the hierarchy ---- */
 
 static double node_area(const hctx *c, uint32_t x) { return x & CLB ? c->cl[CL(x)].area : c->el[x].area; }
 static double node_radius(const hctx *c, uint32_t x) { return x & CLB ? c->cl[CL(x)].radius : c->el[x].radius; }
@@ -783,257 +491,6 @@ static void leaf_data(const hctx *c, uint32_t x)
     e->fresh = 0;
 }
 
-/* ---- solving ---- */
-
-typedef enum push_mode { PUSH_SOLVE, PUSH_SIGMA, PUSH_KEEP } push_mode;
-
-static int cmp_link(const void *a, const void *b)
-{
-    const hlink *x = a, *y = b;
-    if (x->r != y->r)
-        return x->r < y->r ? -1 : 1;
-    return x->s < y->s ? -1 : (x->s > y->s);
-}
-
-/* Leaf values -> interior area means (elements); power up the clusters. */
-static rr_rgb pull_el(hctx *c, uint32_t x)
-{
-    hel *e = &c->el[x];
-    if (e->child == NONE)
-        return e->src;
-    rr_rgb m = rr_rgb_make(0, 0, 0);
-    for (uint32_t k = 0; k < 4; k++)
-        m = rr_rgb_add(m, pull_el(c, e->child + k));
-    e->src = rr_rgb_scale(m, 0.25);
-    return e->src;
-}
-
-/* Power and directional power of node x's current sources into P, D. A
- * surface of normal n shoots its power over the axis directions in the
- * proportions n_a^+- / |n|_1, so a cluster's intensity towards u,
- * I(u) = (1/pi) sum_a |u_a| D[a, sign u_a], integrates to its power over the
- * sphere and is exact for surfaces facing along the axes. */
-static rr_rgb pull_cl(hctx *c, uint32_t x, double D[3][6])
-{
-    if (!(x & CLB)) {
-        rr_rgb P = rr_rgb_scale(c->el[x].src, c->el[x].area);
-        double w[6], l1 = 0.0;
-        axis_split(el_normal(c, x), w);
-        for (int a = 0; a < 6; a++)
-            l1 += w[a];
-        double ch[3] = {P.r, P.g, P.b};
-        for (int q = 0; q < 3; q++)
-            for (int a = 0; a < 6; a++)
-                D[q][a] = l1 > 0 ? ch[q] * w[a] / l1 : 0.0;
-        return P;
-    }
-    hcl *k = &c->cl[CL(x)];
-    double D0[3][6], D1[3][6];
-    k->P = rr_rgb_add(pull_cl(c, k->child[0], D0), pull_cl(c, k->child[1], D1));
-    for (int q = 0; q < 3; q++)
-        for (int a = 0; a < 6; a++)
-            k->D[q][a] = D[q][a] = D0[q][a] + D1[q][a];
-    return k->P;
-}
-
-/* Cluster k's intensity towards unit u, per channel. */
-static rr_rgb cl_intensity(const hcl *k, rr_vec3 u)
-{
-    double w[6], I[3] = {0, 0, 0};
-    axis_split(u, w);
-    for (int q = 0; q < 3; q++)
-        for (int a = 0; a < 6; a++)
-            I[q] += w[a] * k->D[q][a];
-    return rr_rgb_scale(rr_rgb_make(I[0], I[1], I[2]), 1.0 / RR_PI);
-}
-
-static void set_leaf_src(hel *e, int unit, int indirect, const rr_rgb *own)
-{
-    if (unit)
-        e->src = rr_rgb_make(1, 1, 1);
-    else if (indirect)
-        e->src = rr_rgb_add(e->B, rr_rgb_scale(*own, -1.0));
-    else
-        e->src = e->B;
-}
-
-static void set_src(hctx *c, int unit, int indirect, uint32_t x)
-{
-    hel *e = &c->el[x];
-    if (e->child == NONE) {
-        set_leaf_src(e, unit, indirect, &c->R->p[e->root].emission);
-        return;
-    }
-    for (uint32_t k = 0; k < 4; k++)
-        set_src(c, unit, indirect, e->child + k);
-}
-
-static void sources(hctx *c, int unit, int indirect)
-{
-    size_t nr = c->R->n;
-#pragma omp parallel for schedule(dynamic, 64)
-    for (long r = 0; r < (long)nr; r++) {
-        set_src(c, unit, indirect, (uint32_t)r);
-        pull_el(c, (uint32_t)r);
-    }
-    double D[3][6];
-    pull_cl(c, c->top, D);
-}
-
-/* Every link's transport into its receiver (links sorted by receiver). */
-static void gather(hctx *c, const size_t *grp, size_t ngrp)
-{
-#pragma omp parallel for schedule(static)
-    for (long i = 0; i < (long)c->nel; i++)
-        c->el[i].H = rr_rgb_make(0, 0, 0);
-    for (size_t i = 0; i < c->ncl; i++)
-        memset(c->cl[i].Rv, 0, sizeof c->cl[i].Rv);
-#pragma omp parallel for schedule(dynamic, 64)
-    for (long gi = 0; gi < (long)ngrp; gi++) {
-        uint32_t r = c->ln[grp[gi]].r;
-        rr_rgb H = rr_rgb_make(0, 0, 0);
-        double Rv[3][6] = {{0}};
-        for (size_t j = grp[gi]; j < grp[gi + 1]; j++) {
-            const hlink *l = &c->ln[j];
-            rr_vec3 w = rr_v3(l->w[0], l->w[1], l->w[2]);
-            rr_rgb v = l->s & CLB ? cl_intensity(&c->cl[CL(l->s)], rr_v3_neg(w)) : c->el[l->s].src;
-            v = rr_rgb_scale(v, l->g);
-            if (!(r & CLB)) {
-                H = rr_rgb_add(H, v);
-            } else {
-                double aw[6], ch[3] = {v.r, v.g, v.b};
-                axis_split(w, aw);
-                for (int q = 0; q < 3; q++)
-                    for (int a = 0; a < 6; a++)
-                        Rv[q][a] += ch[q] * aw[a];
-            }
-        }
-        if (r & CLB)
-            memcpy(c->cl[CL(r)].Rv, Rv, sizeof Rv);
-        else
-            c->el[r].H = H;
-    }
-}
-
-/* Cluster irradiance down to the roots, read with each root's normal:
- * H = sum_a n_a^+- R[a, sign n_a] (exact for normals along an axis). */
-static void push_cl(hctx *c, uint32_t x, const double R[3][6])
-{
-    if (!(x & CLB)) {
-        double w[6], H[3] = {0, 0, 0};
-        axis_split(el_normal(c, x), w);
-        for (int q = 0; q < 3; q++)
-            for (int a = 0; a < 6; a++)
-                H[q] += w[a] * R[q][a];
-        c->el[x].Hc = rr_rgb_make(H[0], H[1], H[2]);
-        return;
-    }
-    const hcl *k = &c->cl[CL(x)];
-    double W[3][6];
-    for (int q = 0; q < 3; q++)
-        for (int a = 0; a < 6; a++)
-            W[q][a] = R[q][a] + k->Rv[q][a];
-    push_cl(c, k->child[0], W);
-    push_cl(c, k->child[1], W);
-}
-
-/* Irradiance down one root's tree; at the leaves per mode: SOLVE sets
- * B = E + rho k H (returns the largest change), SIGMA sets k from the row sum,
- * KEEP stores k H in H. */
-static double push_el(hctx *c, uint32_t x, rr_rgb Hin, push_mode mode)
-{
-    hel *e = &c->el[x];
-    rr_rgb H = rr_rgb_add(Hin, e->H);
-    if (e->child != NONE) {
-        double m = 0.0;
-        for (uint32_t k = 0; k < 4; k++)
-            m = fmax(m, push_el(c, e->child + k, H, mode));
-        return m;
-    }
-    if (mode == PUSH_SIGMA) {
-        double sigma = (H.r + H.g + H.b) / 3.0;
-        e->k = e->closed && sigma > 0 ? 1.0 / sigma : 1.0;
-        return 0.0;
-    }
-    H = rr_rgb_scale(H, e->k);
-    if (mode == PUSH_KEEP) {
-        e->H = H;
-        return 0.0;
-    }
-    rr_rgb B = rr_rgb_add(e->E, rr_rgb_mul(el_rho(c, x), H));
-    double d = fmax(fabs(B.r - e->B.r), fmax(fabs(B.g - e->B.g), fabs(B.b - e->B.b)));
-    e->B = B;
-    return d;
-}
-
-static double push(hctx *c, push_mode mode)
-{
-    double zero[3][6] = {{0}};
-    push_cl(c, c->top, zero);
-    size_t nr = c->R->n;
-    double m = 0.0;
-#pragma omp parallel for schedule(dynamic, 64) reduction(max : m)
-    for (long r = 0; r < (long)nr; r++) {
-        double d = push_el(c, (uint32_t)r, c->el[r].Hc, mode);
-        m = d > m ? d : m;
-    }
-    return m;
-}
-
-/* Receiver groups of the sorted links: grp[0..ngrp] (one past the end). */
-static size_t *groups(const hctx *c, size_t *ngrp)
-{
-    size_t *g = malloc((c->nln + 1) * sizeof *g), n = 0;
-    if (!g)
-        return NULL;
-    for (size_t i = 0; i < c->nln; i++)
-        if (i == 0 || c->ln[i].r != c->ln[i - 1].r)
-            g[n++] = i;
-    g[n] = c->nln;
-    *ngrp = n;
-    return g;
-}
-
-static double leaves_max_B(const hctx *c)
-{
-    double m = 0.0;
-    for (size_t i = 0; i < c->nel; i++)
-        if (c->el[i].child == NONE)
-            m = fmax(m, rr_rgb_max(c->el[i].B));
-    return m;
-}
-
-/* Row sums (k), then Jacobi sweeps to the tolerance. */
-static rr_status solve(hctx *c, const rad_solve_opts *so, rad_solve_stats *st, rr_error *err)
-{
-    qsort(c->ln, c->nln, sizeof *c->ln, cmp_link);
-    size_t ngrp;
-    size_t *grp = groups(c, &ngrp);
-    if (!grp)
-        return rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory", c->s->path);
-    sources(c, 1, 0);
-    gather(c, grp, ngrp);
-    push(c, PUSH_SIGMA);
-    int maxit = so->max_iterations > 0 ? so->max_iterations : 10000;
-    double tol = so->tolerance > 0 ? so->tolerance : 1e-9;
-    st->iterations = 0;
-    for (int it = 0; it < maxit; it++) {
-        if (interrupted(c)) {
-            free(grp);
-            return rr_error_set(err, RR_ERR_INTERRUPTED, "%s: radiosity: interrupted", c->s->path);
-        }
-        sources(c, 0, 0);
-        gather(c, grp, ngrp);
-        double d = push(c, PUSH_SOLVE), bmax = leaves_max_B(c);
-        st->iterations = it + 1;
-        st->residual = bmax > 0 ? d / bmax : 0.0;
-        if (st->residual < tol)
-            break;
-    }
-    free(grp);
-    return RR_OK;
-}
-
 /* ---- the rounds ---- */
 
 /* Evaluates the links from c->first_new on, and computes the data of fresh
@@ -1184,25 +641,25 @@ static rr_status make_output(hctx *c, rad_patches *roots, rad_solution *sol, rr_
     /* The gathers the ledger and the hybrid read: all that arrives (B), what
      * arrives after a reflection (B - E), and the row sums (B = 1). */
     size_t ngrp;
-    size_t *grp = groups(c, &ngrp);
+    size_t *grp = rad__hier_groups(c, &ngrp);
     if (!grp) {
         free(leaf);
         free(Hind);
         return rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory", c->s->path);
     }
-    sources(c, 0, 0);
-    gather(c, grp, ngrp);
-    push(c, PUSH_KEEP);
+    rad__hier_sources(c, 0, 0);
+    rad__hier_gather(c, grp, ngrp);
+    rad__hier_push(c, PUSH_KEEP);
     for (size_t i = 0; i < nleaf; i++)
         sol->hier_H[i] = c->el[leaf[i]].H;
-    sources(c, 0, 1);
-    gather(c, grp, ngrp);
-    push(c, PUSH_KEEP);
+    rad__hier_sources(c, 0, 1);
+    rad__hier_gather(c, grp, ngrp);
+    rad__hier_push(c, PUSH_KEEP);
     for (size_t i = 0; i < nleaf; i++)
         Hind[i] = c->el[leaf[i]].H;
-    sources(c, 1, 0);
-    gather(c, grp, ngrp);
-    push(c, PUSH_KEEP);
+    rad__hier_sources(c, 1, 0);
+    rad__hier_gather(c, grp, ngrp);
+    rad__hier_push(c, PUSH_KEEP);
     for (size_t i = 0; i < nleaf; i++)
         sol->hier_fsum[i] = rr_rgb_mean(c->el[leaf[i]].H);
     free(grp);
@@ -1307,7 +764,7 @@ rr_status rad__hier_run(const scene *s, const rt_accel *a, const rad_pass_opts *
         st = rr_error_set(err, RR_ERR_INVALID, "%s: radiosity: nothing emits light", s->path);
     c.eps = tol * power;
     for (int round = 0; round < MAX_ROUNDS && st == RR_OK; round++) {
-        sources(&c, 0, 0);
+        rad__hier_sources(&c, 0, 0);
         if (round == 0) {
             c.first_new = 0;
             refine(&c, c.top, c.top);
@@ -1319,7 +776,7 @@ rr_status rad__hier_run(const scene *s, const rt_accel *a, const rad_pass_opts *
         if (st == RR_OK)
             st = settle(&c, o->ff.progress, o->ff.progress_user, err);
         if (st == RR_OK)
-            st = solve(&c, &so, &sol->stats, err);
+            st = rad__hier_solve(&c, &so, &sol->stats, err);
         sol->refine_rounds = round + 1;
     }
     double t1 = rr_now_seconds();

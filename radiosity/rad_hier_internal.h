@@ -1,13 +1,16 @@
 /* rad_hier_internal.h - private to radiosity/: the leaves of a hierarchical
- * solution as a patch set, shared by the solver (rad_hier.c) and the cache
- * (rad_cache.c), which stores the tree as split bits and rebuilds it. */
+ * solution as a patch set (rad_leaves.c), made by the solver (rad_hier.c) from
+ * the tree's split bits, so that a tree can also be stored as bits and built
+ * again; the solver's entry point for the pass (rad_pass.c). */
 #ifndef RAD_HIER_INTERNAL_H
 #define RAD_HIER_INTERNAL_H
 
 #include "rad.h"
 
-/* The quadtree as split bits, pre-order per root patch in root order: 1 = the
- * node has four children (corner A, B, C, middle, in that order), 0 = leaf. */
+/* The quadtree as split bits, breadth first: the roots in order, then the
+ * children of every split node in the order they were reached; 1 = the node
+ * has four children (corner A, B, C, middle, in that order), 0 = leaf. Leaves
+ * are numbered in the same order. */
 typedef struct rad_split_bits {
     uint8_t *bit; /* one byte per node (0 or 1) */
     size_t n;

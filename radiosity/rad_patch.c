@@ -83,6 +83,16 @@ uint32_t rad__edge_get(rad__edge_map *m, uint32_t a, uint32_t b, uint32_t k, uin
     return val;
 }
 
+uint32_t rad__edge_find(const rad__edge_map *m, uint32_t a, uint32_t b, uint32_t k)
+{
+    uint64_t h = edge_hash(a, b, k);
+    size_t mask = m->cap - 1;
+    for (size_t i = (size_t)(h >> 17) & mask; m->key[i]; i = (i + 1) & mask)
+        if (m->key[i] == h && m->abk[i][0] == a && m->abk[i][1] == b && m->abk[i][2] == k)
+            return m->val[i];
+    return UINT32_MAX;
+}
+
 /* ---- building ---- */
 
 static double tri_area(rr_vec3 a, rr_vec3 b, rr_vec3 c) { return 0.5 * rr_v3_len(rr_v3_cross(rr_v3_sub(b, a), rr_v3_sub(c, a))); }

@@ -1,5 +1,6 @@
-/* rad_patch_internal.h - private to radiosity/: the shared-vertex map and the
- * solids' tessellation (rad_solid.c) used by rad_patch.c. */
+/* rad_patch_internal.h - private to radiosity/: the shared-vertex map (used by
+ * rad_patch.c and by the hierarchical leaves, rad_leaves.c) and the solids'
+ * tessellation (rad_solid.c) used by rad_patch.c. */
 #ifndef RAD_PATCH_INTERNAL_H
 #define RAD_PATCH_INTERNAL_H
 
@@ -19,6 +20,8 @@ void rad__edge_map_free(rad__edge_map *m);
 /* The value stored for (a, b, k); stores val when there is none and returns
  * it. UINT32_MAX when out of memory. */
 uint32_t rad__edge_get(rad__edge_map *m, uint32_t a, uint32_t b, uint32_t k, uint32_t val);
+/* The value stored for (a, b, k), or UINT32_MAX when there is none. */
+uint32_t rad__edge_find(const rad__edge_map *m, uint32_t a, uint32_t b, uint32_t k);
 
 /* A solid's tessellation before it is copied into the patches: vertices,
  * outward counter-clockwise triangles, and the grid (cell_first relative to

@@ -1,0 +1,98 @@
+/* rad_hier_ctx.h - private to the hierarchical pass (rad_hier.c builds and
+ * refines the hierarchy, rad_hier_solve.c solves on it): its elements,
+ * clusters and links, and the solving steps the builder calls. */
+#ifndef RAD_HIER_CTX_H
+#define RAD_HIER_CTX_H
+
+#include "rad.h"
+
+#define NONE UINT32_MAX
+#define CLB 0x80000000u /* node reference: cluster bit (else an element index) */
+#define CL(x) ((x) & ~CLB)
+
+typedef struct hel {
+    rr_vec3 c[3], ctr;
+    double area, radius;
+    uint32_t root, child, depth;
+    int closed;     /* leaf: its closedness rays all landed on fronts */
+    int fresh;      /* leaf data (first shot, closedness) still to compute */
+    double spread;  /* leaf: the first shot's largest difference between its points */
+    rr_rgb B, src, H, Hc, E, H0;
+    double k;       /* leaf: row-sum scale */
+} hel;
+
+typedef struct hcl {
+    rr_vec3 lo, hi, ctr;
+    double radius, area, rho_max;
+    uint32_t child[2]; /* node references */
+    rr_rgb P;          /* power of the current source values */
+    double D[3][6];    /* per channel, that power split over the six axis directions
+                          (+x, -x, +y, -y, +z, -z) by its surfaces' normals (axis_split) */
+    double Rv[3][6];   /* gathered irradiance per channel and axis direction */
+} hcl;
+
+/* A unit vector's six axis weights: w[2a] = max(0, n_a), w[2a+1] = max(0, -n_a). */
+static inline void axis_split(rr_vec3 n, double w[6])
+{
+    double v[3] = {n.x, n.y, n.z};
+    for (int a = 0; a < 3; a++) {
+        w[2 * a] = v[a] > 0 ? v[a] : 0.0;
+        w[2 * a + 1] = v[a] < 0 ? -v[a] : 0.0;
+    }
+}
+
+typedef struct hlink {
+    uint32_t r, s;
+    float g, vis;
+    float w[3];
+} hlink;
+
+typedef struct hctx {
+    const scene *s;
+    const rt_accel *a;
+    const rad_patches *R;
+    const rt_lights *L;
+    hel *el;
+    size_t nel, capel;
+    hcl *cl;
+    size_t ncl;
+    uint32_t top;
+    hlink *ln;
+    size_t nln, capln, first_new;
+    double eps, min_area;
+    size_t max_links;
+    int capped, nomem;
+    double ext, plane_tol;
+    uint64_t seed;
+    const volatile sig_atomic_t *interrupt;
+} hctx;
+
+static inline int interrupted(const hctx *c) { return c->interrupt && *c->interrupt; }
+
+static inline rr_vec3 el_normal(const hctx *c, uint32_t e) { return c->R->p[c->el[e].root].normal; }
+static inline rr_rgb el_rho(const hctx *c, uint32_t e) { return c->R->p[c->el[e].root].rho; }
+
+/* ---- solving (rad_hier_solve.c) ---- */
+
+/* What push does at the leaves: SOLVE sets B = E + rho k H (and returns the
+ * largest change), SIGMA sets k from the row sum (k = 1 / sigma on closed
+ * leaves), KEEP stores k H in H. */
+typedef enum push_mode { PUSH_SOLVE, PUSH_SIGMA, PUSH_KEEP } push_mode;
+
+/* Source values: every leaf's src = B (or B - its own emission when indirect,
+ * or 1 when unit), area means up the trees, power and directional power up
+ * the clusters. */
+void rad__hier_sources(hctx *c, int unit, int indirect);
+/* Receiver groups of the links sorted by receiver: grp[0..ngrp] (one past
+ * the end); NULL when out of memory (free() it). */
+size_t *rad__hier_groups(const hctx *c, size_t *ngrp);
+/* Every link's transport into its receiver (H of elements, Rv of clusters). */
+void rad__hier_gather(hctx *c, const size_t *grp, size_t ngrp);
+/* Irradiance down to the leaves; at the leaves per mode. */
+double rad__hier_push(hctx *c, push_mode mode);
+/* Sorts the links, sets the row-sum scales k, then Jacobi sweeps (sources,
+ * gather, push) until the largest change of B is under so->tolerance times
+ * the largest B. */
+rr_status rad__hier_solve(hctx *c, const rad_solve_opts *so, rad_solve_stats *st, rr_error *err);
+
+#endif

@@ -1,0 +1,260 @@
+/* rad_hier_solve.c - solving on a fixed hierarchy of the hierarchical pass
+ * (rad_hier.c): source values up the trees and clusters, every link's
+ * transport into its receiver, irradiance down to the leaves, and the Jacobi
+ * sweeps of those to the tolerance (rad_hier_ctx.h has the interface and
+ * rad_hier.c's header the formulas). Sums run in a fixed order: the same bits
+ * for any thread count. */
+#include <omp.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "rad_hier_ctx.h"
+
+
+static int cmp_link(const void *a, const void *b)
+{
+    const hlink *x = a, *y = b;
+    if (x->r != y->r)
+        return x->r < y->r ? -1 : 1;
+    return x->s < y->s ? -1 : (x->s > y->s);
+}
+
+/* Leaf values -> interior area means (elements); power up the clusters. */
+static rr_rgb pull_el(hctx *c, uint32_t x)
+{
+    hel *e = &c->el[x];
+    if (e->child == NONE)
+        return e->src;
+    rr_rgb m = rr_rgb_make(0, 0, 0);
+    for (uint32_t k = 0; k < 4; k++)
+        m = rr_rgb_add(m, pull_el(c, e->child + k));
+    e->src = rr_rgb_scale(m, 0.25);
+    return e->src;
+}
+
+/* Power and directional power of node x's current sources into P, D. A
+ * surface of normal n shoots its power over the axis directions in the
+ * proportions n_a^+- / |n|_1, so a cluster's intensity towards u,
+ * I(u) = (1/pi) sum_a |u_a| D[a, sign u_a], integrates to its power over the
+ * sphere and is exact for surfaces facing along the axes. */
+static rr_rgb pull_cl(hctx *c, uint32_t x, double D[3][6])
+{
+    if (!(x & CLB)) {
+        rr_rgb P = rr_rgb_scale(c->el[x].src, c->el[x].area);
+        double w[6], l1 = 0.0;
+        axis_split(el_normal(c, x), w);
+        for (int a = 0; a < 6; a++)
+            l1 += w[a];
+        double ch[3] = {P.r, P.g, P.b};
+        for (int q = 0; q < 3; q++)
+            for (int a = 0; a < 6; a++)
+                D[q][a] = l1 > 0 ? ch[q] * w[a] / l1 : 0.0;
+        return P;
+    }
+    hcl *k = &c->cl[CL(x)];
+    double D0[3][6], D1[3][6];
+    k->P = rr_rgb_add(pull_cl(c, k->child[0], D0), pull_cl(c, k->child[1], D1));
+    for (int q = 0; q < 3; q++)
+        for (int a = 0; a < 6; a++)
+            k->D[q][a] = D[q][a] = D0[q][a] + D1[q][a];
+    return k->P;
+}
+
+/* Cluster k's intensity towards unit u, per channel. */
+static rr_rgb cl_intensity(const hcl *k, rr_vec3 u)
+{
+    double w[6], I[3] = {0, 0, 0};
+    axis_split(u, w);
+    for (int q = 0; q < 3; q++)
+        for (int a = 0; a < 6; a++)
+            I[q] += w[a] * k->D[q][a];
+    return rr_rgb_scale(rr_rgb_make(I[0], I[1], I[2]), 1.0 / RR_PI);
+}
+
+static void set_leaf_src(hel *e, int unit, int indirect, const rr_rgb *own)
+{
+    if (unit)
+        e->src = rr_rgb_make(1, 1, 1);
+    else if (indirect)
+        e->src = rr_rgb_add(e->B, rr_rgb_scale(*own, -1.0));
+    else
+        e->src = e->B;
+}
+
+static void set_src(hctx *c, int unit, int indirect, uint32_t x)
+{
+    hel *e = &c->el[x];
+    if (e->child == NONE) {
+        set_leaf_src(e, unit, indirect, &c->R->p[e->root].emission);
+        return;
+    }
+    for (uint32_t k = 0; k < 4; k++)
+        set_src(c, unit, indirect, e->child + k);
+}
+
+void rad__hier_sources(hctx *c, int unit, int indirect)
+{
+    size_t nr = c->R->n;
+#pragma omp parallel for schedule(dynamic, 64)
+    for (long r = 0; r < (long)nr; r++) {
+        set_src(c, unit, indirect, (uint32_t)r);
+        pull_el(c, (uint32_t)r);
+    }
+    double D[3][6];
+    pull_cl(c, c->top, D);
+}
+
+/* Every link's transport into its receiver (links sorted by receiver). */
+void rad__hier_gather(hctx *c, const size_t *grp, size_t ngrp)
+{
+#pragma omp parallel for schedule(static)
+    for (long i = 0; i < (long)c->nel; i++)
+        c->el[i].H = rr_rgb_make(0, 0, 0);
+    for (size_t i = 0; i < c->ncl; i++)
+        memset(c->cl[i].Rv, 0, sizeof c->cl[i].Rv);
+#pragma omp parallel for schedule(dynamic, 64)
+    for (long gi = 0; gi < (long)ngrp; gi++) {
+        uint32_t r = c->ln[grp[gi]].r;
+        rr_rgb H = rr_rgb_make(0, 0, 0);
+        double Rv[3][6] = {{0}};
+        for (size_t j = grp[gi]; j < grp[gi + 1]; j++) {
+            const hlink *l = &c->ln[j];
+            rr_vec3 w = rr_v3(l->w[0], l->w[1], l->w[2]);
+            rr_rgb v = l->s & CLB ? cl_intensity(&c->cl[CL(l->s)], rr_v3_neg(w)) : c->el[l->s].src;
+            v = rr_rgb_scale(v, l->g);
+            if (!(r & CLB)) {
+                H = rr_rgb_add(H, v);
+            } else {
+                double aw[6], ch[3] = {v.r, v.g, v.b};
+                axis_split(w, aw);
+                for (int q = 0; q < 3; q++)
+                    for (int a = 0; a < 6; a++)
+                        Rv[q][a] += ch[q] * aw[a];
+            }
+        }
+        if (r & CLB)
+            memcpy(c->cl[CL(r)].Rv, Rv, sizeof Rv);
+        else
+            c->el[r].H = H;
+    }
+}
+
+/* Cluster irradiance down to the roots, read with each root's normal:
+ * H = sum_a n_a^+- R[a, sign n_a] (exact for normals along an axis). */
+static void push_cl(hctx *c, uint32_t x, const double R[3][6])
+{
+    if (!(x & CLB)) {
+        double w[6], H[3] = {0, 0, 0};
+        axis_split(el_normal(c, x), w);
+        for (int q = 0; q < 3; q++)
+            for (int a = 0; a < 6; a++)
+                H[q] += w[a] * R[q][a];
+        c->el[x].Hc = rr_rgb_make(H[0], H[1], H[2]);
+        return;
+    }
+    const hcl *k = &c->cl[CL(x)];
+    double W[3][6];
+    for (int q = 0; q < 3; q++)
+        for (int a = 0; a < 6; a++)
+            W[q][a] = R[q][a] + k->Rv[q][a];
+    push_cl(c, k->child[0], W);
+    push_cl(c, k->child[1], W);
+}
+
+/* Irradiance down one root's tree; at the leaves per mode: SOLVE sets
+ * B = E + rho k H (returns the largest change), SIGMA sets k from the row sum,
+ * KEEP stores k H in H. */
+static double push_el(hctx *c, uint32_t x, rr_rgb Hin, push_mode mode)
+{
+    hel *e = &c->el[x];
+    rr_rgb H = rr_rgb_add(Hin, e->H);
+    if (e->child != NONE) {
+        double m = 0.0;
+        for (uint32_t k = 0; k < 4; k++)
+            m = fmax(m, push_el(c, e->child + k, H, mode));
+        return m;
+    }
+    if (mode == PUSH_SIGMA) {
+        double sigma = (H.r + H.g + H.b) / 3.0;
+        e->k = e->closed && sigma > 0 ? 1.0 / sigma : 1.0;
+        return 0.0;
+    }
+    H = rr_rgb_scale(H, e->k);
+    if (mode == PUSH_KEEP) {
+        e->H = H;
+        return 0.0;
+    }
+    rr_rgb B = rr_rgb_add(e->E, rr_rgb_mul(el_rho(c, x), H));
+    double d = fmax(fabs(B.r - e->B.r), fmax(fabs(B.g - e->B.g), fabs(B.b - e->B.b)));
+    e->B = B;
+    return d;
+}
+
+double rad__hier_push(hctx *c, push_mode mode)
+{
+    double zero[3][6] = {{0}};
+    push_cl(c, c->top, zero);
+    size_t nr = c->R->n;
+    double m = 0.0;
+#pragma omp parallel for schedule(dynamic, 64) reduction(max : m)
+    for (long r = 0; r < (long)nr; r++) {
+        double d = push_el(c, (uint32_t)r, c->el[r].Hc, mode);
+        m = d > m ? d : m;
+    }
+    return m;
+}
+
+/* Receiver groups of the sorted links: grp[0..ngrp] (one past the end). */
+size_t *rad__hier_groups(const hctx *c, size_t *ngrp)
+{
+    size_t *g = malloc((c->nln + 1) * sizeof *g), n = 0;
+    if (!g)
+        return NULL;
+    for (size_t i = 0; i < c->nln; i++)
+        if (i == 0 || c->ln[i].r != c->ln[i - 1].r)
+            g[n++] = i;
+    g[n] = c->nln;
+    *ngrp = n;
+    return g;
+}
+
+static double leaves_max_B(const hctx *c)
+{
+    double m = 0.0;
+    for (size_t i = 0; i < c->nel; i++)
+        if (c->el[i].child == NONE)
+            m = fmax(m, rr_rgb_max(c->el[i].B));
+    return m;
+}
+
+/* Row sums (k), then Jacobi sweeps to the tolerance. */
+rr_status rad__hier_solve(hctx *c, const rad_solve_opts *so, rad_solve_stats *st, rr_error *err)
+{
+    qsort(c->ln, c->nln, sizeof *c->ln, cmp_link);
+    size_t ngrp;
+    size_t *grp = rad__hier_groups(c, &ngrp);
+    if (!grp)
+        return rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory", c->s->path);
+    rad__hier_sources(c, 1, 0);
+    rad__hier_gather(c, grp, ngrp);
+    rad__hier_push(c, PUSH_SIGMA);
+    int maxit = so->max_iterations > 0 ? so->max_iterations : 10000;
+    double tol = so->tolerance > 0 ? so->tolerance : 1e-9;
+    st->iterations = 0;
+    for (int it = 0; it < maxit; it++) {
+        if (interrupted(c)) {
+            free(grp);
+            return rr_error_set(err, RR_ERR_INTERRUPTED, "%s: radiosity: interrupted", c->s->path);
+        }
+        rad__hier_sources(c, 0, 0);
+        rad__hier_gather(c, grp, ngrp);
+        double d = rad__hier_push(c, PUSH_SOLVE), bmax = leaves_max_B(c);
+        st->iterations = it + 1;
+        st->residual = bmax > 0 ? d / bmax : 0.0;
+        if (st->residual < tol)
+            break;
+    }
+    free(grp);
+    return RR_OK;
+}
+
