@@ -1,6 +1,7 @@
 /* rad_ff_internal.h - the sampling patterns of the form-factor estimators
- * (rad_ff.c), here so that the tests can check them directly. Not part of the
- * public API (rad.h). */
+ * (rad_ff.c), here so that the tests can check them directly; the matrix's
+ * storage and reciprocity (rad_ff_matrix.c); the clipping and polygon points
+ * the hierarchical links share (rad_hier.c). Not part of the public API (rad.h). */
 #ifndef RAD_FF_INTERNAL_H
 #define RAD_FF_INTERNAL_H
 
@@ -87,6 +88,19 @@ static inline void rad_ff_tri_stratum(uint32_t k, uint32_t n, rr_rng *rng, doubl
 /* Cosine-weighted direction about unit N from (u1, u2): the light
  * interface's (rt_cosine_dir, the same sampling the light tracer uses). */
 static inline rr_vec3 rad_ff_cosine_dir(rr_vec3 N, double u1, double u2) { return rt_cosine_dir(N, u1, u2); }
+
+/* ---- the matrix (rad_ff_matrix.c) ---- */
+
+typedef struct rad_ff rad_ff;
+struct rad_patches;
+/* An n-row matrix with room for nnz entries (rowptr zeroed); NULL when out of memory. */
+rad_ff *rad__ff_alloc(size_t n, size_t nnz);
+void rad__ff_free(rad_ff *F);
+/* The matrix rad_ff_compute returns, from the raw estimates F (consumed):
+ * F itself when o->raw, else made reciprocal and (Monte Carlo) balanced.
+ * NULL when out of memory. */
+struct rad_ff_opts;
+rad_ff *rad__ff_finish(const struct rad_patches *P, rad_ff *F, const struct rad_ff_opts *o);
 
 /* Sutherland-Hodgman: the part of triangle tri on the front of the plane
  * (n, p0), vertices within tol of it kept; at most 4 vertices (rad_ff.c). */
