@@ -43,6 +43,14 @@ static scene *cube(const char *mats, int ceiling_apart)
     return load(json);
 }
 
+/* The cube lit by its ceiling: E = pi Le = 1 there, rho = 0.5 everywhere. */
+static scene *lit_cube(void)
+{
+    char mats[256];
+    snprintf(mats, sizeof mats, "\"f\":{\"diffuse\":0.5},\"c\":{\"diffuse\":0.5,\"emission\":%.17g}", 1.0 / RR_PI);
+    return cube(mats, 1);
+}
+
 static rad_solution *run(const scene *s, rt_accel **a)
 {
     rr_error err;
@@ -93,9 +101,7 @@ static void test_furnace(void **state)
 static void test_cube_ceiling(void **state)
 {
     (void)state;
-    char mats[256];
-    snprintf(mats, sizeof mats, "\"f\":{\"diffuse\":0.5},\"c\":{\"diffuse\":0.5,\"emission\":%.17g}", 1.0 / RR_PI);
-    scene *s = cube(mats, 1);
+    scene *s = lit_cube();
     rt_accel *a = NULL;
     rad_solution *sol = run(s, &a);
     double sum[6] = {0}, area[6] = {0};
@@ -125,9 +131,7 @@ static void test_cube_ceiling(void **state)
 static void test_leaves(void **state)
 {
     (void)state;
-    char mats[256];
-    snprintf(mats, sizeof mats, "\"f\":{\"diffuse\":0.5},\"c\":{\"diffuse\":0.5,\"emission\":%.17g}", 1.0 / RR_PI);
-    scene *s = cube(mats, 1);
+    scene *s = lit_cube();
     rt_accel *a = NULL;
     omp_set_num_threads(1);
     rad_solution *one = run(s, &a);
