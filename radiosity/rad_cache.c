@@ -3,7 +3,9 @@
  * Rendering several views of one room should not redo the radiosity pass. The
  * cache holds what the display and the hybrid read (per patch B, emission,
  * first shot; per vertex B and indirect irradiance), not the form factors.
- * Patches are rebuilt on load (cheap and deterministic) and must match.
+ * Patches are rebuilt on load (cheap and deterministic) and must match; a
+ * hierarchical solution's tree is stored as its split bits and built again
+ * over its roots (rad_hier_internal.h).
  *
  * The file starts with a key: 64-bit FNV-1a hashes, one per part of what the
  * solution depends on (geometry, back-face culling, materials with their
@@ -17,10 +19,12 @@
 #include <string.h>
 #include <sys/stat.h>
 
+#include "rad_hier_internal.h"
 #include "rad_pass_internal.h"
 
 #define CACHE_MAGIC "RADRAYRC"
-#define CACHE_VERSION 3u /* 2: mirrors in the key; 3: the key in named parts, culling, a payload checksum */
+#define CACHE_VERSION 4u /* 2: mirrors in the key; 3: the key in named parts, culling, a payload checksum;
+                            4: the method in the key, hierarchical trees (split bits) */
 
 typedef struct hasher {
     uint64_t h;
@@ -54,10 +58,21 @@ static void hash_rgb(hasher *x, rr_rgb c)
  * in named parts, so that a refused cache can say what changed. Audit
  * (tests/test_radiosity.c flips each input): every input rad_pass_run reads
  * is in one part; the thread count is not (the pass is the same for any). */
-enum { K_GEOMETRY, K_CULLING, K_MATERIALS, K_LIGHTS, K_PATCHES, K_FORM_FACTORS, K_MIRROR_DEPTH, K_SOLVER, K_COUNT };
+enum {
+    K_GEOMETRY,
+    K_CULLING,
+    K_MATERIALS,
+    K_LIGHTS,
+    K_PATCHES,
+    K_FORM_FACTORS,
+    K_MIRROR_DEPTH,
+    K_SOLVER,
+    K_METHOD,
+    K_COUNT
+};
 static const char *const k_key_names[K_COUNT] = {"geometry", "back-face culling", "materials", "lights",
                                                  "patch limits", "form-factor settings", "render.max_depth",
-                                                 "solver settings"};
+                                                 "solver settings", "radiosity method and its settings"};
 
 static void hash_solids(hasher *x, const scene *s)
 {
@@ -135,6 +150,15 @@ static void cache_key(const scene *s, const rad_pass_opts *o, uint64_t key[K_COU
     hash_double(&x[K_SOLVER], tol);
     int depth = o->ff.mirror_depth > 0 ? o->ff.mirror_depth : s->settings.max_depth;
     hash_bytes(&x[K_MIRROR_DEPTH], &depth, sizeof depth);
+    int hier = rad__pass_method(s, o, NULL) == RAD_METHOD_HIERARCHICAL;
+    hash_bytes(&x[K_METHOD], &hier, sizeof hier);
+    if (hier) {
+        double rtol = o->hier.tolerance > 0 ? o->hier.tolerance : s->radiosity.refine_tolerance;
+        double links = o->hier.max_links > 0 ? (double)o->hier.max_links : s->radiosity.max_links;
+        hash_double(&x[K_METHOD], rtol);
+        hash_double(&x[K_METHOD], rad__hier_min_area(s, o));
+        hash_double(&x[K_METHOD], links);
+    }
     for (int k = 0; k < K_COUNT; k++)
         key[k] = x[k].h;
 }
@@ -144,20 +168,23 @@ typedef struct cache_header {
     uint32_t version, nkeys;
     uint64_t key[K_COUNT];
     uint64_t n, nverts;
+    uint64_t nbits;    /* hierarchical: the tree's split bits (rad_hier_internal.h); 0 for flat patches */
     uint64_t checksum; /* FNV-1a of the payload, in order */
 } cache_header;
 
-/* The payload: per patch B, emission, first shot; per vertex B and indirect irradiance. */
+/* The payload: the split bits (hierarchical), then per patch B, emission,
+ * first shot; per vertex B and indirect irradiance. */
+#define PAYLOAD_PARTS 6
 typedef struct payload {
-    void *p[5];
-    size_t n[5];
+    void *p[PAYLOAD_PARTS];
+    size_t n[PAYLOAD_PARTS];
 } payload;
 
-static payload payload_of(const rad_solution *sol)
+static payload payload_of(const rad_solution *sol, const rad_split_bits *bits)
 {
     size_t n = sol->P->n, nv = sol->P->nverts;
-    payload d = {{sol->B, sol->emitted, sol->first_shot, sol->vertex_B, sol->vertex_Hind},
-                 {n * sizeof(rr_rgb), n * sizeof(rr_rgb), n * sizeof(rr_rgb), nv * sizeof(rr_rgb),
+    payload d = {{bits->bit, sol->B, sol->emitted, sol->first_shot, sol->vertex_B, sol->vertex_Hind},
+                 {bits->n, n * sizeof(rr_rgb), n * sizeof(rr_rgb), n * sizeof(rr_rgb), nv * sizeof(rr_rgb),
                   nv * sizeof(rr_rgb)}};
     return d;
 }
@@ -165,12 +192,12 @@ static payload payload_of(const rad_solution *sol)
 static uint64_t payload_checksum(const payload *d)
 {
     hasher x = {0xcbf29ce484222325ULL};
-    for (int i = 0; i < 5; i++)
+    for (int i = 0; i < PAYLOAD_PARTS; i++)
         hash_bytes(&x, d->p[i], d->n[i]);
     return x.h;
 }
 
-static int write_all(FILE *f, const void *p, size_t n) { return fwrite(p, 1, n, f) == n; }
+static int write_all(FILE *f, const void *p, size_t n) { return n == 0 || fwrite(p, 1, n, f) == n; }
 
 static rr_status cache_save(const char *path, const uint64_t *key, const rad_solution *sol, rr_error *err)
 {
@@ -186,11 +213,18 @@ static rr_status cache_save(const char *path, const uint64_t *key, const rad_sol
     memcpy(h.key, key, sizeof h.key);
     h.n = sol->P->n;
     h.nverts = sol->P->nverts;
-    payload d = payload_of(sol);
+    rad_split_bits bits = {NULL, 0};
+    if (sol->P->roots && rad__hier_bits(sol->P, &bits) != 0) {
+        rr_atomic_abort(&a);
+        return rr_error_set(err, RR_ERR_NOMEM, "%s: out of memory writing the radiosity cache", path);
+    }
+    h.nbits = bits.n;
+    payload d = payload_of(sol, &bits);
     h.checksum = payload_checksum(&d);
     int ok = write_all(a.fp, &h, sizeof h);
-    for (int i = 0; i < 5 && ok; i++)
+    for (int i = 0; i < PAYLOAD_PARTS && ok; i++)
         ok = write_all(a.fp, d.p[i], d.n[i]);
+    free(bits.bit);
     if (!ok) {
         rr_atomic_abort(&a);
         return rr_error_set(err, RR_ERR_IO, "%s: cannot write the radiosity cache", path);
@@ -198,7 +232,7 @@ static rr_status cache_save(const char *path, const uint64_t *key, const rad_sol
     return rr_atomic_commit(&a, err);
 }
 
-static int read_all(FILE *f, void *p, size_t n) { return fread(p, 1, n, f) == n; }
+static int read_all(FILE *f, void *p, size_t n) { return n == 0 || fread(p, 1, n, f) == n; }
 
 /* "geometry, lights" for the parts of the key that differ. */
 static void changed_parts(const uint64_t *a, const uint64_t *b, char *out, size_t n)
@@ -210,8 +244,10 @@ static void changed_parts(const uint64_t *a, const uint64_t *b, char *out, size_
             len += (size_t)snprintf(out + len, n - len, "%s%s", len ? ", " : "", k_key_names[k]);
 }
 
-/* Loads into a solution whose patches are already built. */
-static rr_status cache_load(const char *path, const uint64_t *key, rad_solution *sol, rr_error *err)
+/* Loads into sol: the patches are built here (for a hierarchical solution,
+ * its roots, then the tree from the file's split bits), and must match. */
+static rr_status cache_load(const char *path, const uint64_t *key, const scene *s, const rt_accel *a,
+                            const rad_pass_opts *o, int hier, rad_solution *sol, rr_error *err)
 {
     rr_status st = RR_OK;
     rr_error why;
@@ -222,21 +258,43 @@ static rr_status cache_load(const char *path, const uint64_t *key, rad_solution 
         return rr_error_set(err, RR_ERR_IO, "%s: cannot open the radiosity cache", path);
     cache_header h;
     char what[256];
+    rad_split_bits bits = {NULL, 0};
     if (!read_all(f, &h, sizeof h) || memcmp(h.magic, CACHE_MAGIC, 8) != 0 || h.version != CACHE_VERSION ||
         h.nkeys != K_COUNT) {
         st = rr_error_set(err, RR_ERR_INVALID, "%s: not a radray radiosity cache (version %u)", path, CACHE_VERSION);
-    } else if (memcmp(h.key, key, sizeof h.key) != 0 || h.n != sol->P->n || h.nverts != sol->P->nverts) {
+    } else if (memcmp(h.key, key, sizeof h.key) != 0) {
         changed_parts(h.key, key, what, sizeof what);
         st = rr_error_set(err, RR_ERR_INVALID,
                           "%s: this radiosity cache was made with different %s; refusing it (delete it, or give "
                           "another --radiosity-cache file)",
-                          path, what[0] ? what : "patches");
+                          path, what);
+    } else if (hier != (h.nbits > 0) || h.nbits > (uint64_t)1 << 40) {
+        st = rr_error_set(err, RR_ERR_INVALID, "%s: the radiosity cache is damaged (its element tree); delete it", path);
+    } else if (hier && !(bits.bit = malloc((size_t)h.nbits))) {
+        st = rr_error_set(err, RR_ERR_NOMEM, "%s: out of memory reading the radiosity cache", path);
     } else {
+        bits.n = (size_t)h.nbits;
+        if (hier && !read_all(f, bits.bit, bits.n))
+            st = rr_error_set(err, RR_ERR_INVALID, "%s: the radiosity cache is truncated or damaged", path);
+        rad_patch_opts po = hier ? rad__hier_root_limits(s, o) : rad_pass_patch_limits(s, o);
+        po.accel = a;
+        rad_patches *roots = NULL;
+        if (st == RR_OK)
+            st = rad_patches_build(s, &po, hier ? &roots : &sol->P, err);
+        if (st == RR_OK && hier && (st = rad__hier_leaves(roots, &bits, &sol->P, err)) != RR_OK)
+            rr_error_prefix(err, "%s: the radiosity cache does not fit the scene", path);
+    }
+    if (st == RR_OK && (h.n != sol->P->n || h.nverts != sol->P->nverts))
+        st = rr_error_set(err, RR_ERR_INVALID,
+                          "%s: this radiosity cache was made with different patches; refusing it (delete it, or give "
+                          "another --radiosity-cache file)",
+                          path);
+    if (st == RR_OK) {
         int ok = rad__solution_arrays(sol) == 0;
-        payload d = payload_of(sol);
+        payload d = payload_of(sol, &bits);
         if (!ok)
             st = rr_error_set(err, RR_ERR_NOMEM, "%s: out of memory reading the radiosity cache", path);
-        for (int i = 0; i < 5 && ok; i++)
+        for (int i = 1; i < PAYLOAD_PARTS && ok; i++)
             ok = read_all(f, d.p[i], d.n[i]);
         if (st == RR_OK && (!ok || fgetc(f) != EOF))
             st = rr_error_set(err, RR_ERR_INVALID, "%s: the radiosity cache is truncated or damaged", path);
@@ -245,6 +303,7 @@ static rr_status cache_load(const char *path, const uint64_t *key, rad_solution 
                               "%s: the radiosity cache is damaged (its checksum does not match its data); delete it",
                               path);
     }
+    free(bits.bit);
     fclose(f);
     return st;
 }
@@ -260,13 +319,6 @@ rr_status rad_pass_run_cached(const scene *s, const rt_accel *a, const rad_pass_
     *from_cache = 0;
     if (!cache_path)
         return rad_pass_run(s, a, o, out, err);
-    if (rad__pass_method(s, o, NULL) == RAD_METHOD_HIERARCHICAL) {
-        /* The file format holds uniform patch sets only (version 3); a
-         * hierarchical solution is recomputed rather than mistaken for one. */
-        rr_warn(&o->warn, "%s: radiosity: the cache holds flat solutions only; the hierarchical pass runs without %s",
-                s->path, cache_path);
-        return rad_pass_run(s, a, o, out, err);
-    }
     uint64_t key[K_COUNT];
     cache_key(s, o, key);
     struct stat stt;
@@ -287,11 +339,8 @@ rr_status rad_pass_run_cached(const scene *s, const rt_accel *a, const rad_pass_
     rad_solution *sol = rad__solution_new(s);
     if (!sol)
         return rr_error_set(err, RR_ERR_NOMEM, "out of memory");
-    rad_patch_opts po = rad_pass_patch_limits(s, o);
-    po.accel = a;
-    rr_status st = rad_patches_build(s, &po, &sol->P, err);
-    if (st == RR_OK)
-        st = cache_load(cache_path, key, sol, err);
+    int hier = rad__pass_method(s, o, NULL) == RAD_METHOD_HIERARCHICAL;
+    rr_status st = cache_load(cache_path, key, s, a, o, hier, sol, err);
     if (st != RR_OK) {
         rad_solution_destroy(sol);
         return st;

@@ -11,20 +11,33 @@
  * Clusters. A binary bounding-volume hierarchy over the roots (median split
  * of the centroids on the longest axis). A cluster shoots with the intensity
  * I(u) = (1/pi) sum_a |u_a| D[a, sign u_a], D its power split over the six
- * axis directions by its surfaces' normals (pull_cl), and receives irradiance
- * per axis direction, which each element under it reads with its own normal
- * (push_cl): both exact for surfaces facing along the axes, approximate for
- * tilted ones. Links start from the top cluster's self-link, so the first
- * linking is not quadratic in the number of surfaces.
+ * axis directions by its surfaces' normals (pull_cl, rad_hier_solve.c): exact
+ * for surfaces facing along the axes, approximate for tilted ones. Clusters
+ * only shoot: a cluster at the receiving end passes the link to its children,
+ * so every receiver is an element and reads the link with its own normal
+ * (as a Barnes-Hut walk does; links grow as N log N). Clusters that also
+ * received (irradiance per axis direction, read with each element's normal)
+ * lit the undersides of sphere-to-board's sphere from the lamp above:
+ * radiosity-mode 90th-percentile block error 64 % there, 19 % without.
+ * Links start from the top cluster's self-link, so the first linking is not
+ * quadratic in the number of surfaces.
  *
  * Links and the oracle (BF refinement). A link r <- s gathers the radiosity of
  * s into the irradiance of r. It is refined while the power it may carry,
  * rho_max(r) A_r Fhat(r, s) B_s (Fhat an upper estimate of the form factor),
  * exceeds eps = tolerance x the power emitted in the scene, by splitting the
- * larger of the two (elements stop at min_area). A link whose rays see the
- * source partly (0 < V < 1) is split further while that power exceeds eps / 8.
+ * larger of the two (elements stop at min_area). Two tests split the
+ * receiver first (a shadow's edge or a gradient lies on the receiver;
+ * splitting the source there only shrinks the link's power until it passes):
+ * a link whose rays see the source partly (0 < V < 1) while its power
+ * exceeds eps / 8, and an uneven one, rho A_r (F_max - F_min) B_s > eps over
+ * the receiver's quadrature points. Without the first, sphere-to-board's
+ * shadow was as coarse as the board's roots.
+ * A link with a cluster at either end is split, whatever it carries, while
+ * the centres are closer than ADMISSIBLE times the sum of the radii: without
+ * that, Cornell's rotated tall block came out 18.5 % dark (-2.0 % with it).
  * Rounds: link with the emission, solve, re-link with the solved radiosity
- * (what was kept is re-tested), solve again.
+ * (what was kept is re-tested, all three tests), solve again, twice.
  *
  * Transport of a link, per channel (d the distance of the centres, w the unit
  * direction from r to s, V the share of 4 shadow rays that pass, q = 1 / (d^2
@@ -33,14 +46,11 @@
  *                       F_point(x, s clipped to r's front) V(x), Lambert's
  *                       contour integral (rad_ff_point_polygon); H_r += F B_s
  *   element <- cluster: H_r += V q cos_r I_s(-w)
- *   cluster <- element: R_r += V q A_s cos_s / pi B_s, split over w's axes
- *   cluster <- cluster: R_r += V q I_s(-w), split over w's axes
- * The shadow rays start at fixed points of an element (or at points of a
- * cluster's surfaces drawn by area) and end at points drawn from the link's
+ * The shadow rays start at fixed points of the receiver and end at points drawn from the link's
  * own stream rr_rng_make(seed, (r << 32) | s).
  *
- * Solving (rad_hier_solve.c): Jacobi sweeps of gather (every link, receivers in parallel, each
- * receiver's links in one fixed order) and push-pull (irradiance down to the
+ * Solving (rad_hier_solve.c): Jacobi sweeps of gather (every link,
+ * receivers in parallel, each receiver's links in one fixed order) and push-pull (irradiance down to the
  * leaves, B = E + rho k H there, radiosity back up as area means, power up
  * the clusters) until the largest change is under the solver tolerance.
  *
@@ -71,6 +81,8 @@
 #define VIS_RAYS 4
 #define MAX_ROUNDS 3
 #define VIS_SHARE 0.125 /* partly visible links are split down to eps times this */
+#define ROUND_TOL 1e-4  /* solver tolerance of the rounds before the last */
+#define ADMISSIBLE 2.0  /* cluster links need centres this many radii sums apart */
 
 /* ---- the hierarchy ---- */
 
@@ -245,6 +257,12 @@ static double ff_estimate(const hctx *c, uint32_t r, uint32_t s)
 
 static double link_power(const hctx *c, uint32_t r, uint32_t s)
 {
+    /* A cluster link reads directions and distances at the centres: only
+     * between nodes well apart for their size (admissible, as in the fast
+     * multipole method) is that accurate whatever power it carries. */
+    if (((r & CLB) || (s & CLB)) &&
+        rr_v3_len(rr_v3_sub(node_ctr(c, s), node_ctr(c, r))) < ADMISSIBLE * (node_radius(c, r) + node_radius(c, s)))
+        return INFINITY;
     return node_rho(c, r) * node_area(c, r) * ff_estimate(c, r, s) * node_B(c, s);
 }
 
@@ -269,14 +287,18 @@ static void link_add(hctx *c, uint32_t r, uint32_t s)
 
 static void refine(hctx *c, uint32_t r, uint32_t s);
 
-/* Splits r or s (the larger that can be split) and refines the children's
- * links; 0 when neither can be split. */
-static int split_link(hctx *c, uint32_t r, uint32_t s)
+/* Splits r or s (the larger that can be split, or r first when receiver) and
+ * refines the children's links; 0 when neither can be split. A shadow's edge
+ * lies on the receiver: splitting the source there only shrinks the link's
+ * power until it passes, leaving the shadow as coarse as the receiver. */
+static int split_link(hctx *c, uint32_t r, uint32_t s, int receiver)
 {
     int sr = splittable(c, r), ss = splittable(c, s);
     if (!sr && !ss)
         return 0;
-    int side = sr && ss ? node_radius(c, s) > node_radius(c, r) : ss;
+    int side = receiver && sr ? 0 : (sr && ss ? node_radius(c, s) > node_radius(c, r) : ss);
+    if (r & CLB)
+        side = 0; /* receivers are elements */
     uint32_t x = side ? s : r;
     uint32_t kids[4];
     int nk;
@@ -316,9 +338,14 @@ static void refine(hctx *c, uint32_t r, uint32_t s)
     }
     if (culled(c, r, s))
         return;
+    if (r & CLB) { /* receivers are elements: a cluster passes the link to its children */
+        refine(c, c->cl[CL(r)].child[0], s);
+        refine(c, c->cl[CL(r)].child[1], s);
+        return;
+    }
     if (c->nln >= c->max_links)
         c->capped = 1;
-    else if (link_power(c, r, s) > c->eps && split_link(c, r, s))
+    else if (link_power(c, r, s) > c->eps && split_link(c, r, s, 0))
         return;
     link_add(c, r, s);
 }
@@ -410,39 +437,41 @@ static void eval_ee(const hctx *c, hlink *l, rr_rng *rng)
     double b[NEAR_N][3];
     int near = rr_v3_len(rr_v3_sub(er->ctr, es->ctr)) < 2.0 * (er->radius + es->radius);
     int np = quad_points(near, b);
-    double sum = 0.0;
+    double sum = 0.0, lo = INFINITY, hi = 0.0;
     int seen = 0, pass = 0;
     for (int k = 0; k < np && nv >= 3; k++) {
         rr_vec3 x = tri_at(er->c, b[k][0], b[k][1], b[k][2]);
-        if (rr_v3_dot(ns, rr_v3_sub(x, es->ctr)) <= c->plane_tol)
-            continue;
-        double f = rad_ff_point_polygon(x, nr, poly, nv);
-        if (!(f > 0.0))
-            continue;
-        seen++;
-        rr_vec3 xs, xn, ys, yn;
-        double u = rr_rng_uniform(rng), v = rr_rng_uniform(rng);
-        if (u + v > 1.0) { /* fold the square onto the triangle */
-            u = 1.0 - u;
-            v = 1.0 - v;
+        double f = rr_v3_dot(ns, rr_v3_sub(x, es->ctr)) > c->plane_tol ? rad_ff_point_polygon(x, nr, poly, nv) : 0.0;
+        if (f > 0.0) {
+            seen++;
+            rr_vec3 xs, xn, ys, yn;
+            double u = rr_rng_uniform(rng), v = rr_rng_uniform(rng);
+            if (u + v > 1.0) { /* fold the square onto the triangle */
+                u = 1.0 - u;
+                v = 1.0 - v;
+            }
+            rad_patch_surface(c->R, c->s, c->a, er->root, x, &xs, &xn);
+            rad_patch_surface(c->R, c->s, c->a, es->root, rad__poly_point(poly, nv, u, v, (uint32_t)k), &ys, &yn);
+            rr_vec3 o = rt_offset_origin(c->ext, xs, xn, xn), t = rt_offset_origin(c->ext, ys, yn, yn);
+            rr_ray ray = {o, rr_v3_sub(t, o)};
+            if (rt_accel_occluded(c->a, ray, 0.0, RT_SHADOW_END))
+                f = 0.0;
+            else
+                pass++;
         }
-        rad_patch_surface(c->R, c->s, c->a, er->root, x, &xs, &xn);
-        rad_patch_surface(c->R, c->s, c->a, es->root, rad__poly_point(poly, nv, u, v, (uint32_t)k), &ys, &yn);
-        rr_vec3 o = rt_offset_origin(c->ext, xs, xn, xn), t = rt_offset_origin(c->ext, ys, yn, yn);
-        rr_ray ray = {o, rr_v3_sub(t, o)};
-        if (!rt_accel_occluded(c->a, ray, 0.0, RT_SHADOW_END)) {
-            sum += f;
-            pass++;
-        }
+        sum += f;
+        lo = fmin(lo, f);
+        hi = fmax(hi, f);
     }
     l->g = (float)(sum / np);
     l->vis = seen ? (float)pass / (float)seen : 1.0f;
+    l->dF = (float)(hi - (isfinite(lo) ? lo : 0.0)); /* how much the factor varies over r */
 }
 
 static void eval_link(const hctx *c, hlink *l)
 {
     rr_rng rng = rr_rng_make(c->seed, ((uint64_t)l->r << 32) | l->s);
-    if (!(l->r & CLB) && !(l->s & CLB)) {
+    if (!(l->s & CLB)) {
         eval_ee(c, l, &rng);
         return;
     }
@@ -455,12 +484,8 @@ static void eval_link(const hctx *c, hlink *l)
     /* 1 / (d^2 + A_s / pi): a disc of s's area seen on its axis (exact there),
      * so that links between nodes not far apart for their size saturate as
      * form factors do instead of growing as 1 / d^2. */
-    double geo = 1.0 / (L2 + node_area(c, l->s) / RR_PI);
-    if (!(l->r & CLB))
-        geo *= fmax(0.0, rr_v3_dot(el_normal(c, l->r), w));
-    if (!(l->s & CLB))
-        geo *= node_area(c, l->s) * fmax(0.0, -rr_v3_dot(el_normal(c, l->s), w)) / RR_PI;
-    /* (A cluster source's intensity, cl_intensity, is applied in the gather.) */
+    double geo = fmax(0.0, rr_v3_dot(el_normal(c, l->r), w)) / (L2 + node_area(c, l->s) / RR_PI);
+    /* (The cluster's intensity, cl_intensity, is applied in the gather.) */
     double V = geo > 0 ? visibility(c, l->r, l->s, &rng) : 0.0;
     l->g = (float)(geo * V);
     l->vis = (float)V;
@@ -492,6 +517,13 @@ static void leaf_data(const hctx *c, uint32_t x)
 }
 
 /* ---- the rounds ---- */
+
+/* The receiver's irradiance from s varies across it by more than eps of
+ * power: rho A_r (F_max - F_min) B_s over its quadrature points. */
+static int uneven(const hctx *c, const hlink *l)
+{
+    return !(l->s & CLB) && node_rho(c, l->r) * node_area(c, l->r) * l->dF * node_B(c, l->s) > c->eps;
+}
 
 /* Evaluates the links from c->first_new on, and computes the data of fresh
  * leaves; then splits what the visibility and first-shot tests ask for, and
@@ -528,8 +560,9 @@ static rr_status settle(hctx *c, void (*progress)(void *, size_t, size_t), void 
         size_t old_end = c->nln;
         for (size_t i = lo; i < old_end && !c->nomem; i++) {
             hlink l = c->ln[i];
-            int split = l.vis > 0 && l.vis < 1 && c->nln < c->max_links &&
-                        link_power(c, l.r, l.s) > VIS_SHARE * c->eps && split_link(c, l.r, l.s);
+            int split = c->nln < c->max_links && (uneven(c, &l) || (l.vis > 0 && l.vis < 1 &&
+                                                                          link_power(c, l.r, l.s) > VIS_SHARE * c->eps)) &&
+                        split_link(c, l.r, l.s, 1);
             if (!split)
                 c->ln[keep++] = l;
             changed |= split;
@@ -567,8 +600,17 @@ static int relink(hctx *c)
         c->nomem = 1;
         return 0;
     }
-    for (size_t i = 0; i < n; i++)
-        split[i] = link_power(c, old[i].r, old[i].s) > c->eps && splittable(c, old[i].r) | splittable(c, old[i].s);
+    /* 1: too much power (split the larger end); 2: uneven or partly hidden
+     * (split the receiver first), as settle tests new links. */
+    for (size_t i = 0; i < n; i++) {
+        const hlink *l = &old[i];
+        if (!(splittable(c, l->r) | splittable(c, l->s)))
+            split[i] = 0;
+        else if (link_power(c, l->r, l->s) > c->eps)
+            split[i] = 1;
+        else if (uneven(c, l) || (l->vis > 0 && l->vis < 1 && link_power(c, l->r, l->s) > VIS_SHARE * c->eps))
+            split[i] = 2;
+    }
     for (size_t i = 0; i < n; i++)
         if (!split[i])
             c->ln[keep++] = old[i];
@@ -576,7 +618,7 @@ static int relink(hctx *c)
     c->first_new = keep;
     for (size_t i = 0; i < n && !c->nomem; i++)
         if (split[i] && c->nln < c->max_links) {
-            split_link(c, old[i].r, old[i].s);
+            split_link(c, old[i].r, old[i].s, split[i] == 2);
             changed = 1;
         } else if (split[i]) {
             c->capped = 1;
@@ -672,8 +714,7 @@ static rr_status make_output(hctx *c, rad_patches *roots, rad_solution *sol, rr_
     return st;
 }
 
-/* The roots: the scene's primitives at 16 times the flat patch area. */
-static rad_patch_opts root_limits(const scene *s, const rad_pass_opts *o)
+rad_patch_opts rad__hier_root_limits(const scene *s, const rad_pass_opts *o)
 {
     rad_patch_opts p = rad_pass_patch_limits(s, o);
     p.max_area *= 16.0;
@@ -698,7 +739,21 @@ static double emitted_power(const hctx *c)
     return P;
 }
 
+static rr_status hier_run(const scene *s, const rt_accel *a, const rad_pass_opts *o, rad_solution *sol, rr_error *err);
+
 rr_status rad__hier_run(const scene *s, const rt_accel *a, const rad_pass_opts *o, rad_solution *sol, rr_error *err)
+{
+    /* ff.threads for every parallel region of the pass (0: OpenMP's default);
+     * the result is the same for any count. */
+    int before = omp_get_max_threads();
+    if (o->ff.threads > 0)
+        omp_set_num_threads(o->ff.threads);
+    rr_status st = hier_run(s, a, o, sol, err);
+    omp_set_num_threads(before);
+    return st;
+}
+
+static rr_status hier_run(const scene *s, const rt_accel *a, const rad_pass_opts *o, rad_solution *sol, rr_error *err)
 {
     double t0 = rr_now_seconds();
     hctx c;
@@ -715,7 +770,7 @@ rr_status rad__hier_run(const scene *s, const rt_accel *a, const rad_pass_opts *
     c.min_area = rad__hier_min_area(s, o);
     double tol = o->hier.tolerance > 0 ? o->hier.tolerance : s->radiosity.refine_tolerance;
     c.max_links = o->hier.max_links > 0 ? o->hier.max_links : (size_t)s->radiosity.max_links;
-    rad_patch_opts po = root_limits(s, o);
+    rad_patch_opts po = rad__hier_root_limits(s, o);
     po.accel = a;
     rad_patches *roots = NULL;
     rt_lights *L = NULL;
@@ -763,6 +818,7 @@ rr_status rad__hier_run(const scene *s, const rt_accel *a, const rad_pass_opts *
     if (st == RR_OK && !(power > 0))
         st = rr_error_set(err, RR_ERR_INVALID, "%s: radiosity: nothing emits light", s->path);
     c.eps = tol * power;
+    int loose = 0;
     for (int round = 0; round < MAX_ROUNDS && st == RR_OK; round++) {
         rad__hier_sources(&c, 0, 0);
         if (round == 0) {
@@ -775,10 +831,18 @@ rr_status rad__hier_run(const scene *s, const rt_accel *a, const rad_pass_opts *
             st = rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory for %zu links", s->path, c.nln);
         if (st == RR_OK)
             st = settle(&c, o->ff.progress, o->ff.progress_user, err);
+        /* Rounds before the last only guide the next refinement: a loose
+         * solve (ROUND_TOL) is enough there; the last goes to the tolerance. */
+        rad_solve_opts ro = so;
+        loose = round + 1 < MAX_ROUNDS && so.tolerance < ROUND_TOL;
+        if (loose)
+            ro.tolerance = ROUND_TOL;
         if (st == RR_OK)
-            st = rad__hier_solve(&c, &so, &sol->stats, err);
+            st = rad__hier_solve(&c, &ro, &sol->stats, err);
         sol->refine_rounds = round + 1;
     }
+    if (st == RR_OK && loose) /* the refinement settled before the last round */
+        st = rad__hier_solve(&c, &so, &sol->stats, err);
     double t1 = rr_now_seconds();
     if (st == RR_OK && c.capped)
         rr_warn(&o->warn, "%s: radiosity: refinement stopped at %zu links (radiosity.max_links): the solution is "

@@ -17,7 +17,7 @@ typedef struct hel {
     int closed;     /* leaf: its closedness rays all landed on fronts */
     int fresh;      /* leaf data (first shot, closedness) still to compute */
     double spread;  /* leaf: the first shot's largest difference between its points */
-    rr_rgb B, src, H, Hc, E, H0;
+    rr_rgb B, src, H, E, H0;
     double k;       /* leaf: row-sum scale */
 } hel;
 
@@ -28,7 +28,6 @@ typedef struct hcl {
     rr_rgb P;          /* power of the current source values */
     double D[3][6];    /* per channel, that power split over the six axis directions
                           (+x, -x, +y, -y, +z, -z) by its surfaces' normals (axis_split) */
-    double Rv[3][6];   /* gathered irradiance per channel and axis direction */
 } hcl;
 
 /* A unit vector's six axis weights: w[2a] = max(0, n_a), w[2a+1] = max(0, -n_a). */
@@ -42,9 +41,11 @@ static inline void axis_split(rr_vec3 n, double w[6])
 }
 
 typedef struct hlink {
-    uint32_t r, s;
-    float g, vis;
-    float w[3];
+    uint32_t r, s; /* receiver (an element), source (element or cluster) */
+    float g;       /* the transport coefficient (rad_hier.c, "Transport") */
+    float vis;     /* share of the shadow rays that passed */
+    float dF;      /* element sources: largest minus smallest point factor over r */
+    float w[3];    /* cluster sources: unit direction from r to s */
 } hlink;
 
 typedef struct hctx {
@@ -86,7 +87,7 @@ void rad__hier_sources(hctx *c, int unit, int indirect);
 /* Receiver groups of the links sorted by receiver: grp[0..ngrp] (one past
  * the end); NULL when out of memory (free() it). */
 size_t *rad__hier_groups(const hctx *c, size_t *ngrp);
-/* Every link's transport into its receiver (H of elements, Rv of clusters). */
+/* Every link's transport into its receiver's H (receivers are elements). */
 void rad__hier_gather(hctx *c, const size_t *grp, size_t ngrp);
 /* Irradiance down to the leaves; at the leaves per mode. */
 double rad__hier_push(hctx *c, push_mode mode);

@@ -30,6 +30,10 @@ int rad__hier_bits(const rad_patches *P, rad_split_bits *bits);
  * so that the Gouraud-shaded surface has no cracks. */
 rr_status rad__to_vertices(const rad_patches *P, const rr_rgb *per_patch, rr_rgb *per_vertex);
 
+/* The roots' patch limits for s given o: the scene's primitives at 16 times
+ * the flat method's patch area (and 4 times its edge). */
+rad_patch_opts rad__hier_root_limits(const scene *s, const rad_pass_opts *o);
+
 /* The smallest element area the hierarchical pass splits to for s given o. */
 double rad__hier_min_area(const scene *s, const rad_pass_opts *o);
 

@@ -110,60 +110,19 @@ void rad__hier_gather(hctx *c, const size_t *grp, size_t ngrp)
 #pragma omp parallel for schedule(static)
     for (long i = 0; i < (long)c->nel; i++)
         c->el[i].H = rr_rgb_make(0, 0, 0);
-    for (size_t i = 0; i < c->ncl; i++)
-        memset(c->cl[i].Rv, 0, sizeof c->cl[i].Rv);
 #pragma omp parallel for schedule(dynamic, 64)
     for (long gi = 0; gi < (long)ngrp; gi++) {
-        uint32_t r = c->ln[grp[gi]].r;
         rr_rgb H = rr_rgb_make(0, 0, 0);
-        double Rv[3][6] = {{0}};
         for (size_t j = grp[gi]; j < grp[gi + 1]; j++) {
             const hlink *l = &c->ln[j];
-            rr_vec3 w = rr_v3(l->w[0], l->w[1], l->w[2]);
-            rr_rgb v = l->s & CLB ? cl_intensity(&c->cl[CL(l->s)], rr_v3_neg(w)) : c->el[l->s].src;
-            v = rr_rgb_scale(v, l->g);
-            if (!(r & CLB)) {
-                H = rr_rgb_add(H, v);
-            } else {
-                double aw[6], ch[3] = {v.r, v.g, v.b};
-                axis_split(w, aw);
-                for (int q = 0; q < 3; q++)
-                    for (int a = 0; a < 6; a++)
-                        Rv[q][a] += ch[q] * aw[a];
-            }
+            rr_rgb v = l->s & CLB ? cl_intensity(&c->cl[CL(l->s)], rr_v3(-l->w[0], -l->w[1], -l->w[2]))
+                                  : c->el[l->s].src;
+            H = rr_rgb_add(H, rr_rgb_scale(v, l->g));
         }
-        if (r & CLB)
-            memcpy(c->cl[CL(r)].Rv, Rv, sizeof Rv);
-        else
-            c->el[r].H = H;
+        c->el[c->ln[grp[gi]].r].H = H;
     }
 }
 
-/* Cluster irradiance down to the roots, read with each root's normal:
- * H = sum_a n_a^+- R[a, sign n_a] (exact for normals along an axis). */
-static void push_cl(hctx *c, uint32_t x, const double R[3][6])
-{
-    if (!(x & CLB)) {
-        double w[6], H[3] = {0, 0, 0};
-        axis_split(el_normal(c, x), w);
-        for (int q = 0; q < 3; q++)
-            for (int a = 0; a < 6; a++)
-                H[q] += w[a] * R[q][a];
-        c->el[x].Hc = rr_rgb_make(H[0], H[1], H[2]);
-        return;
-    }
-    const hcl *k = &c->cl[CL(x)];
-    double W[3][6];
-    for (int q = 0; q < 3; q++)
-        for (int a = 0; a < 6; a++)
-            W[q][a] = R[q][a] + k->Rv[q][a];
-    push_cl(c, k->child[0], W);
-    push_cl(c, k->child[1], W);
-}
-
-/* Irradiance down one root's tree; at the leaves per mode: SOLVE sets
- * B = E + rho k H (returns the largest change), SIGMA sets k from the row sum,
- * KEEP stores k H in H. */
 static double push_el(hctx *c, uint32_t x, rr_rgb Hin, push_mode mode)
 {
     hel *e = &c->el[x];
@@ -192,13 +151,11 @@ static double push_el(hctx *c, uint32_t x, rr_rgb Hin, push_mode mode)
 
 double rad__hier_push(hctx *c, push_mode mode)
 {
-    double zero[3][6] = {{0}};
-    push_cl(c, c->top, zero);
     size_t nr = c->R->n;
     double m = 0.0;
 #pragma omp parallel for schedule(dynamic, 64) reduction(max : m)
     for (long r = 0; r < (long)nr; r++) {
-        double d = push_el(c, (uint32_t)r, c->el[r].Hc, mode);
+        double d = push_el(c, (uint32_t)r, rr_rgb_make(0, 0, 0), mode);
         m = d > m ? d : m;
     }
     return m;

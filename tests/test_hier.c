@@ -1,11 +1,13 @@
 /* test_hier.c - the hierarchical radiosity method (rad_hier.c) against closed
  * forms: a closed furnace, the cube lit by its ceiling; and the patch set of
- * its leaves (lookup, no cracks), determinism across thread counts. */
+ * its leaves (lookup, no cracks), determinism across thread counts, and the
+ * cache. */
 #include <omp.h>
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
 #include <stdint.h>
+#include <unistd.h>
 
 #include <cmocka.h>
 
@@ -95,9 +97,9 @@ static void test_furnace(void **state)
 
 /* The cube lit by its ceiling (E = 1, rho = 0.5 everywhere): face means of B
  * against the converged values 1.104364 (ceiling), 0.171216 (floor),
- * 0.181105 (sides) (issue 13). Measured now: ceiling -0.5 %, floor +0.9 %,
- * sides -1.9 % to +0.2 %: the tolerances below hold today's accuracy, not
- * the 0.5 % the issue asks (notes/radiosity.md, "Hierarchical"). */
+ * 0.181105 (sides) (issue 13). Measured now: ceiling -0.19 %, floor -0.10 %
+ * (within the 0.5 % the issue asks), sides -0.93 % to -0.73 % (not yet):
+ * notes/radiosity.md, "Hierarchical". */
 static void test_cube_ceiling(void **state)
 {
     (void)state;
@@ -113,11 +115,11 @@ static void test_cube_ceiling(void **state)
     for (int o = 0; o < 6; o++) {
         double b = sum[o] / area[o];
         if (o == 3)
-            assert_true(fabs(b / 1.104364 - 1) < 0.01);
+            assert_true(fabs(b / 1.104364 - 1) < 0.005);
         else if (o == 2)
-            assert_true(fabs(b / 0.171216 - 1) < 0.02);
+            assert_true(fabs(b / 0.171216 - 1) < 0.005);
         else
-            assert_true(fabs(b / 0.181105 - 1) < 0.03);
+            assert_true(fabs(b / 0.181105 - 1) < 0.015);
     }
     rad_solution_destroy(sol);
     rt_accel_destroy(a);
@@ -164,12 +166,59 @@ static void test_leaves(void **state)
     scene_destroy(s);
 }
 
+/* The cache keeps a hierarchical solution: the tree comes back from its split
+ * bits (same leaves, same values, bytes compared); another refinement
+ * tolerance refuses the file, naming the method's settings. */
+static void test_cache(void **state)
+{
+    (void)state;
+    scene *s = lit_cube();
+    rt_accel *a = NULL;
+    rr_error err;
+    assert_int_equal(rt_accel_build(s, &a, NULL), RR_OK);
+    char path[] = "/tmp/radray-test-hier-XXXXXX";
+    int fd = mkstemp(path);
+    assert_true(fd >= 0);
+    close(fd);
+    unlink(path);
+    rad_pass_opts po;
+    memset(&po, 0, sizeof po);
+    po.use_scene_choices = 1;
+    rad_solution *made = NULL, *read = NULL;
+    int from = -1;
+    assert_int_equal(rad_pass_run_cached(s, a, &po, path, &from, &made, &err), RR_OK);
+    assert_int_equal(from, 0);
+    if (rad_pass_run_cached(s, a, &po, path, &from, &read, &err) != RR_OK)
+        fail_msg("%s", err.msg);
+    assert_int_equal(from, 1);
+    assert_non_null(read->P->roots);
+    assert_int_equal(read->P->n, made->P->n);
+    assert_int_equal(read->P->nverts, made->P->nverts);
+    assert_memory_equal(read->P->p, made->P->p, made->P->n * sizeof *made->P->p);
+    assert_memory_equal(read->B, made->B, made->P->n * sizeof *made->B);
+    assert_memory_equal(read->vertex_Hind, made->vertex_Hind, made->P->nverts * sizeof *made->vertex_Hind);
+    for (size_t k = 0; k < made->P->n; k += 97)
+        assert_int_equal(rad_patch_locate(read->P, s, made->P->p[k].tri, made->P->p[k].object,
+                                          made->P->p[k].centroid),
+                         (uint32_t)k);
+    rad_solution_destroy(read);
+    read = NULL;
+    po.hier.tolerance = 1e-5;
+    assert_int_equal(rad_pass_run_cached(s, a, &po, path, &from, &read, &err), RR_ERR_INVALID);
+    assert_non_null(strstr(err.msg, "radiosity method and its settings"));
+    unlink(path);
+    rad_solution_destroy(made);
+    rt_accel_destroy(a);
+    scene_destroy(s);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_furnace),
         cmocka_unit_test(test_cube_ceiling),
         cmocka_unit_test(test_leaves),
+        cmocka_unit_test(test_cache),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
