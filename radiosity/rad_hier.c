@@ -155,6 +155,34 @@ static int el_split(hctx *c, uint32_t x)
 
 /* ---- clusters ---- */
 
+/* Node x's area split over the six axis directions as its power is
+ * (pull_cl): a surface of normal n puts A n_a^+- / |n|_1 into each. */
+static void node_axis_area(const hctx *c, uint32_t x, double w[6])
+{
+    if (x & CLB) {
+        memcpy(w, c->cl[CL(x)].A6, sizeof c->cl[CL(x)].A6);
+        return;
+    }
+    double l1 = 0.0;
+    axis_split(el_normal(c, x), w);
+    for (int q = 0; q < 6; q++)
+        l1 += w[q];
+    for (int q = 0; q < 6; q++)
+        w[q] = l1 > 0 ? w[q] * c->el[x].area / l1 : 0.0;
+}
+
+/* Node x's area as seen from direction u (towards the viewer), by the
+ * six-direction split: what a cluster shows of itself that way. */
+static double node_proj_area(const hctx *c, uint32_t x, rr_vec3 u)
+{
+    double w[6], a6[6], p = 0.0;
+    axis_split(u, w);
+    node_axis_area(c, x, a6);
+    for (int q = 0; q < 6; q++)
+        p += w[q] * a6[q];
+    return p;
+}
+
 typedef struct ritem {
     uint32_t e;
     double key;
@@ -196,6 +224,11 @@ static uint32_t cluster_build(hctx *c, ritem *it, size_t n)
     k->child[1] = b;
     k->area = node_area(c, a) + node_area(c, b);
     k->rho_max = fmax(node_rho(c, a), node_rho(c, b));
+    double wa[6], wb[6];
+    node_axis_area(c, a, wa);
+    node_axis_area(c, b, wb);
+    for (int q = 0; q < 6; q++)
+        k->A6[q] = wa[q] + wb[q];
     return id | CLB;
 }
 
@@ -372,13 +405,22 @@ static rr_vec3 tri_random(const rr_vec3 v[3], rr_rng *rng)
 
 /* A point on the surfaces of node x for a shadow ray: element points are the
  * fixed pattern (k_pts[k]) when fixed, else random; a cluster's come from a
- * root drawn by area. xs on the true surface, ns its normal. */
-static void node_sample(const hctx *c, uint32_t x, int k, int fixed, rr_rng *rng, rr_vec3 *xs, rr_vec3 *ns)
+ * root drawn by its area seen from direction u (node_proj_area), so that
+ * surfaces facing away, whose share the cluster's intensity already leaves
+ * out, are not counted again as occluded (by the cluster itself): drawn by
+ * area, a solid block's far faces halved its light. xs on the true surface,
+ * ns its normal. */
+static void node_sample(const hctx *c, uint32_t x, int k, int fixed, rr_vec3 u, rr_rng *rng, rr_vec3 *xs,
+                        rr_vec3 *ns)
 {
     while (x & CLB) {
         const hcl *q = &c->cl[CL(x)];
-        double a0 = node_area(c, q->child[0]);
-        x = rr_rng_uniform(rng) * q->area < a0 ? q->child[0] : q->child[1];
+        double a0 = node_proj_area(c, q->child[0], u), a1 = node_proj_area(c, q->child[1], u);
+        if (!(a0 + a1 > 0)) { /* nothing faces u: by area */
+            a0 = node_area(c, q->child[0]);
+            a1 = q->area - a0;
+        }
+        x = rr_rng_uniform(rng) * (a0 + a1) < a0 ? q->child[0] : q->child[1];
     }
     const hel *e = &c->el[x];
     rr_vec3 p = fixed ? tri_at(e->c, k_pts[k][0], k_pts[k][1], k_pts[k][2]) : tri_random(e->c, rng);
@@ -389,10 +431,11 @@ static void node_sample(const hctx *c, uint32_t x, int k, int fixed, rr_rng *rng
 static double visibility(const hctx *c, uint32_t r, uint32_t s, rr_rng *rng)
 {
     int pass = 0;
+    rr_vec3 u = rr_v3_norm(rr_v3_sub(node_ctr(c, s), node_ctr(c, r))); /* from r towards s */
     for (int k = 0; k < VIS_RAYS; k++) {
         rr_vec3 x, nx, y, ny;
-        node_sample(c, r, k, !(r & CLB), rng, &x, &nx);
-        node_sample(c, s, k, 0, rng, &y, &ny);
+        node_sample(c, r, k, 1, u, rng, &x, &nx);
+        node_sample(c, s, k, 0, rr_v3_neg(u), rng, &y, &ny);
         rr_vec3 d = rr_v3_sub(y, x);
         rr_vec3 o = rt_offset_origin(c->ext, x, nx, d), t = rt_offset_origin(c->ext, y, ny, rr_v3_neg(d));
         rr_ray ray = {o, rr_v3_sub(t, o)};
@@ -429,43 +472,57 @@ static int quad_points(int near, double (*b)[3])
  * Pairs closer than twice their radii (where F_point varies fastest, with a
  * log-singular gradient along a shared edge) take 36 points instead of 4:
  * with 4, the row sums of a closed cube fell 10 % short. */
-static void eval_ee(const hctx *c, hlink *l, rr_rng *rng)
+/* One end's estimate: the mean over x's quadrature points of the point
+ * factor of y (clipped to x's front) times the point's shadow ray; *dF the
+ * largest minus the smallest point value, *seen / *pass the points that face
+ * y and those whose ray passed. */
+static double side_ff(const hctx *c, uint32_t xi, uint32_t yi, int near, rr_rng *rng, double *dF, int *seen,
+                      int *pass)
 {
-    const hel *er = &c->el[l->r], *es = &c->el[l->s];
-    rr_vec3 nr = el_normal(c, l->r), ns = el_normal(c, l->s), poly[4];
-    int nv = rad__clip_front(es->c, nr, er->ctr, c->plane_tol, poly);
+    const hel *ex = &c->el[xi], *ey = &c->el[yi];
+    rr_vec3 nx = el_normal(c, xi), ny = el_normal(c, yi), poly[4];
+    int nv = rad__clip_front(ey->c, nx, ex->ctr, c->plane_tol, poly);
     double b[NEAR_N][3];
-    int near = rr_v3_len(rr_v3_sub(er->ctr, es->ctr)) < 2.0 * (er->radius + es->radius);
     int np = quad_points(near, b);
     double sum = 0.0, lo = INFINITY, hi = 0.0;
-    int seen = 0, pass = 0;
     for (int k = 0; k < np && nv >= 3; k++) {
-        rr_vec3 x = tri_at(er->c, b[k][0], b[k][1], b[k][2]);
-        double f = rr_v3_dot(ns, rr_v3_sub(x, es->ctr)) > c->plane_tol ? rad_ff_point_polygon(x, nr, poly, nv) : 0.0;
+        rr_vec3 x = tri_at(ex->c, b[k][0], b[k][1], b[k][2]);
+        double f = rr_v3_dot(ny, rr_v3_sub(x, ey->ctr)) > c->plane_tol ? rad_ff_point_polygon(x, nx, poly, nv) : 0.0;
         if (f > 0.0) {
-            seen++;
+            (*seen)++;
             rr_vec3 xs, xn, ys, yn;
             double u = rr_rng_uniform(rng), v = rr_rng_uniform(rng);
             if (u + v > 1.0) { /* fold the square onto the triangle */
                 u = 1.0 - u;
                 v = 1.0 - v;
             }
-            rad_patch_surface(c->R, c->s, c->a, er->root, x, &xs, &xn);
-            rad_patch_surface(c->R, c->s, c->a, es->root, rad__poly_point(poly, nv, u, v, (uint32_t)k), &ys, &yn);
+            rad_patch_surface(c->R, c->s, c->a, ex->root, x, &xs, &xn);
+            rad_patch_surface(c->R, c->s, c->a, ey->root, rad__poly_point(poly, nv, u, v, (uint32_t)k), &ys, &yn);
             rr_vec3 o = rt_offset_origin(c->ext, xs, xn, xn), t = rt_offset_origin(c->ext, ys, yn, yn);
             rr_ray ray = {o, rr_v3_sub(t, o)};
             if (rt_accel_occluded(c->a, ray, 0.0, RT_SHADOW_END))
                 f = 0.0;
             else
-                pass++;
+                (*pass)++;
         }
         sum += f;
         lo = fmin(lo, f);
         hi = fmax(hi, f);
     }
-    l->g = (float)(sum / np);
+    *dF = hi - (isfinite(lo) ? lo : 0.0);
+    return np > 0 && nv >= 3 ? sum / np : 0.0;
+}
+
+static void eval_ee(const hctx *c, hlink *l, rr_rng *rng)
+{
+    const hel *er = &c->el[l->r], *es = &c->el[l->s];
+    int near = rr_v3_len(rr_v3_sub(er->ctr, es->ctr)) < 2.0 * (er->radius + es->radius);
+    int seen = 0, pass = 0;
+    double dF;
+    double F = side_ff(c, l->r, l->s, near, rng, &dF, &seen, &pass);
+    l->g = (float)F;
     l->vis = seen ? (float)pass / (float)seen : 1.0f;
-    l->dF = (float)(hi - (isfinite(lo) ? lo : 0.0)); /* how much the factor varies over r */
+    l->dF = (float)dF; /* how much the factor varies over r */
 }
 
 static void eval_link(const hctx *c, hlink *l)
@@ -524,6 +581,7 @@ static int uneven(const hctx *c, const hlink *l)
 {
     return !(l->s & CLB) && node_rho(c, l->r) * node_area(c, l->r) * l->dF * node_B(c, l->s) > c->eps;
 }
+
 
 /* Evaluates the links from c->first_new on, and computes the data of fresh
  * leaves; then splits what the visibility and first-shot tests ask for, and

@@ -25,6 +25,7 @@ typedef struct hcl {
     rr_vec3 lo, hi, ctr;
     double radius, area, rho_max;
     uint32_t child[2]; /* node references */
+    double A6[6];      /* its area split over the six axis directions by normals (node_axis_area) */
     rr_rgb P;          /* power of the current source values */
     double D[3][6];    /* per channel, that power split over the six axis directions
                           (+x, -x, +y, -y, +z, -z) by its surfaces' normals (axis_split) */
