@@ -44,6 +44,7 @@ static inline void axis_split(rr_vec3 n, double w[6])
 typedef struct hlink {
     uint32_t r, s; /* receiver (an element), source (element or cluster) */
     float g;       /* the transport coefficient (rad_hier.c, "Transport") */
+    float ga;      /* the same with the visibility of the source's area (cluster sources), for B = 1 */
     float vis;     /* share of the shadow rays that passed */
     float dF;      /* element sources: largest minus smallest point factor over r */
     float w[3];    /* cluster sources: unit direction from r to s */
@@ -64,6 +65,7 @@ typedef struct hctx {
     double eps, min_area;
     size_t max_links;
     int capped, nomem;
+    int unit;       /* the sources are B = 1 (rad__hier_sources): gathers read hlink.ga */
     double ext, plane_tol;
     uint64_t seed;
     const volatile sig_atomic_t *interrupt;

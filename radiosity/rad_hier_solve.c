@@ -95,6 +95,7 @@ static void set_src(hctx *c, int unit, int indirect, uint32_t x)
 void rad__hier_sources(hctx *c, int unit, int indirect)
 {
     size_t nr = c->R->n;
+    c->unit = unit;
 #pragma omp parallel for schedule(dynamic, 64)
     for (long r = 0; r < (long)nr; r++) {
         set_src(c, unit, indirect, (uint32_t)r);
@@ -117,7 +118,7 @@ void rad__hier_gather(hctx *c, const size_t *grp, size_t ngrp)
             const hlink *l = &c->ln[j];
             rr_rgb v = l->s & CLB ? cl_intensity(&c->cl[CL(l->s)], rr_v3(-l->w[0], -l->w[1], -l->w[2]))
                                   : c->el[l->s].src;
-            H = rr_rgb_add(H, rr_rgb_scale(v, l->g));
+            H = rr_rgb_add(H, rr_rgb_scale(v, c->unit ? l->ga : l->g));
         }
         c->el[c->ln[grp[gi]].r].H = H;
     }
