@@ -27,6 +27,7 @@ typedef struct hcl {
     uint32_t child[2]; /* node references */
     double A6[6];      /* its area split over the six axis directions by normals (node_axis_area) */
     rr_rgb P;          /* power of the current source values */
+    rr_vec3 ac, pc;    /* centroids of its area and of that power (ac where it has none) */
     double D[3][6];    /* per channel, that power split over the six axis directions
                           (+x, -x, +y, -y, +z, -z) by its surfaces' normals (axis_split) */
 } hcl;

@@ -53,7 +53,13 @@ static rr_rgb pull_cl(hctx *c, uint32_t x, double D[3][6])
     }
     hcl *k = &c->cl[CL(x)];
     double D0[3][6], D1[3][6];
-    k->P = rr_rgb_add(pull_cl(c, k->child[0], D0), pull_cl(c, k->child[1], D1));
+    rr_rgb P0 = pull_cl(c, k->child[0], D0), P1 = pull_cl(c, k->child[1], D1);
+    k->P = rr_rgb_add(P0, P1);
+    /* The power centroid (the area centroid where there is no power). */
+    double w0 = P0.r + P0.g + P0.b, w1 = P1.r + P1.g + P1.b;
+    rr_vec3 c0 = k->child[0] & CLB ? c->cl[CL(k->child[0])].pc : c->el[k->child[0]].ctr;
+    rr_vec3 c1 = k->child[1] & CLB ? c->cl[CL(k->child[1])].pc : c->el[k->child[1]].ctr;
+    k->pc = w0 + w1 > 0 ? rr_v3_scale(rr_v3_add(rr_v3_scale(c0, w0), rr_v3_scale(c1, w1)), 1.0 / (w0 + w1)) : k->ac;
     for (int q = 0; q < 3; q++)
         for (int a = 0; a < 6; a++)
             k->D[q][a] = D[q][a] = D0[q][a] + D1[q][a];
