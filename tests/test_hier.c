@@ -126,6 +126,58 @@ static void test_cube_ceiling(void **state)
     scene_destroy(s);
 }
 
+/* The floor's mean B of the cube with a lamp 2 mm under its ceiling (as
+ * scenes/room.json has its lamp and window): the surface above the lamp is
+ * hidden by it and shares its clusters. Cluster shadow rays drawn by area
+ * lost a third of the lamp's light there (-31 % on room.json's floor, -20.6 %
+ * here); drawn by power, the row sums counted the hidden ceiling and scaled
+ * the floor down 10 %. Now +3.6 % here: what is left is the cluster links'
+ * own error (notes/radiosity.md, "Hierarchical"), hence 5 %. */
+static double lamp_cube_floor(const char *method)
+{
+    char json[8192];
+    size_t len = (size_t)snprintf(json, sizeof json,
+                                  "{\"format\":\"radray-scene/1\",\"camera\":{\"type\":\"lecture\",\"E\":[0,0,0],"
+                                  "\"O\":[0,0,-1],\"U\":[0,1,0],\"s\":0.1,\"w\":2,\"h\":2},"
+                                  "\"radiosity\":{\"method\":\"%s\",\"patch_area\":0.001},\"materials\":{"
+                                  "\"f\":{\"diffuse\":0.5},\"l\":{\"diffuse\":0,\"emission\":1}},\"objects\":[",
+                                  method);
+    len = test_inward_cube(json, sizeof json, len, "f");
+    snprintf(json + len, sizeof json - len,
+             ",{\"type\":\"quad\",\"material\":\"l\",\"vertices\":[[-0.3,0.998,-0.3],[0.3,0.998,-0.3],"
+             "[0.3,0.998,0.3],[-0.3,0.998,0.3]]}]}");
+    scene *s = load(json);
+    rt_accel *a = NULL;
+    rr_error err;
+    assert_int_equal(rt_accel_build(s, &a, NULL), RR_OK);
+    rad_pass_opts po;
+    memset(&po, 0, sizeof po);
+    po.use_scene_choices = 1;
+    rad_solution *sol = NULL;
+    if (rad_pass_run(s, a, &po, &sol, &err) != RR_OK)
+        fail_msg("%s", err.msg);
+    double sum = 0.0, area = 0.0;
+    for (size_t k = 0; k < sol->P->n; k++)
+        if (sol->P->p[k].object == 2) {
+            sum += rr_rgb_mean(sol->B[k]) * sol->P->p[k].area;
+            area += sol->P->p[k].area;
+        }
+    rad_solution_destroy(sol);
+    rt_accel_destroy(a);
+    scene_destroy(s);
+    return sum / area;
+}
+
+/* The hierarchical floor against the flat method's (Monte Carlo factors,
+ * 512 rays per patch: under 0.5 % noise over a whole face). */
+static void test_lamp_under_ceiling(void **state)
+{
+    (void)state;
+    double h = lamp_cube_floor("hierarchical"), f = lamp_cube_floor("flat");
+    print_message("lamp under the ceiling: floor B hierarchical %.5f, flat %.5f (%+.2f %%)\n", h, f, 100 * (h / f - 1));
+    assert_true(fabs(h / f - 1) < 0.05);
+}
+
 /* The leaves: each centroid is found again through the tree; every T-vertex
  * (the middle of an edge that is a whole edge of some leaf) carries the mean
  * of that edge's ends, so Gouraud shading is continuous across the edge; the
@@ -216,6 +268,7 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_furnace),
+        cmocka_unit_test(test_lamp_under_ceiling),
         cmocka_unit_test(test_cube_ceiling),
         cmocka_unit_test(test_leaves),
         cmocka_unit_test(test_cache),
