@@ -31,7 +31,8 @@
  * splitting the source there only shrinks the link's power until it passes):
  * a link whose rays see the source partly (0 < V < 1) while its power
  * exceeds eps / 8, and an uneven one, rho A_r (F_max - F_min) B_s > eps over
- * the receiver's quadrature points. Without the first, sphere-to-board's
+ * the receiver's quadrature points (for cluster sources, of the geometric term
+ * at its corners). Without the first, sphere-to-board's
  * shadow was as coarse as the board's roots.
  * A link with a cluster at either end is split, whatever it carries, while
  * the centres are closer than ADMISSIBLE times the sum of the radii: without
@@ -39,15 +40,29 @@
  * Rounds: link with the emission, solve, re-link with the solved radiosity
  * (what was kept is re-tested, all three tests), solve again, twice.
  *
- * Transport of a link, per channel (d the distance of the centres, w the unit
- * direction from r to s, V the share of 4 shadow rays that pass, q = 1 / (d^2
- * + A_s / pi), the disc formula that saturates for near nodes):
- *   element <- element: F = mean over 4 points x of r (36 for near pairs) of
- *                       F_point(x, s clipped to r's front) V(x), Lambert's
- *                       contour integral (rad_ff_point_polygon); H_r += F B_s
- *   element <- cluster: H_r += V q cos_r I_s(-w)
- * The shadow rays start at fixed points of the receiver and end at points drawn from the link's
- * own stream rr_rng_make(seed, (r << 32) | s).
+ * Transport of a link, per channel (w the unit direction from r to s, V the
+ * visibility by 4 shadow rays, q = 1 / (d^2 + A / pi) the disc formula that
+ * saturates for near nodes, A the area a node shows r):
+ *   element <- element: F = mean over 36 points x of r for near pairs (4
+ *                       otherwise) of F_point(x, s clipped to r's front),
+ *                       Lambert's contour integral, times V (4 rays: one per
+ *                       point when 4 points, their pass share when 36);
+ *                       H_r += F B_s
+ *   element <- cluster: H_r += g I_s(-w), g = V_p sum_n q_n cos_r,n I_n / I_s
+ *                       over s's nodes n three levels down, each at the
+ *                       centroid of its power: the lamp of a cluster that
+ *                       also holds the ceiling around it is read where it is.
+ * Interior nodes shoot the area mean of their leaves' current B (src): read
+ * from the B they had when split, links from split elements never refined.
+ * A cluster's shadow rays end on its surfaces, drawn half by the power they
+ * send r and half by the area they show it; the balance heuristic gives the
+ * visibility of its power (V_p, for the transport) and of its area (V_a, for
+ * the row sums, B = 1, which read g_a, the same sum by area centroids). One
+ * visibility for both lost a third of a room's lamp light (the ceiling above
+ * the lamp, hidden by it, took the area-drawn rays) or, by power alone,
+ * scaled every leaf down 10 % (the row sums counted that hidden ceiling).
+ * The shadow rays start at fixed points of the receiver and end at points
+ * drawn from the link's own stream rr_rng_make(seed, (r << 32) | s).
  *
  * Solving (rad_hier_solve.c): Jacobi sweeps of gather (every link,
  * receivers in parallel, each receiver's links in one fixed order) and push-pull (irradiance down to the
