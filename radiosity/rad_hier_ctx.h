@@ -19,6 +19,7 @@ typedef struct hel {
     double spread;  /* leaf: the first shot's largest difference between its points */
     rr_rgb B, src, H, E, H0;
     double k;       /* leaf: row-sum scale */
+    int partial;    /* it has a partly visible link (rad__hier_gather of B = 1) */
 } hel;
 
 typedef struct hcl {
@@ -47,8 +48,9 @@ typedef struct hlink {
     float g;       /* the transport coefficient (rad_hier.c, "Transport") */
     float ga;      /* the same with the visibility of the source's area (cluster sources), for B = 1 */
     float vis;     /* share of the shadow rays that passed */
-    float dF;      /* element sources: largest minus smallest point factor over r */
-    float w[3];    /* cluster sources: unit direction from r to s */
+    float vp;      /* cluster sources: the visibility of its power (g = geometry x vp) */
+    float dF;      /* how much the factor varies over r */
+    unsigned char partial; /* some of its shadow rays passed, some not */
 } hlink;
 
 typedef struct hctx {
