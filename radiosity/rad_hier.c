@@ -183,24 +183,27 @@ static void node_axis_area(const hctx *c, uint32_t x, double w[6])
         memcpy(w, c->cl[CL(x)].A6, sizeof c->cl[CL(x)].A6);
         return;
     }
-    double l1 = 0.0;
-    axis_split(el_normal(c, x), w);
+    const double *n6 = c->rn6[c->el[x].root];
     for (int q = 0; q < 6; q++)
-        l1 += w[q];
-    for (int q = 0; q < 6; q++)
-        w[q] = l1 > 0 ? w[q] * c->el[x].area / l1 : 0.0;
+        w[q] = n6[q] * c->el[x].area;
 }
 
 /* Node x's area as seen from direction u (towards the viewer), by the
  * six-direction split: what a cluster shows of itself that way. */
 static double node_proj_area(const hctx *c, uint32_t x, rr_vec3 u)
 {
-    double w[6], a6[6], p = 0.0;
+    double w[6], p = 0.0;
     axis_split(u, w);
-    node_axis_area(c, x, a6);
+    if (x & CLB) {
+        const double *a6 = c->cl[CL(x)].A6;
+        for (int q = 0; q < 6; q++)
+            p += w[q] * a6[q];
+        return p;
+    }
+    const double *n6 = c->rn6[c->el[x].root];
     for (int q = 0; q < 6; q++)
-        p += w[q] * a6[q];
-    return p;
+        p += w[q] * n6[q];
+    return p * c->el[x].area;
 }
 
 /* The power node x sends towards direction u (by its current sources, the
@@ -211,20 +214,16 @@ static double node_proj_power(const hctx *c, uint32_t x, rr_vec3 u)
     double w[6], p = 0.0;
     axis_split(u, w);
     if (x & CLB) {
-        const hcl *k = &c->cl[CL(x)];
-        for (int q = 0; q < 3; q++)
-            for (int a = 0; a < 6; a++)
-                p += w[a] * k->D[q][a];
+        const double *d6 = c->cl[CL(x)].D6;
+        for (int a = 0; a < 6; a++)
+            p += w[a] * d6[a];
         return p;
     }
     const hel *e = &c->el[x];
-    double n6[6], l1 = 0.0;
-    axis_split(el_normal(c, x), n6);
-    for (int a = 0; a < 6; a++) {
-        l1 += n6[a];
+    const double *n6 = c->rn6[e->root];
+    for (int a = 0; a < 6; a++)
         p += w[a] * n6[a];
-    }
-    return l1 > 0 ? p / l1 * (e->src.r + e->src.g + e->src.b) * e->area : 0.0;
+    return p * (e->src.r + e->src.g + e->src.b) * e->area;
 }
 
 typedef struct ritem {
@@ -797,19 +796,28 @@ static rr_status settle(hctx *c, void (*progress)(void *, size_t, size_t), void 
                 changed |= el_split(c, (uint32_t)i) == 0;
             }
         }
-        /* Partly visible links that carry enough split once more. */
+        /* Partly visible links that carry enough split once more (which,
+         * decided in parallel: splitting changes no node a test reads). */
         size_t keep = lo;
         c->first_new = c->nln;
         size_t old_end = c->nln;
+        unsigned char *want = malloc(old_end - lo + 1);
+        if (!want)
+            return rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory", c->s->path);
+#pragma omp parallel for schedule(static)
+        for (long i = (long)lo; i < (long)old_end; i++) {
+            const hlink *l = &c->ln[i];
+            want[i - (long)lo] =
+                uneven(c, l) || (l->vis > 0 && l->vis < 1 && link_power(c, l->r, l->s) > VIS_SHARE * c->eps);
+        }
         for (size_t i = lo; i < old_end && !c->nomem; i++) {
             hlink l = c->ln[i];
-            int split = c->nln < c->max_links && (uneven(c, &l) || (l.vis > 0 && l.vis < 1 &&
-                                                                          link_power(c, l.r, l.s) > VIS_SHARE * c->eps)) &&
-                        split_link(c, l.r, l.s, 1);
+            int split = want[i - lo] && c->nln < c->max_links && split_link(c, l.r, l.s, 1);
             if (!split)
                 c->ln[keep++] = l;
             changed |= split;
         }
+        free(want);
         /* Compact: kept links of this batch, then the new ones. */
         size_t nnew = c->nln - old_end;
         memmove(c->ln + keep, c->ln + old_end, nnew * sizeof *c->ln);
@@ -845,7 +853,8 @@ static int relink(hctx *c)
     }
     /* 1: too much power (split the larger end); 2: uneven or partly hidden
      * (split the receiver first), as settle tests new links. */
-    for (size_t i = 0; i < n; i++) {
+#pragma omp parallel for schedule(static)
+    for (long i = 0; i < (long)n; i++) {
         const hlink *l = &old[i];
         if (!(splittable(c, l->r) | splittable(c, l->s)))
             split[i] = 0;
@@ -1025,6 +1034,15 @@ static rr_status hier_run(const scene *s, const rt_accel *a, const rad_pass_opts
         return st;
     }
     c.R = roots;
+    c.rn6 = malloc((roots->n ? roots->n : 1) * sizeof *c.rn6);
+    for (size_t i = 0; i < roots->n && c.rn6; i++) {
+        double l1 = 0.0;
+        axis_split(roots->p[i].normal, c.rn6[i]);
+        for (int q = 0; q < 6; q++)
+            l1 += c.rn6[i][q];
+        for (int q = 0; q < 6; q++)
+            c.rn6[i][q] = l1 > 0 ? c.rn6[i][q] / l1 : 0.0;
+    }
     c.L = rt_lights_delta_count(L) ? L : NULL;
     size_t nr = roots->n;
     ritem *it = malloc((nr ? nr : 1) * sizeof *it);
@@ -1035,8 +1053,9 @@ static rr_status hier_run(const scene *s, const rt_accel *a, const rad_pass_opts
         el_add(&c, v, (uint32_t)i, 0);
         it[i].e = (uint32_t)i;
     }
-    if (!it || !c.cl || c.nomem || nr == 0) {
+    if (!it || !c.cl || !c.rn6 || c.nomem || nr == 0) {
         free(it);
+        free(c.rn6);
         free(c.cl);
         free(c.el);
         rt_lights_destroy(L);
@@ -1103,6 +1122,7 @@ static rr_status hier_run(const scene *s, const rt_accel *a, const rad_pass_opts
     free(c.el);
     free(c.cl);
     free(c.ln);
+    free(c.rn6);
     sol->stats.used = RAD_SOLVER_ITERATIVE;
     sol->seconds_patches = 0.0;
     sol->seconds_ff = t1 - t0;

@@ -31,6 +31,7 @@ typedef struct hcl {
     rr_vec3 ac, pc;    /* centroids of its area and of that power (ac where it has none) */
     double D[3][6];    /* per channel, that power split over the six axis directions
                           (+x, -x, +y, -y, +z, -z) by its surfaces' normals (axis_split) */
+    double D6[6];      /* D summed over the channels */
 } hcl;
 
 /* A unit vector's six axis weights: w[2a] = max(0, n_a), w[2a+1] = max(0, -n_a). */
@@ -57,6 +58,7 @@ typedef struct hctx {
     const scene *s;
     const rt_accel *a;
     const rad_patches *R;
+    double (*rn6)[6]; /* per root: its normal's axis weights over their sum (node_axis_area) */
     const rt_lights *L;
     hel *el;
     size_t nel, capel;

@@ -11,12 +11,44 @@
 #include "rad_hier_ctx.h"
 
 
-static int cmp_link(const void *a, const void *b)
+static int cmp_source(const void *a, const void *b)
 {
     const hlink *x = a, *y = b;
-    if (x->r != y->r)
-        return x->r < y->r ? -1 : 1;
     return x->s < y->s ? -1 : (x->s > y->s);
+}
+
+/* The links sorted by receiver, then source: a counting sort by receiver,
+ * then each receiver's links by source, receivers in parallel (a serial
+ * qsort of room.json's 3.7 M links took 0.4 s a solve). -1 when out of
+ * memory. */
+static int sort_links(hctx *c)
+{
+    size_t n = c->nln, ne = c->nel;
+    size_t *start = calloc(ne + 1, sizeof *start);
+    hlink *out = malloc((n ? n : 1) * sizeof *out);
+    if (!start || !out) {
+        free(start);
+        free(out);
+        return -1;
+    }
+    for (size_t i = 0; i < n; i++)
+        start[c->ln[i].r + 1]++;
+    for (size_t e = 0; e < ne; e++)
+        start[e + 1] += start[e];
+    for (size_t i = 0; i < n; i++)
+        out[start[c->ln[i].r]++] = c->ln[i];
+    /* start[e] is now the end of e's links (the start of e + 1's). */
+#pragma omp parallel for schedule(dynamic, 256)
+    for (long e = 0; e < (long)ne; e++) {
+        size_t lo = e ? start[e - 1] : 0, hi = start[e];
+        if (hi - lo > 1)
+            qsort(out + lo, hi - lo, sizeof *out, cmp_source);
+    }
+    free(start);
+    free(c->ln);
+    c->ln = out;
+    c->capln = n ? n : 1;
+    return 0;
 }
 
 /* Leaf values -> interior area means (elements); power up the clusters. */
@@ -61,9 +93,13 @@ static rr_rgb pull_cl(hctx *c, uint32_t x, double D[3][6])
     rr_vec3 c0 = k->child[0] & CLB ? c->cl[CL(k->child[0])].pc : c->el[k->child[0]].ctr;
     rr_vec3 c1 = k->child[1] & CLB ? c->cl[CL(k->child[1])].pc : c->el[k->child[1]].ctr;
     k->pc = w0 + w1 > 0 ? rr_v3_scale(rr_v3_add(rr_v3_scale(c0, w0), rr_v3_scale(c1, w1)), 1.0 / (w0 + w1)) : k->ac;
+    for (int a = 0; a < 6; a++)
+        k->D6[a] = 0.0;
     for (int q = 0; q < 3; q++)
-        for (int a = 0; a < 6; a++)
+        for (int a = 0; a < 6; a++) {
             k->D[q][a] = D[q][a] = D0[q][a] + D1[q][a];
+            k->D6[a] += D[q][a];
+        }
     return k->P;
 }
 
@@ -195,7 +231,8 @@ static double leaves_max_B(const hctx *c)
 /* Row sums (k), then Jacobi sweeps to the tolerance. */
 rr_status rad__hier_solve(hctx *c, const rad_solve_opts *so, rad_solve_stats *st, rr_error *err)
 {
-    qsort(c->ln, c->nln, sizeof *c->ln, cmp_link);
+    if (sort_links(c) != 0)
+        return rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory", c->s->path);
     size_t ngrp;
     size_t *grp = rad__hier_groups(c, &ngrp);
     if (!grp)
