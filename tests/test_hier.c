@@ -131,8 +131,9 @@ static void test_cube_ceiling(void **state)
  * hidden by it and shares its clusters. Cluster shadow rays drawn by area
  * lost a third of the lamp's light there (-31 % on room.json's floor, -20.6 %
  * here); drawn by power, the row sums counted the hidden ceiling and scaled
- * the floor down 10 %. Now +3.6 % here: what is left is the cluster links'
- * own error (notes/radiosity.md, "Hierarchical"), hence 5 %. */
+ * the floor down 10 %. Now -0.7 % (3 % allowed: the flat method's noise
+ * over the floor is under 0.5 %, the cluster links' own error a few per
+ * cent in the rooms measured, notes/radiosity.md, "Hierarchical"). */
 static double lamp_cube_floor(const char *method)
 {
     char json[8192];
@@ -169,13 +170,13 @@ static double lamp_cube_floor(const char *method)
 }
 
 /* The hierarchical floor against the flat method's (Monte Carlo factors,
- * 512 rays per patch: under 0.5 % noise over a whole face). */
+ * 512 rays per patch: under 0.5 % noise over a whole face), within 3 %. */
 static void test_lamp_under_ceiling(void **state)
 {
     (void)state;
     double h = lamp_cube_floor("hierarchical"), f = lamp_cube_floor("flat");
     print_message("lamp under the ceiling: floor B hierarchical %.5f, flat %.5f (%+.2f %%)\n", h, f, 100 * (h / f - 1));
-    assert_true(fabs(h / f - 1) < 0.05);
+    assert_true(fabs(h / f - 1) < 0.03);
 }
 
 /* The leaves: each centroid is found again through the tree; every T-vertex
