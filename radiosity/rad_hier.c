@@ -773,11 +773,20 @@ static int uneven(const hctx *c, const hlink *l)
 static rr_status settle(hctx *c, void (*progress)(void *, size_t, size_t), void *user, rr_error *err)
 {
     for (int pass = 0; pass < 32; pass++) {
-        size_t lo = c->first_new, hi = c->nln;
+        size_t lo = c->first_new, hi = c->nln, done = 0;
+        /* Progress: links evaluated of those made so far, from one thread. */
 #pragma omp parallel for schedule(dynamic, 256)
-        for (long i = (long)lo; i < (long)hi; i++)
-            if (!interrupted(c))
-                eval_link(c, &c->ln[i]);
+        for (long i = (long)lo; i < (long)hi; i++) {
+            if (interrupted(c))
+                continue;
+            eval_link(c, &c->ln[i]);
+            size_t d;
+#pragma omp atomic capture
+            d = ++done;
+            if (progress && omp_get_thread_num() == 0 && (d & 4095) == 0)
+                progress(user, c->evaluated + d, c->evaluated + (hi - lo));
+        }
+        c->evaluated += hi - lo;
         size_t ne = c->nel;
 #pragma omp parallel for schedule(dynamic, 64)
         for (long i = 0; i < (long)ne; i++)
@@ -786,7 +795,7 @@ static rr_status settle(hctx *c, void (*progress)(void *, size_t, size_t), void 
         if (interrupted(c))
             return rr_error_set(err, RR_ERR_INTERRUPTED, "%s: radiosity: interrupted", c->s->path);
         if (progress)
-            progress(user, hi, hi);
+            progress(user, c->evaluated, c->evaluated);
         /* Leaves whose first shot varies by more than eps of power split. */
         int changed = 0;
         for (size_t i = 0; i < ne && !c->nomem; i++) {

@@ -67,6 +67,7 @@ typedef struct hctx {
     uint32_t top;
     hlink *ln;
     size_t nln, capln, first_new;
+    size_t evaluated; /* links evaluated so far (progress) */
     double eps, min_area;
     size_t max_links;
     int capped, nomem;
