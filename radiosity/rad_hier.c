@@ -101,6 +101,7 @@
 #define MAX_ROUNDS 3
 #define VIS_SHARE 0.125 /* partly visible links are split down to eps times this */
 #define ROUND_TOL 1e-4  /* solver tolerance of the rounds before the last */
+#define HIER_LINKS_PER_N_LOG_N 2.5 /* links over N log2 N, N leaves (rad__hier_memory_estimate) */
 #define ADMISSIBLE 2.0  /* cluster links need centres this many radii sums apart */
 
 /* ---- the hierarchy ---- */
@@ -981,6 +982,14 @@ rad_patch_opts rad__hier_root_limits(const scene *s, const rad_pass_opts *o)
     p.max_area *= 16.0;
     p.max_edge *= 4.0;
     return p;
+}
+
+double rad__hier_memory_estimate(double leaves, int cached, double patch_bytes)
+{
+    double N = leaves > 2 ? leaves : 2;
+    double links = cached ? 0.0 : HIER_LINKS_PER_N_LOG_N * N * log2(N);
+    /* Elements: the leaves and 1/3 as many interior ones; clusters fewer. */
+    return 2.0 * links * (double)sizeof(hlink) + N * (4.0 / 3.0 * (double)sizeof(hel) + patch_bytes + (double)sizeof(hcl));
 }
 
 double rad__hier_min_area(const scene *s, const rad_pass_opts *o)

@@ -35,6 +35,12 @@ rr_status rad__to_vertices(const rad_patches *P, const rr_rgb *per_patch, rr_rgb
 rad_patch_opts rad__hier_root_limits(const scene *s, const rad_pass_opts *o);
 
 /* The smallest element area the hierarchical pass splits to for s given o. */
+/* Peak bytes of a hierarchical pass with about that many leaves (cached: the
+ * tree is read, no links are made), patch_bytes a leaf's share of the output:
+ * links 2.5 N log2 N (bench/hier-scaling.sh measured 2.1 .. 2.8), each held
+ * twice while the links are sorted or re-linked; notes/radiosity.md has how
+ * far it is from the measured peaks. */
+double rad__hier_memory_estimate(double leaves, int cached, double patch_bytes);
 double rad__hier_min_area(const scene *s, const rad_pass_opts *o);
 
 /* The hierarchical pass (rad_hier.c): fills sol (P, B, emitted, first_shot,

@@ -46,6 +46,15 @@ rad_patch_opts rad_pass_patch_limits(const scene *s, const rad_pass_opts *o)
 double rad_pass_memory_estimate(const scene *s, const rad_pass_opts *o, int cached, double *patches)
 {
     rad_patch_opts lim = rad_pass_patch_limits(s, o);
+    if (rad__pass_method(s, o, NULL) == RAD_METHOD_HIERARCHICAL) {
+        /* Leaves: about the flat patch count (the smallest element is 1/16
+         * of a flat patch), at least one per root. */
+        rad_patch_opts rl = rad__hier_root_limits(s, o);
+        double leaves = fmax(rad_patches_estimate(s, &lim), rad_patches_estimate(s, &rl));
+        if (patches)
+            *patches = leaves;
+        return rad__hier_memory_estimate(leaves, cached, RAD_PATCH_BYTES);
+    }
     double n = rad_patches_estimate(s, &lim);
     int method = o->use_scene_choices ? (int)s->radiosity.form_factors : (int)o->ff.method;
     int samples = o->ff.samples > 0 ? o->ff.samples : s->radiosity.ff_samples;
