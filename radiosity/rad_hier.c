@@ -80,8 +80,9 @@
  * biased (its walls +5 %).
  *
  * Files: this one builds and refines the hierarchy and runs the rounds;
- * rad_hier_solve.c solves on it (rad_hier_ctx.h, their shared types);
- * rad_leaves.c turns the final tree into the leaves' patch set.
+ * rad_hier_cluster.c builds the clusters and evaluates links from them;
+ * rad_hier_solve.c solves on the hierarchy (rad_hier_ctx.h, their shared
+ * types); rad_leaves.c turns the final tree into the leaves' patch set.
  *
  * Determinism: refinement is serial; links are evaluated in parallel, each
  * from its own stream; sums run in a fixed order. The same result for any
@@ -97,7 +98,6 @@
 #include "rad_ff_internal.h"
 
 #define CLOSED_RAYS 16
-#define VIS_RAYS 4
 #define MAX_ROUNDS 3
 #define VIS_SHARE 0.125 /* partly visible links are split down to eps times this */
 #define ROUND_TOL 1e-4  /* solver tolerance of the rounds before the last */
@@ -106,13 +106,6 @@
 
 /* ---- the hierarchy ---- */
 
-static double node_area(const hctx *c, uint32_t x) { return x & CLB ? c->cl[CL(x)].area : c->el[x].area; }
-static double node_radius(const hctx *c, uint32_t x) { return x & CLB ? c->cl[CL(x)].radius : c->el[x].radius; }
-static rr_vec3 node_ctr(const hctx *c, uint32_t x) { return x & CLB ? c->cl[CL(x)].ctr : c->el[x].ctr; }
-static double node_rho(const hctx *c, uint32_t x)
-{
-    return x & CLB ? c->cl[CL(x)].rho_max : rr_rgb_max(el_rho(c, x));
-}
 /* The largest channel of the mean radiosity the node shoots. */
 static double node_B(const hctx *c, uint32_t x)
 {
@@ -175,111 +168,6 @@ static int el_split(hctx *c, uint32_t x)
 }
 
 /* ---- clusters ---- */
-
-/* Node x's area split over the six axis directions as its power is
- * (pull_cl): a surface of normal n puts A n_a^+- / |n|_1 into each. */
-static void node_axis_area(const hctx *c, uint32_t x, double w[6])
-{
-    if (x & CLB) {
-        memcpy(w, c->cl[CL(x)].A6, sizeof c->cl[CL(x)].A6);
-        return;
-    }
-    const double *n6 = c->rn6[c->el[x].root];
-    for (int q = 0; q < 6; q++)
-        w[q] = n6[q] * c->el[x].area;
-}
-
-/* Node x's area as seen from direction u (towards the viewer), by the
- * six-direction split: what a cluster shows of itself that way. */
-static double node_proj_area(const hctx *c, uint32_t x, rr_vec3 u)
-{
-    double w[6], p = 0.0;
-    axis_split(u, w);
-    if (x & CLB) {
-        const double *a6 = c->cl[CL(x)].A6;
-        for (int q = 0; q < 6; q++)
-            p += w[q] * a6[q];
-        return p;
-    }
-    const double *n6 = c->rn6[c->el[x].root];
-    for (int q = 0; q < 6; q++)
-        p += w[q] * n6[q];
-    return p * c->el[x].area;
-}
-
-/* The power node x sends towards direction u (by its current sources, the
- * six-direction split, all channels): what a cluster's shadow rays are
- * drawn by, so that its visibility is that of its power. */
-static double node_proj_power(const hctx *c, uint32_t x, rr_vec3 u)
-{
-    double w[6], p = 0.0;
-    axis_split(u, w);
-    if (x & CLB) {
-        const double *d6 = c->cl[CL(x)].D6;
-        for (int a = 0; a < 6; a++)
-            p += w[a] * d6[a];
-        return p;
-    }
-    const hel *e = &c->el[x];
-    const double *n6 = c->rn6[e->root];
-    for (int a = 0; a < 6; a++)
-        p += w[a] * n6[a];
-    return p * (e->src.r + e->src.g + e->src.b) * e->area;
-}
-
-typedef struct ritem {
-    uint32_t e;
-    double key;
-} ritem;
-
-static int cmp_ritem(const void *a, const void *b)
-{
-    const ritem *x = a, *y = b;
-    if (x->key != y->key)
-        return x->key < y->key ? -1 : 1;
-    return x->e < y->e ? -1 : (x->e > y->e);
-}
-
-static uint32_t cluster_build(hctx *c, ritem *it, size_t n)
-{
-    if (n == 1)
-        return it[0].e;
-    rr_vec3 lo = rr_v3(INFINITY, INFINITY, INFINITY), hi = rr_v3(-INFINITY, -INFINITY, -INFINITY);
-    for (size_t i = 0; i < n; i++)
-        for (int k = 0; k < 3; k++) {
-            lo = rr_v3_min(lo, c->el[it[i].e].c[k]);
-            hi = rr_v3_max(hi, c->el[it[i].e].c[k]);
-        }
-    rr_vec3 d = rr_v3_sub(hi, lo);
-    int axis = d.x >= d.y && d.x >= d.z ? 0 : (d.y >= d.z ? 1 : 2);
-    for (size_t i = 0; i < n; i++) {
-        rr_vec3 m = c->el[it[i].e].ctr;
-        it[i].key = axis == 0 ? m.x : (axis == 1 ? m.y : m.z);
-    }
-    qsort(it, n, sizeof *it, cmp_ritem);
-    uint32_t id = (uint32_t)c->ncl++;
-    uint32_t a = cluster_build(c, it, n / 2), b = cluster_build(c, it + n / 2, n - n / 2);
-    hcl *k = &c->cl[id];
-    k->lo = lo;
-    k->hi = hi;
-    k->ctr = rr_v3_scale(rr_v3_add(lo, hi), 0.5);
-    k->radius = 0.5 * rr_v3_len(d);
-    k->child[0] = a;
-    k->child[1] = b;
-    k->area = node_area(c, a) + node_area(c, b);
-    rr_vec3 ca = a & CLB ? c->cl[CL(a)].ac : c->el[a].ctr, cb = b & CLB ? c->cl[CL(b)].ac : c->el[b].ctr;
-    k->ac = k->area > 0 ? rr_v3_scale(rr_v3_add(rr_v3_scale(ca, node_area(c, a)), rr_v3_scale(cb, node_area(c, b))),
-                                      1.0 / k->area)
-                        : k->ctr;
-    k->pc = k->ac;
-    k->rho_max = fmax(node_rho(c, a), node_rho(c, b));
-    double wa[6], wb[6];
-    node_axis_area(c, a, wa);
-    node_axis_area(c, b, wb);
-    for (int q = 0; q < 6; q++)
-        k->A6[q] = wa[q] + wb[q];
-    return id | CLB;
-}
 
 /* ---- refinement ---- */
 
@@ -434,88 +322,6 @@ static void refine(hctx *c, uint32_t r, uint32_t s)
 
 /* ---- link evaluation ---- */
 
-static const double k_pts[4][3] = {
-    {1. / 3, 1. / 3, 1. / 3}, {2. / 3, 1. / 6, 1. / 6}, {1. / 6, 2. / 3, 1. / 6}, {1. / 6, 1. / 6, 2. / 3}};
-
-static rr_vec3 tri_at(const rr_vec3 v[3], double a, double b, double g)
-{
-    return rr_v3_add(rr_v3_add(rr_v3_scale(v[0], a), rr_v3_scale(v[1], b)), rr_v3_scale(v[2], g));
-}
-
-static rr_vec3 tri_random(const rr_vec3 v[3], rr_rng *rng)
-{
-    double u = rr_rng_uniform(rng), w = rr_rng_uniform(rng);
-    if (u + w > 1.0) {
-        u = 1.0 - u;
-        w = 1.0 - w;
-    }
-    return tri_at(v, 1.0 - u - w, u, w);
-}
-
-/* A point on the surfaces of node x for a shadow ray: element points are the
- * fixed pattern (k_pts[k]) when fixed, else random. A cluster's come from a
- * root drawn, level by level, by the power it sends towards u
- * (node_proj_power) when by_power, else by the area it shows that way
- * (node_proj_area; surfaces facing away, whose share the cluster's intensity
- * already leaves out, are not drawn: drawn by plain area, a solid block's far
- * faces halved its light). xs on the true surface, ns its normal. */
-static void node_sample(const hctx *c, uint32_t x, int k, int fixed, int by_power, rr_vec3 u, rr_rng *rng,
-                        rr_vec3 *xs, rr_vec3 *ns)
-{
-    while (x & CLB) {
-        const hcl *q = &c->cl[CL(x)];
-        double a0 = node_proj_area(c, q->child[0], u), a1 = node_proj_area(c, q->child[1], u);
-        if (!(a0 + a1 > 0)) { /* nothing faces u: by area */
-            a0 = node_area(c, q->child[0]);
-            a1 = q->area - a0;
-        }
-        if (by_power) {
-            double p0 = node_proj_power(c, q->child[0], u), p1 = node_proj_power(c, q->child[1], u);
-            if (p0 + p1 > 0) { /* else (no power towards u) by the area shown */
-                a0 = p0;
-                a1 = p1;
-            }
-        }
-        x = rr_rng_uniform(rng) * (a0 + a1) < a0 ? q->child[0] : q->child[1];
-    }
-    const hel *e = &c->el[x];
-    rr_vec3 p = fixed ? tri_at(e->c, k_pts[k][0], k_pts[k][1], k_pts[k][2]) : tri_random(e->c, rng);
-    rad_patch_surface(c->R, c->s, c->a, e->root, p, xs, ns);
-}
-
-/* Visibility between an element r and a cluster s by VIS_RAYS shadow rays:
- * *Vp, that of s's power (what the link carries), the share that passes of
- * the 3 rays drawn by the power s sends r; *Va, that of its area (what the
- * row sums, B = 1, read), of the one drawn by the area s shows r; *partial
- * when some of the rays passed and some not. Returns *Vp, which decides the
- * partial-visibility split. One estimate for both lost a third of a room's
- * lamp light (the ceiling above the lamp, hidden by it and in its clusters,
- * took half the area-drawn rays) or, by power alone, scaled every leaf down
- * 10 % (the row sums counted that hidden ceiling as seen). Both from all
- * rays (the balance heuristic) was unbiased per link but not over the links
- * kept, those whose rays all passed: room.json's floor +4 %; with the split
- * read from all rays, the row sums of the kept links came out high. */
-static double visibility(const hctx *c, uint32_t r, uint32_t s, rr_rng *rng, double *Vp, double *Va, int *partial)
-{
-    enum { NA = 1, NP = VIS_RAYS - 1 }; /* rays drawn by area, by power */
-    int pass[2] = {0, 0}, n[2] = {NA, NP};
-    rr_vec3 u = rr_v3_norm(rr_v3_sub(node_ctr(c, s), node_ctr(c, r))); /* from r towards s */
-    for (int k = 0; k < NA + NP; k++) {
-        int by_power = k >= NA;
-        rr_vec3 x, nx, y, ny;
-        node_sample(c, r, k % 4, 1, 0, u, rng, &x, &nx);
-        node_sample(c, s, k % 4, 0, by_power, rr_v3_neg(u), rng, &y, &ny);
-        rr_vec3 d = rr_v3_sub(y, x);
-        rr_vec3 o = rt_offset_origin(c->ext, x, nx, d), t = rt_offset_origin(c->ext, y, ny, rr_v3_neg(d));
-        rr_ray ray = {o, rr_v3_sub(t, o)};
-        pass[by_power] += !rt_accel_occluded(c->a, ray, 0.0, RT_SHADOW_END);
-    }
-    *Vp = (double)pass[1] / n[1];
-    *Va = (double)pass[0] / n[0];
-    *partial = pass[0] + pass[1] > 0 && pass[0] + pass[1] < n[0] + n[1];
-    return *Vp;
-}
-
 /* The quadrature points of an element, as barycentrics: the 4 of k_pts, or
  * for near pairs the centroids of the NEAR_M^2 similar sub-triangles. */
 #define NEAR_M 6
@@ -621,115 +427,13 @@ static void eval_ee(const hctx *c, hlink *l, rr_rng *rng)
     l->dF = (float)dF; /* how much the factor varies over r */
 }
 
-/* cos_r / (d^2 + A / pi) from point x of element r towards point p. */
-static double geo_term(const hctx *c, rr_vec3 x, uint32_t r, rr_vec3 p, double A)
-{
-    rr_vec3 d = rr_v3_sub(p, x);
-    double L2 = rr_v3_len2(d), L = sqrt(L2);
-    return L > 0 ? fmax(0.0, rr_v3_dot(el_normal(c, r), d) / L) / (L2 + A / RR_PI) : 0.0;
-}
-
-/* The transport of element r <- cluster s per unit of s's power, for s's
- * current sources (*geo) and for B = 1 (*geo_a, per unit of its area): the
- * irradiance at r's centre summed over s's nodes three levels down (up to
- * 8), each read at the centroid of its power (of its area for B = 1) with
- * the power (area) it turns towards r, cos_r I_n / (d^2 + A_n / pi) (A_n the
- * area the node shows r: a disc of that area seen on its axis is exact, and
- * near nodes saturate as form factors do instead of growing as 1 / d^2),
- * scaled by the mean of that term over r's 4 points against its centre.
- * Read once at the centre of s's box instead, a lamp in a cluster with the
- * ceiling around it was read as if spread over the whole box, and moving
- * that one point within an admissible cluster moved a room's light by 10 %;
- * read as a share of s's intensity towards one point, a cluster of a floor
- * and a ceiling sent nothing to the floor beside it (-2.4 % on the floor of
- * two facing plates). *t0 is the term at r's centre (*tlo, *thi the least
- * and largest at its corners) towards s's power centroid, for the uneven
- * test. */
-static void cluster_geo(const hctx *c, uint32_t r, uint32_t s, double *geo, double *geo_a, double *spread)
-{
-    const hcl *k = &c->cl[CL(s)];
-    rr_vec3 xr = c->el[r].ctr;
-    uint32_t fr[8] = {s};
-    int nf = 1;
-    for (int lev = 0; lev < 3; lev++) {
-        uint32_t nx[8];
-        int nn = 0;
-        for (int i = 0; i < nf; i++) {
-            if (fr[i] & CLB) {
-                nx[nn++] = c->cl[CL(fr[i])].child[0];
-                nx[nn++] = c->cl[CL(fr[i])].child[1];
-            } else {
-                nx[nn++] = fr[i];
-            }
-        }
-        memcpy(fr, nx, sizeof nx);
-        nf = nn;
-    }
-    double Tp = 0.0, Ta = 0.0;
-    for (int i = 0; i < nf; i++) {
-        uint32_t n = fr[i];
-        rr_vec3 cp = n & CLB ? c->cl[CL(n)].pc : c->el[n].ctr, ca = n & CLB ? c->cl[CL(n)].ac : c->el[n].ctr;
-        rr_vec3 up = rr_v3_norm(rr_v3_sub(xr, cp)), ua = rr_v3_norm(rr_v3_sub(xr, ca));
-        double Ap = node_proj_area(c, n, up), Aa = node_proj_area(c, n, ua);
-        Tp += geo_term(c, xr, r, cp, Ap) * node_proj_power(c, n, up) / RR_PI;
-        Ta += geo_term(c, xr, r, ca, Aa) * Aa / RR_PI;
-    }
-    /* Over the receiver: its 4 points against its centre, and its corners
-     * (the uneven test), towards s's centroids as a whole. */
-    double A = k->area, mp = 0.0, ma = 0.0;
-    double p0 = geo_term(c, xr, r, k->pc, A), a0 = geo_term(c, xr, r, k->ac, A), lo = p0, hi = p0;
-    for (int q = 0; q < 4; q++) {
-        rr_vec3 xq = tri_at(c->el[r].c, k_pts[q][0], k_pts[q][1], k_pts[q][2]);
-        mp += 0.25 * geo_term(c, xq, r, k->pc, A);
-        ma += 0.25 * geo_term(c, xq, r, k->ac, A);
-    }
-    for (int q = 0; q < 3; q++) {
-        double g = geo_term(c, c->el[r].c[q], r, k->pc, A);
-        lo = fmin(lo, g);
-        hi = fmax(hi, g);
-    }
-    double P = k->P.r + k->P.g + k->P.b;
-    *geo_a = A > 0 ? Ta / A * (a0 > 0 ? ma / a0 : 1.0) : 0.0;
-    *geo = P > 0 ? Tp / P * (p0 > 0 ? mp / p0 : 1.0) : *geo_a;
-    *spread = p0 > 0 ? (hi - lo) / p0 : 0.0;
-}
-
 static void eval_link(const hctx *c, hlink *l)
 {
     rr_rng rng = rr_rng_make(c->seed, ((uint64_t)l->r << 32) | l->s);
-    if (!(l->s & CLB)) {
+    if (l->s & CLB)
+        rad__hier_eval_cluster(c, l, &rng);
+    else
         eval_ee(c, l, &rng);
-        return;
-    }
-    double geo, geo_a, spread, Vp = 0.0, Va = 0.0;
-    cluster_geo(c, l->r, l->s, &geo, &geo_a, &spread);
-    int partial = 0;
-    l->vis = geo > 0 || geo_a > 0 ? (float)visibility(c, l->r, l->s, &rng, &Vp, &Va, &partial) : 0.0f;
-    l->partial = (unsigned char)partial;
-    l->vp = (float)Vp;
-    l->g = (float)(geo * Vp);
-    l->ga = (float)(geo_a * Va);
-    /* How much the factor per unit radiosity of s (geo_a A_s) varies over r,
-     * for the uneven test: without it, links from clusters were never split
-     * for a gradient across r. */
-    l->dF = (float)(geo_a * c->cl[CL(l->s)].area * Va * spread);
-}
-
-/* The kept cluster links' geometry for the sources as solved (their
- * visibility stays): read with the power of the round that made them, a
- * ceiling dark in the first round kept its area centroid when it shone,
- * and the light it sent a floor came out 4.6 % low. */
-static void regeo(hctx *c)
-{
-#pragma omp parallel for schedule(dynamic, 1024)
-    for (long i = 0; i < (long)c->nln; i++) {
-        hlink *l = &c->ln[i];
-        if (!(l->s & CLB) || isnan(l->g))
-            continue;
-        double geo, geo_a, spread;
-        cluster_geo(c, l->r, l->s, &geo, &geo_a, &spread);
-        l->g = (float)(geo * l->vp);
-    }
 }
 
 /* ---- leaf data: first shot and closedness ---- */
@@ -1063,16 +767,13 @@ static rr_status hier_run(const scene *s, const rt_accel *a, const rad_pass_opts
     }
     c.L = rt_lights_delta_count(L) ? L : NULL;
     size_t nr = roots->n;
-    ritem *it = malloc((nr ? nr : 1) * sizeof *it);
     c.cl = malloc((nr ? nr : 1) * sizeof *c.cl);
-    for (size_t i = 0; i < nr && it && c.cl && !c.nomem; i++) {
+    for (size_t i = 0; i < nr && c.cl && !c.nomem; i++) {
         const rad_patch *p = &roots->p[i];
         rr_vec3 v[3] = {roots->verts[p->v[0]], roots->verts[p->v[1]], roots->verts[p->v[2]]};
         el_add(&c, v, (uint32_t)i, 0);
-        it[i].e = (uint32_t)i;
     }
-    if (!it || !c.cl || !c.rn6 || c.nomem || nr == 0) {
-        free(it);
+    if (!c.cl || !c.rn6 || c.nomem || nr == 0 || (c.top = rad__hier_clusters(&c)) == NONE) {
         free(c.rn6);
         free(c.cl);
         free(c.el);
@@ -1081,8 +782,6 @@ static rr_status hier_run(const scene *s, const rt_accel *a, const rad_pass_opts
         return nr == 0 ? rr_error_set(err, RR_ERR_INVALID, "%s: radiosity: the scene has no surfaces", s->path)
                        : rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory", s->path);
     }
-    c.top = cluster_build(&c, it, nr);
-    free(it);
     rad_solve_opts so = o->solve;
     if (!(so.tolerance > 0))
         so.tolerance = s->radiosity.tolerance;
@@ -1104,7 +803,7 @@ static rr_status hier_run(const scene *s, const rt_accel *a, const rad_pass_opts
         if (round == 0) {
             c.first_new = 0;
             refine(&c, c.top, c.top);
-        } else if ((regeo(&c), !relink(&c))) {
+        } else if ((rad__hier_regeo(&c), !relink(&c))) {
             break;
         }
         if (c.nomem)

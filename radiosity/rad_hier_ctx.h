@@ -82,6 +82,50 @@ static inline int interrupted(const hctx *c) { return c->interrupt && *c->interr
 static inline rr_vec3 el_normal(const hctx *c, uint32_t e) { return c->R->p[c->el[e].root].normal; }
 static inline rr_rgb el_rho(const hctx *c, uint32_t e) { return c->R->p[c->el[e].root].rho; }
 
+/* ---- shared by the builder (rad_hier.c) and the clusters (rad_hier_cluster.c) ---- */
+
+#define VIS_RAYS 4 /* shadow rays per link */
+
+static inline double node_area(const hctx *c, uint32_t x) { return x & CLB ? c->cl[CL(x)].area : c->el[x].area; }
+static inline double node_radius(const hctx *c, uint32_t x) { return x & CLB ? c->cl[CL(x)].radius : c->el[x].radius; }
+static inline rr_vec3 node_ctr(const hctx *c, uint32_t x) { return x & CLB ? c->cl[CL(x)].ctr : c->el[x].ctr; }
+static inline double node_rho(const hctx *c, uint32_t x)
+{
+    return x & CLB ? c->cl[CL(x)].rho_max : rr_rgb_max(el_rho(c, x));
+}
+
+/* The 4 fixed points of an element (barycentrics): centroid, then halfway to
+ * each corner. */
+static const double k_pts[4][3] = {
+    {1. / 3, 1. / 3, 1. / 3}, {2. / 3, 1. / 6, 1. / 6}, {1. / 6, 2. / 3, 1. / 6}, {1. / 6, 1. / 6, 2. / 3}};
+
+static inline rr_vec3 tri_at(const rr_vec3 v[3], double a, double b, double g)
+{
+    return rr_v3_add(rr_v3_add(rr_v3_scale(v[0], a), rr_v3_scale(v[1], b)), rr_v3_scale(v[2], g));
+}
+
+static inline rr_vec3 tri_random(const rr_vec3 v[3], rr_rng *rng)
+{
+    double u = rr_rng_uniform(rng), w = rr_rng_uniform(rng);
+    if (u + w > 1.0) {
+        u = 1.0 - u;
+        w = 1.0 - w;
+    }
+    return tri_at(v, 1.0 - u - w, u, w);
+}
+
+
+/* ---- clusters (rad_hier_cluster.c) ---- */
+
+/* The bounding-volume hierarchy of clusters over the roots (c->el[0 ..
+ * c->R->n), c->cl room for as many): the top node, NONE when out of memory. */
+uint32_t rad__hier_clusters(hctx *c);
+/* Element l->r <- cluster l->s: geometry and visibility (rad_hier.c's header,
+ * "Transport"), drawing from rng. */
+void rad__hier_eval_cluster(const hctx *c, hlink *l, rr_rng *rng);
+/* The evaluated cluster links' geometry again for the current sources. */
+void rad__hier_regeo(hctx *c);
+
 /* ---- solving (rad_hier_solve.c) ---- */
 
 /* What push does at the leaves: SOLVE sets B = E + rho k H (and returns the
