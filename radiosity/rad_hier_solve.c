@@ -66,10 +66,9 @@ static rr_rgb pull_el(hctx *c, uint32_t x)
 
 /* Power, directional power and power centroid (pc) of node x's current
  * sources into P, D. A surface of normal n shoots its power over the axis
- * directions in the
- * proportions n_a^+- / |n|_1, so a cluster's intensity towards u,
- * I(u) = (1/pi) sum_a |u_a| D[a, sign u_a], integrates to its power over the
- * sphere and is exact for surfaces facing along the axes. */
+ * directions in the proportions n_a^+- / |n|_1, so a cluster's intensity
+ * towards u, I(u) = (1/pi) sum_a |u_a| D[a, sign u_a], integrates to its
+ * power over the sphere and is exact for surfaces facing along the axes. */
 static rr_rgb pull_cl(hctx *c, uint32_t x, double D[3][6])
 {
     if (!(x & CLB)) {
