@@ -21,22 +21,23 @@ static void node_axis_area(const hctx *c, uint32_t x, double w[6])
         w[q] = n6[q] * c->el[x].area;
 }
 
+static double axis_dot(const double w[6], const double v[6])
+{
+    double p = 0.0;
+    for (int a = 0; a < 6; a++)
+        p += w[a] * v[a];
+    return p;
+}
+
 /* Node x's area as seen from direction u (towards the viewer), by the
  * six-direction split: what a cluster shows of itself that way. */
 static double node_proj_area(const hctx *c, uint32_t x, rr_vec3 u)
 {
-    double w[6], p = 0.0;
+    double w[6];
     axis_split(u, w);
-    if (x & CLB) {
-        const double *a6 = c->cl[CL(x)].A6;
-        for (int q = 0; q < 6; q++)
-            p += w[q] * a6[q];
-        return p;
-    }
-    const double *n6 = c->rn6[c->el[x].root];
-    for (int q = 0; q < 6; q++)
-        p += w[q] * n6[q];
-    return p * c->el[x].area;
+    if (x & CLB)
+        return axis_dot(w, c->cl[CL(x)].A6);
+    return axis_dot(w, c->rn6[c->el[x].root]) * c->el[x].area;
 }
 
 /* The power node x sends towards direction u (by its current sources, the
@@ -44,19 +45,12 @@ static double node_proj_area(const hctx *c, uint32_t x, rr_vec3 u)
  * drawn by, so that its visibility is that of its power. */
 static double node_proj_power(const hctx *c, uint32_t x, rr_vec3 u)
 {
-    double w[6], p = 0.0;
+    double w[6];
     axis_split(u, w);
-    if (x & CLB) {
-        const double *d6 = c->cl[CL(x)].D6;
-        for (int a = 0; a < 6; a++)
-            p += w[a] * d6[a];
-        return p;
-    }
+    if (x & CLB)
+        return axis_dot(w, c->cl[CL(x)].D6);
     const hel *e = &c->el[x];
-    const double *n6 = c->rn6[e->root];
-    for (int a = 0; a < 6; a++)
-        p += w[a] * n6[a];
-    return p * (e->src.r + e->src.g + e->src.b) * e->area;
+    return axis_dot(w, c->rn6[e->root]) * (e->src.r + e->src.g + e->src.b) * e->area;
 }
 
 typedef struct ritem {
