@@ -140,13 +140,27 @@ void rad_patch_barycentric(const rad_patches *P, uint32_t k, rr_vec3 p, double b
 /* ---- form factors ---- */
 
 /* Sparse rows (CSR): F_ij for j in col[rowptr[i] .. rowptr[i+1]), zero entries
- * (back-facing, coplanar, occluded) not stored. */
+ * (back-facing, coplanar, occluded) not stored.
+ *
+ * Buried parts: where another surface lies within a hair in front of a patch
+ * (a mirror or a lamp panel mounted on a wall, a box standing on the floor),
+ * the part of the patch under it can neither be seen nor lit. A Monte Carlo
+ * ray whose first hit is the back of a surface closer than RAD_FF_BURY times
+ * the patch's size started there: it is not counted, row i is the open part's
+ * (hits / open rays), and open[i] = open rays / rays. The pass then uses
+ * A_i open_i as the patch's area (reciprocity, solve, ledger, display), so
+ * the dark underside does not pull the visible part's radiosity down (a wall
+ * strip around a mirror was -10 %, rad_pass.c). Quadrature rows: open = 1. */
 typedef struct rad_ff {
     size_t n;
     size_t *rowptr; /* n + 1 */
     uint32_t *col;
     double *val;
+    double *open;   /* n: the open fraction of each patch's area, in [0, 1] */
 } rad_ff;
+
+/* Burial distance, relative to the patch's size sqrt(A_i) (rad_ff.c). */
+#define RAD_FF_BURY 0.1
 
 typedef enum rad_ff_method {
     RAD_FF_MONTE_CARLO = 0, /* cosine-weighted rays from each patch: F_ij = hits on j / rays */

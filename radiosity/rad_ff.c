@@ -79,6 +79,7 @@ typedef struct ff_row {
     uint32_t *col;
     double *val;
     size_t n;
+    double open; /* the open fraction of the patch (rad.h: buried parts) */
 } ff_row;
 
 /* A weighted hit: patch j, weight w. */
@@ -98,6 +99,7 @@ typedef struct ff_scratch {
     wh *pairs;      /* for sorting weighted hits (scenes with mirrors) */
     uint32_t *col;  /* the row being built */
     double *val;
+    uint32_t open;  /* Monte Carlo: the row's rays that started in the open */
 } ff_scratch;
 
 /* ---- the exact point-to-polygon factor ---- */
@@ -333,6 +335,31 @@ static int cmp_u32(const void *a, const void *b)
     return (x > y) - (x < y);
 }
 
+/* Whether the origin of ray r, on a surface of normal n, lies inside a
+ * space closed by back faces (under a box standing on the floor): r met a
+ * back face first, and so do four probes close to the tangent plane (sine of
+ * elevation RAD_FF_PROBE_SIN), at right angles in azimuth. A point under a
+ * one-sided sheet (a table top) is not: some probe passes the sheet's edge,
+ * unless the sheet reaches out ~4 times its height on every side. */
+#define RAD_FF_PROBE_SIN 0.25
+static int enclosed(const ff_ctx *c, rr_ray r, rr_vec3 n)
+{
+    rr_vec3 t1 = rr_v3_madd(r.d, n, -rr_v3_dot(r.d, n));
+    if (rr_v3_len2(t1) < 1e-12)
+        t1 = rr_v3_cross(n, fabs(n.x) < 0.9 ? rr_v3(1, 0, 0) : rr_v3(0, 1, 0));
+    t1 = rr_v3_norm(t1);
+    rr_vec3 t2 = rr_v3_cross(n, t1);
+    double cs = sqrt(1.0 - RAD_FF_PROBE_SIN * RAD_FF_PROBE_SIN);
+    for (int k = 0; k < 4; k++) {
+        rr_vec3 t = k < 2 ? t1 : t2;
+        rr_ray p = {r.o, rr_v3_norm(rr_v3_madd(rr_v3_scale(n, RAD_FF_PROBE_SIN), t, k % 2 ? -cs : cs))};
+        rt_hit h;
+        if (!rt_accel_closest(c->a, p, 0.0, INFINITY, &h) || h.front)
+            return 0;
+    }
+    return 1;
+}
+
 /* Row i by Monte Carlo: the patches hit, in w->hits[0 .. return).
  * Whether a ray hits j depends on origin and direction jointly, so the rays
  * are stratified in 4-D: the first g^2 = (q^2)^2 rays (q = floor(ns^(1/4)))
@@ -345,11 +372,14 @@ static size_t mc_row(const ff_ctx *c, uint32_t i, ff_scratch *w)
     const rad_patches *P = c->P;
     const rad_patch *pi = &P->p[i];
     uint32_t ns = (uint32_t)c->samples, q = rad_ff_isqrt(rad_ff_isqrt(ns)), g = q * q, rest = ns - g * g;
+    w->open = ns;
     if (!(pi->area > 0.0))
         return 0;
     rr_rng rng = rr_rng_make(c->seed, i);
     rad_ff_shuffle(w->perm, rest, &rng);
+    double bury = RAD_FF_BURY * sqrt(pi->area);
     size_t m = 0;
+    w->open = 0;
     for (uint32_t k = 0; k < ns; k++) {
         double u1, u2, v1, v2;
         if (k < g * g) {
@@ -363,10 +393,15 @@ static size_t mc_row(const ff_ctx *c, uint32_t i, ff_scratch *w)
         surface_at(c, pi, patch_point(P, pi, u1, u2), &xs, &xn);
         rr_ray r = {offset_front(c, xs, xn), rad_ff_cosine_dir(xn, v1, v2)};
         double weight = 1.0;
+        w->open++;
         for (int bounce = 0;; bounce++) {
             rt_hit h;
             if (!rt_accel_closest(c->a, r, 0.0, INFINITY, &h))
                 break; /* escaped */
+            if (bounce == 0 && !h.front && (h.t < bury || enclosed(c, r, xn))) {
+                w->open--; /* started under a surface: not counted (rad.h) */
+                break;
+            }
             /* Back side: no patch receives there (one-sided patches); counted
              * as escaped. A planar patch cannot see itself; a hit on i is
              * rounding (or, after a mirror, a patch seeing itself in it). */
@@ -401,7 +436,7 @@ static int cmp_wh(const void *a, const void *b)
     return (x->w > y->w) - (x->w < y->w);
 }
 
-static size_t mc_compress(const ff_ctx *c, ff_scratch *w, size_t nh)
+static size_t mc_compress(ff_scratch *w, size_t nh)
 {
     int weighted = 0;
     for (size_t k = 0; k < nh && !weighted; k++)
@@ -425,7 +460,7 @@ static size_t mc_compress(const ff_ctx *c, ff_scratch *w, size_t nh)
         while (b < nh && w->hits[b] == w->hits[a])
             sum += w->hw[b++];
         w->col[m] = w->hits[a];
-        w->val[m] = sum / c->samples;
+        w->val[m] = sum / w->open; /* hits of open rays (rad.h: buried parts) */
         m++;
         a = b;
     }
@@ -495,21 +530,24 @@ static void report_row(const rad_ff_opts *o, size_t *done, size_t n)
  * whether the pass failed (max over ranks). */
 static rr_status exchange_rows(rr_dist *dist, ff_row *rows, size_t n, int *failed, rr_error *err)
 {
+    /* A row is sent when this rank made it: it has entries or an open part
+     * (a row without either, a wholly buried patch's, is the same as none). */
     size_t bytes = sizeof(uint64_t) * 2;
     for (size_t i = 0; i < n; i++)
-        if (rows[i].n)
-            bytes += 2 * sizeof(uint64_t) + rows[i].n * (sizeof(uint32_t) + sizeof(double));
+        if (rows[i].n || rows[i].open != 0.0)
+            bytes += 3 * sizeof(uint64_t) + rows[i].n * (sizeof(uint32_t) + sizeof(double));
     unsigned char *mine = malloc(bytes), *p = mine;
     if (!mine)
         return rr_error_set(err, RR_ERR_NOMEM, "radiosity: out of memory for the form-factor exchange");
     uint64_t head[2] = {(uint64_t)*failed, 0};
     for (size_t i = 0; i < n; i++)
-        head[1] += rows[i].n != 0;
+        head[1] += rows[i].n || rows[i].open != 0.0;
     memcpy(p, head, sizeof head), p += sizeof head;
     for (size_t i = 0; i < n; i++) {
-        if (!rows[i].n)
+        if (!rows[i].n && rows[i].open == 0.0)
             continue;
-        uint64_t h[2] = {(uint64_t)i, (uint64_t)rows[i].n};
+        uint64_t h[3] = {(uint64_t)i, (uint64_t)rows[i].n, 0};
+        memcpy(&h[2], &rows[i].open, sizeof(double));
         memcpy(p, h, sizeof h), p += sizeof h;
         memcpy(p, rows[i].col, rows[i].n * sizeof(uint32_t)), p += rows[i].n * sizeof(uint32_t);
         memcpy(p, rows[i].val, rows[i].n * sizeof(double)), p += rows[i].n * sizeof(double);
@@ -526,16 +564,21 @@ static rr_status exchange_rows(rr_dist *dist, ff_row *rows, size_t n, int *faile
         if ((int)head[0] > *failed)
             *failed = (int)head[0];
         for (uint64_t r = 0; r < head[1] && st == RR_OK; r++) {
-            uint64_t h[2];
+            uint64_t h[3];
+            if ((size_t)(end - q) < sizeof h) {
+                st = rr_error_set(err, RR_ERR_INTERNAL, "radiosity: a rank sent a malformed form-factor row");
+                break;
+            }
             memcpy(h, q, sizeof h), q += sizeof h;
             size_t i = (size_t)h[0], m = (size_t)h[1];
             if (i >= n || (size_t)(end - q) < m * (sizeof(uint32_t) + sizeof(double))) {
                 st = rr_error_set(err, RR_ERR_INTERNAL, "radiosity: a rank sent a malformed form-factor row");
                 break;
             }
-            if (rows[i].n == 0) { /* another rank's row */
-                rows[i].col = malloc(m * sizeof *rows[i].col);
-                rows[i].val = malloc(m * sizeof *rows[i].val);
+            if (rows[i].n == 0 && rows[i].open == 0.0) { /* another rank's row */
+                memcpy(&rows[i].open, &h[2], sizeof(double));
+                rows[i].col = malloc((m ? m : 1) * sizeof *rows[i].col);
+                rows[i].val = malloc((m ? m : 1) * sizeof *rows[i].val);
                 if (!rows[i].col || !rows[i].val) {
                     st = rr_error_set(err, RR_ERR_NOMEM, "radiosity: out of memory for the form factors");
                     break;
@@ -588,9 +631,10 @@ static void rows_free(ff_row *rows, size_t n)
 static int one_row(const ff_ctx *c, const rad_ff_opts *o, ff_scratch *w, size_t i, ff_row *rows)
 {
     size_t m = o->method == RAD_FF_QUADRATURE ? quad_row(c, (uint32_t)i, w)
-                                              : mc_compress(c, w, mc_row(c, (uint32_t)i, w));
+                                              : mc_compress(w, mc_row(c, (uint32_t)i, w));
     ff_row *r = &rows[i];
     r->n = m;
+    r->open = o->method == RAD_FF_QUADRATURE ? 1.0 : (double)w->open / (double)c->samples;
     if (m == 0)
         return 0;
     r->col = malloc(m * sizeof *r->col);
@@ -660,6 +704,7 @@ static rad_ff *assemble(const ff_row *rows, size_t n)
             memcpy(F->col + e, rows[i].col, rows[i].n * sizeof *F->col);
             memcpy(F->val + e, rows[i].val, rows[i].n * sizeof *F->val);
         }
+        F->open[i] = rows[i].open;
         e += rows[i].n;
         F->rowptr[i + 1] = e;
     }

@@ -32,6 +32,7 @@ void rad__ff_free(rad_ff *F)
     free(F->rowptr);
     free(F->col);
     free(F->val);
+    free(F->open);
     free(F);
 }
 
@@ -46,16 +47,23 @@ rad_ff *rad__ff_alloc(size_t n, size_t nnz)
     F->rowptr = calloc(n + 1, sizeof *F->rowptr);
     F->col = malloc((nnz ? nnz : 1) * sizeof *F->col);
     F->val = malloc((nnz ? nnz : 1) * sizeof *F->val);
-    if (!F->rowptr || !F->col || !F->val) {
+    F->open = malloc((n ? n : 1) * sizeof *F->open);
+    if (!F->rowptr || !F->col || !F->val || !F->open) {
         rad__ff_free(F);
         return NULL;
     }
+    for (size_t i = 0; i < n; i++)
+        F->open[i] = 1.0;
     return F;
 }
 
+/* The open area A_i open_i of patch i (rad.h: buried parts). */
+static double open_area(const rad_patches *P, const rad_ff *F, size_t i) { return P->p[i].area * F->open[i]; }
+
 /* F_ij := (A_i F_ij + A_j F_ji) / (2 A_i) over the union of the patterns of F
- * and its transpose. Columns of F are sorted per row; the transpose built by
- * counting keeps them sorted too, so each new row is a merge. */
+ * and its transpose, A the open areas. Columns of F are sorted per row; the
+ * transpose built by counting keeps them sorted too, so each new row is a
+ * merge. */
 static rad_ff *make_reciprocal(const rad_patches *P, const rad_ff *F)
 {
     size_t n = F->n, nnz = F->rowptr[n];
@@ -82,8 +90,9 @@ static rad_ff *make_reciprocal(const rad_patches *P, const rad_ff *F)
         size_t out = 0;
         for (size_t i = 0; i < n; i++) {
             size_t a = F->rowptr[i], ae = F->rowptr[i + 1], b = T->rowptr[i], be = T->rowptr[i + 1];
-            double Ai = P->p[i].area;
-            /* A zero-area patch exchanges nothing (and would divide by 0). */
+            double Ai = open_area(P, F, i);
+            /* A zero-area patch exchanges nothing (and would divide by 0);
+             * nothing reaches a wholly buried one either. */
             while (Ai > 0.0 && (a < ae || b < be)) {
                 uint32_t j;
                 double fij = 0.0, fji = 0.0;
@@ -98,9 +107,12 @@ static rad_ff *make_reciprocal(const rad_patches *P, const rad_ff *F)
                     fij = F->val[a++];
                     fji = T->val[b++];
                 }
+                double Aj = open_area(P, F, j);
+                if (!(Aj > 0.0))
+                    continue;
                 if (pass == 1) {
                     R->col[out] = j;
-                    R->val[out] = (Ai * fij + P->p[j].area * fji) / (2.0 * Ai);
+                    R->val[out] = (Ai * fij + Aj * fji) / (2.0 * Ai);
                 }
                 out++;
             }
@@ -109,6 +121,7 @@ static rad_ff *make_reciprocal(const rad_patches *P, const rad_ff *F)
         }
         total = out;
     }
+    memcpy(R->open, F->open, n * sizeof *R->open);
 done:
     rad__ff_free(T);
     free(fill);
@@ -201,7 +214,7 @@ static int balance_rows(const rad_patches *P, const rad_ff *F, rad_ff *R)
     }
     for (size_t i = 0; ok && i < n; i++) {
         r[i] = row_dot(F, w, i, &d) + d * w[i];
-        if (!(P->p[i].area > 0.0) || !(r[i] > 0.0) || !(row_dot(R, w, i, &dr) + dr * w[i] > 0.0))
+        if (!(open_area(P, R, i) > 0.0) || !(r[i] > 0.0) || !(row_dot(R, w, i, &dr) + dr * w[i] > 0.0))
             r[i] = 0.0; /* left alone */
     }
     if (ok) {

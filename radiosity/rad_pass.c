@@ -249,6 +249,11 @@ rr_status rad_pass_run(const scene *s, const rt_accel *a, const rad_pass_opts *o
     if ((st = rad_ff_compute(s, a, sol->P, &fo, &sol->F, err)) != RR_OK)
         goto fail;
     sol->nnz = sol->F->rowptr[sol->F->n];
+    /* From here on a patch's area is its open part's (rad.h: buried parts):
+     * the solve, the first shots, the ledger and the vertex means all weigh
+     * a patch by the area that can be lit and seen. */
+    for (size_t i = 0; i < sol->P->n; i++)
+        sol->P->p[i].area *= sol->F->open[i];
     double t2 = rr_now_seconds();
     rad_solve_opts so = o->solve;
     if (o->use_scene_choices)

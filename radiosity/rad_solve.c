@@ -11,7 +11,8 @@
  * nothing). M is positive definite: it is symmetric with a positive diagonal
  * and strictly diagonally dominant, since sum_j G_ij = A_i sum_j F_ij <= A_i
  * < A_i / rho_i. Patches with rho_i = 0 in a channel would have an infinite
- * diagonal: there B_i = E_i is known, so they are eliminated and their terms
+ * diagonal, and patches of area 0 (wholly buried, rad.h) a zero row: there
+ * B_i = E_i is known, so they are eliminated and their terms
  * G_ij E_j move to the right-hand side of the others. The pattern of M depends
  * only on which patches are unknown, so it is analysed (ordering + symbolic
  * factorisation) once per distinct unknown set, usually once for all three
@@ -71,8 +72,10 @@ rr_status rad_system_check(const rad_patches *P, const rad_ff *F, rr_error *err)
         return rr_error_set(err, RR_ERR_INVALID, "form factor rows do not start at 0");
     for (size_t i = 0; i < P->n; i++) {
         const rad_patch *p = &P->p[i];
-        if (!isfinite(p->area) || p->area <= 0.0)
-            return rr_error_set(err, RR_ERR_INVALID, "patch %zu (object %u) has area %g, expected > 0", i,
+        /* 0 is a patch wholly buried under another surface (rad.h): it
+         * neither gathers nor sends, B = E. */
+        if (!isfinite(p->area) || p->area < 0.0)
+            return rr_error_set(err, RR_ERR_INVALID, "patch %zu (object %u) has area %g, expected >= 0", i,
                                 (unsigned)p->object, p->area);
         if (!rgb_nonneg_finite(p->emission))
             return rr_error_set(err, RR_ERR_INVALID,
@@ -340,7 +343,7 @@ static rr_status direct_unknown_set(direct *d, const int *chans, int nch, rr_rgb
     const rad_ff *F = d->F;
     d->m = 0;
     for (size_t i = 0; i < P->n; i++) {
-        if (rad_rgb_get(P->p[i].rho, chans[0]) > 0.0) {
+        if (rad_rgb_get(P->p[i].rho, chans[0]) > 0.0 && P->p[i].area > 0.0) {
             d->glob[d->m] = i;
             d->loc[i] = (SuiteSparse_long)d->m++;
         } else {

@@ -283,6 +283,36 @@ static void two_patches(void **state)
     sys_free(S);
 }
 
+/* A wholly buried patch (area 0, no row, in no row: rad.h) keeps B = E in
+ * both solvers and leaves the others as the two-patch closed form has them. */
+static void buried_patch(void **state)
+{
+    (void)state;
+    sys *S = sys_new(3);
+    S->P.p[0].area = 2.0;
+    S->P.p[1].area = 0.5;
+    S->P.p[2].area = 0.0;
+    double F12 = 0.2, F21 = 2.0 * 0.2 / 0.5;
+    double f[9] = {0, F12, 0, F21, 0, 0, 0, 0, 0};
+    sys_set_dense(S, f);
+    for (int k = 0; k < 3; k++)
+        S->P.p[k].rho = rr_rgb_make(0.5, 0.7, 0.3);
+    S->P.p[0].emission = rr_rgb_make(1.0, 2.0, 3.0);
+    S->P.p[2].emission = rr_rgb_make(0.25, 0.5, 0.75);
+    for (int solver = RAD_SOLVER_DIRECT; solver <= RAD_SOLVER_ITERATIVE; solver++) {
+        rr_rgb *B = solve_ok(S, (rad_solver)solver, 1e-13, NULL);
+        for (int c = 0; c < 3; c++) {
+            double r = chan(S->P.p[0].rho, c), e1 = chan(S->P.p[0].emission, c);
+            double den = 1.0 - r * r * F12 * F21;
+            assert_true(fabs(chan(B[0], c) - e1 / den) < 1e-12 * e1 / den);
+            assert_true(fabs(chan(B[1], c) - r * F21 * e1 / den) < 1e-12 * e1 / den);
+            assert_true(chan(B[2], c) == chan(S->P.p[2].emission, c));
+        }
+        free(B);
+    }
+    sys_free(S);
+}
+
 /* Patches black in some channels are eliminated from the direct system:
  * they must keep B = E and the rest must match Gauss-Seidel. */
 static void black_patches_eliminated(void **state)
@@ -457,8 +487,10 @@ static void bad_inputs(void **state)
     S->P.p[1].emission.r = NAN;
     expect_fail(S, &o, RR_ERR_INVALID, "emission");
     S->P.p[1].emission.r = 0.0;
-    S->P.p[0].area = 0.0;
-    expect_fail(S, &o, RR_ERR_INVALID, "area 0");
+    S->P.p[0].area = -1.0;
+    expect_fail(S, &o, RR_ERR_INVALID, "area -1");
+    S->P.p[0].area = NAN;
+    expect_fail(S, &o, RR_ERR_INVALID, "area nan");
     S->P.p[0].area = 1.0;
     o.solver = (rad_solver)7;
     expect_fail(S, &o, RR_ERR_INVALID, "unknown solver");
@@ -603,7 +635,8 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(white_furnace),         cmocka_unit_test(well_mixed_closed_form),
-        cmocka_unit_test(two_patches),           cmocka_unit_test(black_patches_eliminated),
+        cmocka_unit_test(two_patches),           cmocka_unit_test(buried_patch),
+        cmocka_unit_test(black_patches_eliminated),
         cmocka_unit_test(direct_matches_iterative), cmocka_unit_test(auto_choice_and_history),
         cmocka_unit_test(bad_inputs),            cmocka_unit_test(energy_closed),
         cmocka_unit_test(energy_open),
