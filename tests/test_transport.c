@@ -283,8 +283,12 @@ static const char *const k_furnace_quad =
 static const char *const k_furnace_sphere =
     "{\"format\":\"radray-scene/1\"," BOX_CAM "," BOX_MATS ",\"objects\":[" BOX_WALLS("white")
     ",{\"name\":\"lamp\",\"type\":\"sphere\",\"material\":\"lamp\",\"center\":[1,1.3,0.7],\"radius\":0.15}]}";
+/* At 48 x 36 pixels, so that the left wall's strip around the mirror (where
+ * wall patches straddle the wall's buried part) has pixels of its own. */
 static const char *const k_mirror_room =
-    "{\"format\":\"radray-scene/1\"," BOX_CAM "," BOX_MATS ",\"objects\":[" BOX_WALLS("white")
+    "{\"format\":\"radray-scene/1\","
+    "\"camera\":{\"type\":\"lookat\",\"eye\":[1,1,1.95],\"target\":[1,0.9,0],\"up\":[0,1,0],\"fov\":80,"
+    "\"width\":48,\"height\":36}," BOX_MATS ",\"objects\":[" BOX_WALLS("white")
     ",{\"name\":\"mirror\",\"type\":\"quad\",\"material\":\"mirror\","
     "\"vertices\":[[0.001,0.2,0.2],[0.001,1.8,0.2],[0.001,1.8,1.8],[0.001,0.2,1.8]]},"
     "{\"name\":\"lamp\",\"type\":\"quad\",\"material\":\"lamp\","
@@ -301,14 +305,27 @@ static const char *const k_two_mirrors =
 /* Every integrator that takes light from the radiosity pass (hybrid and the
  * radiosity display) against secondary rays: the object's mean and the
  * image's. tol_r: the display's own tolerance, tol_h the others'. */
-static void against_secondary(const char *json, const char *label, const char *obj, double tol_h, double tol_r)
+/* Every mode that uses the radiosity field against 256-spp secondary rays:
+ * the mean over the pixels of each object named in objs (comma-separated;
+ * NULL: none) and over the whole image. */
+static void against_secondary(const char *json, const char *label, const char *objs, double tol_h, double tol_r)
 {
     world w;
     world_load(&w, json);
-    int o = obj ? object_index(w.s, obj) : -1;
+    int o[4], no = 0;
+    char names[4][32];
+    for (const char *p = objs; p && *p && no < 4;) {
+        size_t len = strcspn(p, ",");
+        assert_true(len < sizeof names[0]);
+        memcpy(names[no], p, len);
+        names[no][len] = 0;
+        o[no] = object_index(w.s, names[no]);
+        no++;
+        p += len + (p[len] == ',');
+    }
     rt_film ref;
     world_render(&w, mode("secondary"), 256, &ref);
-    double want = object_mean(&w, &ref.beauty, o, NULL), want_all = object_mean(&w, &ref.beauty, -1, NULL);
+    double want_all = object_mean(&w, &ref.beauty, -1, NULL);
     for (size_t m = 0; m < ig_count(); m++) {
         const ig_integrator *ig = &ig_table[m];
         if (!ig->uses_field)
@@ -316,9 +333,14 @@ static void against_secondary(const char *json, const char *label, const char *o
         rt_film f;
         world_render(&w, ig, 16, &f);
         double tol = ig->shows_field ? tol_r : tol_h;
-        char what[96];
-        snprintf(what, sizeof what, "%s: %s", label, obj ? obj : "image");
-        expect_rel(what, ig->name, object_mean(&w, &f.beauty, o, NULL), want, tol);
+        char what[160];
+        for (int k = 0; k < no; k++) {
+            int count = 0;
+            double want = object_mean(&w, &ref.beauty, o[k], &count);
+            assert_true(count > 0);
+            snprintf(what, sizeof what, "%s: %s", label, names[k]);
+            expect_rel(what, ig->name, object_mean(&w, &f.beauty, o[k], NULL), want, tol);
+        }
         snprintf(what, sizeof what, "%s: image", label);
         expect_rel(what, ig->name, object_mean(&w, &f.beauty, -1, NULL), want_all, tol);
         rt_film_free(&f);
@@ -348,7 +370,13 @@ static void test_two_mirror_walls(void **state)
 static void test_room_with_mirror(void **state)
 {
     (void)state;
-    against_secondary(k_mirror_room, "room with a mirror", "floor", 0.02, 0.03);
+    against_secondary(k_mirror_room, "room with a mirror", "floor,ceiling", 0.02, 0.03);
+    /* The wall's strip around the mirror: its patches straddle the wall's
+     * buried part (rad.h), which made it -11 % (hybrid) and -17 %
+     * (radiosity) while the buried part counted. Now within the flat rows'
+     * noise: 5 seeds of `radray compare` give -0.5 .. -2.5 % (hybrid) and
+     * +0.3 .. -2.8 % (radiosity) over its ~35 patches at 512 rays. */
+    against_secondary(k_mirror_room, "room with a mirror", "left", 0.05, 0.05);
 }
 
 /* ---- what render.max_depth bounds ---- */
