@@ -433,35 +433,62 @@ static int collapse(const rt_node *bin, size_t nbin, rt_rec *recs, int width, vo
     return 0;
 }
 
-/* Leaf records in leaf order (RT_REC_LAST is set by collapse). */
-static void fill_records(const scene *s, const build_item *items, size_t n, rt_rec *recs)
+/* Leaf records in leaf order (RT_REC_LAST is set by collapse), and the
+ * double copies of the triangles whose vertices are not all floats
+ * (rt_internal.h). 0, or -1 when out of memory. */
+static int fill_records(const scene *s, const build_item *items, size_t n, rt_accel *a)
 {
+    size_t ndv = 0;
     for (size_t i = 0; i < n; i++) {
         rt_prim pr = items[i].prim;
-        rt_rec *r = &recs[i];
+        rt_rec *r = &a->recs[i];
         memset(r, 0, sizeof *r);
         r->index = pr.index;
         r->flags = pr.kind & RT_REC_KIND;
-        if (pr.kind == RT_PRIM_TRIANGLE) {
-            const scene_tri *t = &s->tris[pr.index];
-            int exact = t->object < (UINT32_MAX >> RT_REC_OBJ_SHIFT);
+        if (pr.kind != RT_PRIM_TRIANGLE)
+            continue;
+        const scene_tri *t = &s->tris[pr.index];
+        if (t->object >= (UINT32_MAX >> RT_REC_OBJ_SHIFT))
+            continue; /* rt__prim_hit */
+        int exact = 1;
+        for (int k = 0; k < 3; k++) {
+            rr_vec3 v = s->verts[t->v[k]];
+            exact = exact && (double)(float)v.x == v.x && (double)(float)v.y == v.y && (double)(float)v.z == v.z;
+        }
+        r->flags |= (exact ? RT_REC_FAST : RT_REC_DBL) | t->object << RT_REC_OBJ_SHIFT;
+        r->material = t->material;
+        if (s->objects[t->object].cull_backfaces)
+            r->flags |= RT_REC_CULL;
+        if (exact) {
             for (int k = 0; k < 3; k++) {
                 rr_vec3 v = s->verts[t->v[k]];
                 r->v[k][0] = (float)v.x;
                 r->v[k][1] = (float)v.y;
                 r->v[k][2] = (float)v.z;
-                exact = exact && (double)r->v[k][0] == v.x && (double)r->v[k][1] == v.y && (double)r->v[k][2] == v.z;
             }
-            if (exact) {
-                r->flags |= RT_REC_FAST | t->object << RT_REC_OBJ_SHIFT;
-                r->material = t->material;
-                if (s->objects[t->object].cull_backfaces)
-                    r->flags |= RT_REC_CULL;
-            } else {
-                memset(r->v, 0, sizeof r->v);
-            }
+        } else {
+            r->dv = (uint32_t)ndv++;
         }
     }
+    a->ndverts = ndv;
+    if (ndv == 0 || ndv > UINT32_MAX)
+        return ndv == 0 ? 0 : -1;
+    if (!(a->dverts = malloc(ndv * 9 * sizeof *a->dverts)))
+        return -1;
+    for (size_t i = 0; i < n; i++) {
+        const rt_rec *r = &a->recs[i];
+        if (!(r->flags & RT_REC_DBL))
+            continue;
+        const scene_tri *t = &s->tris[r->index];
+        double *d = a->dverts + 9 * (size_t)r->dv;
+        for (int k = 0; k < 3; k++) {
+            rr_vec3 v = s->verts[t->v[k]];
+            d[3 * k] = v.x;
+            d[3 * k + 1] = v.y;
+            d[3 * k + 2] = v.z;
+        }
+    }
+    return 0;
 }
 
 /* Why an environment variable and not a parameter: it is for comparing the
@@ -533,7 +560,8 @@ rr_status rt__accel_build_width(const scene *s, int width, rt_accel **out, rr_er
         a->recs = malloc(n * sizeof *a->recs);
         if (!a->recs)
             goto nomem;
-        fill_records(s, b.items, n, a->recs);
+        if (fill_records(s, b.items, n, a))
+            goto nomem;
         if (collapse(b.nodes, b.nnodes, a->recs, width, &a->wnodes, &a->nwnodes))
             goto nomem;
         a->nrecs = n;
@@ -554,6 +582,7 @@ nomem:
     free(b.nodes);
     if (a) {
         free(a->recs);
+        free(a->dverts);
         free(a->wnodes);
     }
     free(a);
@@ -566,6 +595,7 @@ void rt_accel_destroy(rt_accel *a)
         return;
     free(a->wnodes);
     free(a->recs);
+    free(a->dverts);
     rt__solids_destroy(a->solids);
     free(a);
 }
@@ -580,6 +610,7 @@ rt_accel_stats rt_accel_stats_of(const rt_accel *a)
     st.node_bytes = a->width == 8 ? sizeof(rt_wnode8) : sizeof(rt_wnode4);
     st.records = a->nrecs;
     st.record_bytes = sizeof(rt_rec);
-    st.bytes = st.nodes * st.node_bytes + st.records * st.record_bytes + rt__solids_bytes(a->solids);
+    st.bytes = st.nodes * st.node_bytes + st.records * st.record_bytes + a->ndverts * 9 * sizeof(double) +
+               rt__solids_bytes(a->solids);
     return st;
 }

@@ -91,23 +91,29 @@ typedef rt_wnode4 rt_wnode;
 #endif
 
 /* A leaf primitive record, in leaf order: the primitive (kind in flags) and,
- * for a triangle whose vertices are all floats exactly (meshes read from PLY,
- * OBJ, STL are), a private copy of them and of its object and material
- * (RT_REC_FAST), so the test and the hit record read one contiguous record
- * instead of scene->tris -> scene->verts -> scene->objects. The test converts
- * them back to the same doubles, so results are those of the double vertices
- * bit for bit. Other triangles (and every other kind) go through
- * rt__prim_hit. 48 bytes. */
+ * for a triangle, its object and material and its vertices, so that the test
+ * and the hit record read the record instead of scene->tris -> scene->verts ->
+ * scene->objects: a float copy when the vertices are all floats exactly
+ * (RT_REC_FAST: meshes read from PLY, OBJ, STL are; the test converts them
+ * back to the same doubles, so results are those of the double vertices bit
+ * for bit), else the index of their double copy in rt_accel.dverts
+ * (RT_REC_DBL: scenes written in decimals, such as the Cornell box, whose
+ * walls went through rt__prim_hit and cost its shadow rays ~10 %). Other
+ * kinds go through rt__prim_hit. 48 bytes (+ 72 in dverts for RT_REC_DBL). */
 #define RT_REC_KIND 0x3u   /* rt_prim_kind */
-#define RT_REC_CULL 0x4u   /* fast triangle of an object that culls back faces */
+#define RT_REC_CULL 0x4u   /* triangle of an object that culls back faces (FAST or DBL) */
 #define RT_REC_LAST 0x8u   /* last record of its leaf */
 #define RT_REC_FAST 0x10u  /* v, object and material are valid */
-#define RT_REC_OBJ_SHIFT 5 /* flags >> RT_REC_OBJ_SHIFT = object (fast triangles) */
+#define RT_REC_DBL 0x20u   /* dv, object and material are valid */
+#define RT_REC_OBJ_SHIFT 6 /* flags >> RT_REC_OBJ_SHIFT = object (FAST and DBL triangles) */
 typedef struct rt_rec {
-    float v[3][3];     /* fast triangles: vertices A, B, C */
+    union {
+        float v[3][3]; /* RT_REC_FAST: vertices A, B, C */
+        uint32_t dv;   /* RT_REC_DBL: A, B, C are rt_accel.dverts[9 dv .. 9 dv + 9) */
+    };
     uint32_t index;    /* scene triangle index, or object index (rt_prim.index) */
     uint32_t flags;    /* RT_REC_* | object << RT_REC_OBJ_SHIFT */
-    uint32_t material; /* fast triangles: scene->tris[index].material */
+    uint32_t material; /* FAST and DBL triangles: scene->tris[index].material */
 } rt_rec;
 
 struct rt_accel {
@@ -118,6 +124,8 @@ struct rt_accel {
     int width; /* 4 or 8: the node layout and the walk (rt__walk4 / rt__walk8) */
     rt_rec *recs;
     size_t nrecs;
+    double *dverts; /* 9 per RT_REC_DBL record: x, y, z of A, B, C (NULL if none) */
+    size_t ndverts; /* records with RT_REC_DBL */
     struct rt_solid_accel *solids; /* per-mesh-leaf BVHs of the scene's solids (rt_solid.c); NULL if none */
 };
 

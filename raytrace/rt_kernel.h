@@ -117,18 +117,42 @@ static inline int rt__tri_hit_rec(const rt_ray_pre *p, const rt_rec *r, double t
                         (r->flags & RT_REC_CULL) != 0, tmin, tmax, tie, t, front);
 }
 
-static inline rr_vec3 rt__rec_vert(const rt_rec *r, int k)
+/* The same on a record's double copy (RT_REC_DBL): v = A, B, C, xyz each. */
+static inline int rt__tri_hit_drec(const rt_ray_pre *p, const double *v, int cull, double tmin, double tmax, int tie,
+                                   double *t, int *front)
 {
-    return rr_v3((double)r->v[k][0], (double)r->v[k][1], (double)r->v[k][2]);
+    const int kx = p->kx, ky = p->ky, kz = p->kz;
+    const double ox = p->ok[0], oy = p->ok[1], oz = p->ok[2];
+    return rt__tri_core(p, v[kx] - ox, v[ky] - oy, v[kz] - oz, v[3 + kx] - ox, v[3 + ky] - oy, v[3 + kz] - oz,
+                        v[6 + kx] - ox, v[6 + ky] - oy, v[6 + kz] - oz, cull, tmin, tmax, tie, t, front);
 }
 
-/* Fills hit for the fast triangle of record r met with `front` at t, as
- * rt__prim_hit does (the normal by the formula of scene_tri_normal, on the
- * same doubles). */
-static inline void rt__tri_fill(const rt_rec *r, int front, double t, rt_hit *hit)
+/* Vertex k of a FAST or DBL record (dverts: the accel's double copies). */
+static inline rr_vec3 rt__rec_vert(const rt_rec *r, const double *dverts, int k)
 {
-    rr_vec3 A = rt__rec_vert(r, 0);
-    rr_vec3 n = rr_v3_norm(rr_v3_cross(rr_v3_sub(rt__rec_vert(r, 1), A), rr_v3_sub(rt__rec_vert(r, 2), A)));
+    if (r->flags & RT_REC_FAST)
+        return rr_v3((double)r->v[k][0], (double)r->v[k][1], (double)r->v[k][2]);
+    const double *v = dverts + 9 * (size_t)r->dv + 3 * k;
+    return rr_v3(v[0], v[1], v[2]);
+}
+
+/* The test on a FAST or DBL record's triangle. */
+static inline int rt__rec_hit(const rt_ray_pre *p, const rt_rec *r, const double *dverts, double tmin, double tmax,
+                              int tie, double *t, int *front)
+{
+    if (r->flags & RT_REC_FAST)
+        return rt__tri_hit_rec(p, r, tmin, tmax, tie, t, front);
+    return rt__tri_hit_drec(p, dverts + 9 * (size_t)r->dv, (r->flags & RT_REC_CULL) != 0, tmin, tmax, tie, t, front);
+}
+
+/* Fills hit for the FAST or DBL triangle of record r met with `front` at t,
+ * as rt__prim_hit does (the normal by the formula of scene_tri_normal, on
+ * the same doubles). */
+static inline void rt__tri_fill(const rt_rec *r, const double *dverts, int front, double t, rt_hit *hit)
+{
+    rr_vec3 A = rt__rec_vert(r, dverts, 0);
+    rr_vec3 n = rr_v3_norm(
+        rr_v3_cross(rr_v3_sub(rt__rec_vert(r, dverts, 1), A), rr_v3_sub(rt__rec_vert(r, dverts, 2), A)));
     hit->tri = (int64_t)r->index;
     hit->part = -1;
     hit->object = r->flags >> RT_REC_OBJ_SHIFT;

@@ -306,7 +306,7 @@ int RT_WALK(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_hit *hit
             const rt_rec *r = &a->recs[cur & ~RT_LEAF];
             for (;; r++) {
                 uint32_t fl = r->flags;
-                if (fl & RT_REC_FAST) {
+                if (fl & (RT_REC_FAST | RT_REC_DBL)) {
                     double t;
                     int front;
                     /* Exact ties (a ray through a shared edge or vertex)
@@ -314,7 +314,7 @@ int RT_WALK(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_hit *hit
                      * so the hit does not depend on the order the walk
                      * meets the triangles in (the two widths' trees differ). */
                     int tie = tri_best && r->index < tri_best->index;
-                    if (rt__tri_hit_rec(&p, r, tmin, best, tie, &t, &front)) {
+                    if (rt__rec_hit(&p, r, a->dverts, tmin, best, tie, &t, &front)) {
                         if (any)
                             return 1;
                         found = 1;
@@ -353,7 +353,7 @@ int RT_WALK(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_hit *hit
 out:
     if (found && hit) {
         if (tri_best)
-            rt__tri_fill(tri_best, tri_front, best, hit);
+            rt__tri_fill(tri_best, a->dverts, tri_front, best, hit);
         hit->point = rr_ray_at(ray, hit->t);
     }
     return found;
@@ -426,10 +426,10 @@ int RT_OCCL(const rt_accel *a, rr_ray ray, double tmin, double tmax)
             const rt_rec *r = &a->recs[n->child[__builtin_ctz(leaves)] & ~RT_LEAF];
             for (;; r++) {
                 uint32_t fl = r->flags;
-                if (fl & RT_REC_FAST) {
+                if (fl & (RT_REC_FAST | RT_REC_DBL)) {
                     double t;
                     int front;
-                    if (rt__tri_hit_rec(&p, r, tmin, tmax, 0, &t, &front))
+                    if (rt__rec_hit(&p, r, a->dverts, tmin, tmax, 0, &t, &front))
                         return 1;
                 } else {
                     rt_prim pr = {fl & RT_REC_KIND, r->index};

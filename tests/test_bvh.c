@@ -336,12 +336,19 @@ static void bvh_widths_agree(void **state)
         assert_null(bad);
         assert_int_equal(a4->width, 4);
         assert_int_equal(a8->width, w2);
-        if (pass >= 1) { /* the fast path is taken */
-            size_t nfast = 0;
-            for (size_t q = 0; q < a4->nrecs; q++)
-                nfast += (a4->recs[q].flags & RT_REC_FAST) != 0;
-            assert_true(nfast >= s->ntris);
+        /* Every triangle has a record of its own: float copies once the
+         * vertices are floats, else double copies (pass 0). */
+        size_t nfast = 0, ndbl = 0;
+        for (size_t q = 0; q < a4->nrecs; q++) {
+            nfast += (a4->recs[q].flags & RT_REC_FAST) != 0;
+            ndbl += (a4->recs[q].flags & RT_REC_DBL) != 0;
         }
+        assert_int_equal(nfast + ndbl, s->ntris);
+        assert_int_equal(ndbl, a4->ndverts);
+        if (pass >= 1)
+            assert_int_equal(nfast, s->ntris);
+        else
+            assert_true(ndbl > s->ntris / 2);
         assert_int_equal((uintptr_t)a4->wnodes % 64, 0);
         assert_int_equal((uintptr_t)a8->wnodes % 64, 0);
         int hits = 0, n = 200000;
