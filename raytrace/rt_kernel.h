@@ -136,15 +136,6 @@ static inline rr_vec3 rt__rec_vert(const rt_rec *r, const double *dverts, int k)
     return rr_v3(v[0], v[1], v[2]);
 }
 
-/* The test on a FAST or DBL record's triangle. */
-static inline int rt__rec_hit(const rt_ray_pre *p, const rt_rec *r, const double *dverts, double tmin, double tmax,
-                              int tie, double *t, int *front)
-{
-    if (r->flags & RT_REC_FAST)
-        return rt__tri_hit_rec(p, r, tmin, tmax, tie, t, front);
-    return rt__tri_hit_drec(p, dverts + 9 * (size_t)r->dv, (r->flags & RT_REC_CULL) != 0, tmin, tmax, tie, t, front);
-}
-
 /* Fills hit for the FAST or DBL triangle of record r met with `front` at t,
  * as rt__prim_hit does (the normal by the formula of scene_tri_normal, on
  * the same doubles). */

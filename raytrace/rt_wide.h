@@ -314,7 +314,10 @@ int RT_WALK(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_hit *hit
                      * so the hit does not depend on the order the walk
                      * meets the triangles in (the two widths' trees differ). */
                     int tie = tri_best && r->index < tri_best->index;
-                    if (rt__rec_hit(&p, r, a->dverts, tmin, best, tie, &t, &front)) {
+                    int got = fl & RT_REC_FAST ? rt__tri_hit_rec(&p, r, tmin, best, tie, &t, &front)
+                                               : rt__tri_hit_drec(&p, a->dverts + 9 * (size_t)r->dv,
+                                                                  (fl & RT_REC_CULL) != 0, tmin, best, tie, &t, &front);
+                    if (got) {
                         if (any)
                             return 1;
                         found = 1;
@@ -429,7 +432,9 @@ int RT_OCCL(const rt_accel *a, rr_ray ray, double tmin, double tmax)
                 if (fl & (RT_REC_FAST | RT_REC_DBL)) {
                     double t;
                     int front;
-                    if (rt__rec_hit(&p, r, a->dverts, tmin, tmax, 0, &t, &front))
+                    if (fl & RT_REC_FAST ? rt__tri_hit_rec(&p, r, tmin, tmax, 0, &t, &front)
+                                         : rt__tri_hit_drec(&p, a->dverts + 9 * (size_t)r->dv, (fl & RT_REC_CULL) != 0,
+                                                            tmin, tmax, 0, &t, &front))
                         return 1;
                 } else {
                     rt_prim pr = {fl & RT_REC_KIND, r->index};
