@@ -184,7 +184,10 @@ size_t rt_prim_total(const scene *s);
 /* The fast path: a BVH over every triangle, sphere and solid of a scene
  * (binned SAH, collapsed into 4- or 8-wide nodes with SIMD box tests,
  * watertight triangle test; notes/performance.md). The accel keeps a pointer
- * to the scene, which must outlive it. Queries are thread-safe (read-only). */
+ * to the scene, which must outlive it. Queries are thread-safe (read-only).
+ * Built by s->settings.threads threads (0: OpenMP's default, all cores) for
+ * scenes of 65536 primitives or more; the same BVH, bytes included, for any
+ * thread count. */
 
 rr_status rt_accel_build(const scene *s, rt_accel **out, rr_error *err);
 void rt_accel_destroy(rt_accel *a); /* NULL is a no-op */

@@ -30,6 +30,7 @@
  * edge or vertex) are recomputed in long double as the paper advises.
  */
 #include <float.h>
+#include <omp.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -118,6 +119,75 @@ static void set_bounds(rt_node *n, box3 box)
     n->hi[2] = round_up(box.hi.z);
 }
 
+/* Bins of one SAH step: per axis, the count and bounds of the items whose
+ * centroid falls in each of RT_BINS slices of the centroids' box. */
+typedef struct bins3 {
+    box3 box[3][RT_BINS];
+    size_t cnt[3][RT_BINS];
+} bins3;
+
+static int bin_of(const build_item *it, int axis, double lo, double scale)
+{
+    int k = (int)((rr_v3_get(it->centroid, axis) - lo) * scale);
+    return k < 0 ? 0 : (k >= RT_BINS ? RT_BINS - 1 : k);
+}
+
+/* items[0, count) into the bins of the three axes, in one pass over them. */
+static void bin_items(const build_item *items, size_t count, const double lo[3], const double scale[3], bins3 *b)
+{
+    for (int axis = 0; axis < 3; axis++)
+        for (int k = 0; k < RT_BINS; k++) {
+            b->box[axis][k] = box_empty();
+            b->cnt[axis][k] = 0;
+        }
+    /* An axis with scale 0 (a flat slab) puts everything in bin 0 and is
+     * not used. */
+    for (size_t i = 0; i < count; i++) {
+        const build_item *it = &items[i];
+        int kx = bin_of(it, 0, lo[0], scale[0]), ky = bin_of(it, 1, lo[1], scale[1]), kz = bin_of(it, 2, lo[2], scale[2]);
+        b->cnt[0][kx]++;
+        b->cnt[1][ky]++;
+        b->cnt[2][kz]++;
+        b->box[0][kx] = box_union(b->box[0][kx], it->box);
+        b->box[1][ky] = box_union(b->box[1][ky], it->box);
+        b->box[2][kz] = box_union(b->box[2][kz], it->box);
+    }
+}
+
+/* Chunks of items binned as tasks when the build runs in parallel (counts
+ * add and boxes unite exactly: the same bins in any order). */
+#define RT_BIN_CHUNK 32768
+#define RT_BIN_CHUNKS_MAX 64
+static void bin_all(const build_item *items, size_t count, const double lo[3], const double scale[3], bins3 *out)
+{
+    size_t nch = count / RT_BIN_CHUNK;
+    if (nch < 2 || !omp_in_parallel()) {
+        bin_items(items, count, lo, scale, out);
+        return;
+    }
+    if (nch > RT_BIN_CHUNKS_MAX)
+        nch = RT_BIN_CHUNKS_MAX;
+    bins3 *part = malloc(nch * sizeof *part);
+    if (!part) { /* fall back to one pass */
+        bin_items(items, count, lo, scale, out);
+        return;
+    }
+    for (size_t c = 0; c < nch; c++) {
+        size_t a = count * c / nch, e = count * (c + 1) / nch;
+#pragma omp task firstprivate(a, e, c) shared(part)
+        bin_items(items + a, e - a, lo, scale, &part[c]);
+    }
+#pragma omp taskwait
+    *out = part[0];
+    for (size_t c = 1; c < nch; c++)
+        for (int axis = 0; axis < 3; axis++)
+            for (int k = 0; k < RT_BINS; k++) {
+                out->cnt[axis][k] += part[c].cnt[axis][k];
+                out->box[axis][k] = box_union(out->box[axis][k], part[c].box[axis][k]);
+            }
+    free(part);
+}
+
 /* Chooses a split of items[first, first+count) by binned SAH; returns the
  * number of items put on the left (0 = make a leaf). */
 static size_t sah_partition(build_item *items, size_t count, box3 box, int *axis_out)
@@ -125,31 +195,27 @@ static size_t sah_partition(build_item *items, size_t count, box3 box, int *axis
     box3 cb = box_empty();
     for (size_t i = 0; i < count; i++)
         cb = box_add(cb, items[i].centroid);
+    double blo[3], scale[3];
+    for (int axis = 0; axis < 3; axis++) {
+        double lo = rr_v3_get(cb.lo, axis), hi = rr_v3_get(cb.hi, axis);
+        blo[axis] = lo;
+        scale[axis] = hi > lo ? RT_BINS / (hi - lo) : 0.0;
+    }
+    bins3 bins;
+    bin_all(items, count, blo, scale, &bins);
     double best_cost = (double)count; /* cost of a leaf, in intersection units */
     int best_axis = -1, best_split = 0;
     for (int axis = 0; axis < 3; axis++) {
-        double lo = rr_v3_get(cb.lo, axis), hi = rr_v3_get(cb.hi, axis);
-        if (!(hi > lo))
+        if (!(scale[axis] > 0.0))
             continue;
-        box3 bins[RT_BINS];
-        size_t cnt[RT_BINS] = {0};
-        for (int k = 0; k < RT_BINS; k++)
-            bins[k] = box_empty();
-        double scale = RT_BINS / (hi - lo);
-        for (size_t i = 0; i < count; i++) {
-            int k = (int)((rr_v3_get(items[i].centroid, axis) - lo) * scale);
-            k = k < 0 ? 0 : (k >= RT_BINS ? RT_BINS - 1 : k);
-            cnt[k]++;
-            bins[k] = box_union(bins[k], items[i].box);
-        }
         /* Sweep from the right, then from the left. */
         double right_area[RT_BINS];
         size_t right_cnt[RT_BINS];
         box3 acc = box_empty();
         size_t n = 0;
         for (int k = RT_BINS - 1; k > 0; k--) {
-            acc = box_union(acc, bins[k]);
-            n += cnt[k];
+            acc = box_union(acc, bins.box[axis][k]);
+            n += bins.cnt[axis][k];
             right_area[k] = box_area(acc);
             right_cnt[k] = n;
         }
@@ -157,8 +223,8 @@ static size_t sah_partition(build_item *items, size_t count, box3 box, int *axis
         n = 0;
         double inv_area = 1.0 / fmax(box_area(box), DBL_MIN);
         for (int k = 1; k < RT_BINS; k++) {
-            acc = box_union(acc, bins[k - 1]);
-            n += cnt[k - 1];
+            acc = box_union(acc, bins.box[axis][k - 1]);
+            n += bins.cnt[axis][k - 1];
             if (n == 0 || right_cnt[k] == 0)
                 continue;
             /* Traversal cost 1 relative to one primitive test. */
@@ -177,13 +243,9 @@ static size_t sah_partition(build_item *items, size_t count, box3 box, int *axis
         *axis_out = 0;
         return count / 2;
     }
-    double lo = rr_v3_get(cb.lo, best_axis), hi = rr_v3_get(cb.hi, best_axis);
-    double scale = RT_BINS / (hi - lo);
     size_t left = 0;
     for (size_t i = 0; i < count; i++) {
-        int k = (int)((rr_v3_get(items[i].centroid, best_axis) - lo) * scale);
-        k = k < 0 ? 0 : (k >= RT_BINS ? RT_BINS - 1 : k);
-        if (k < best_split) {
+        if (bin_of(&items[i], best_axis, blo[best_axis], scale[best_axis]) < best_split) {
             build_item t = items[i];
             items[i] = items[left];
             items[left++] = t;
@@ -220,10 +282,90 @@ static int build_rec(builder *b, size_t first, size_t count, int depth)
     return build_rec(b, first + left, count - left, depth + 1);
 }
 
-int rt__bvh_build_binary(rt_build_item *items, size_t n, rt_node **nodes, size_t *nnodes)
+/* Subtrees of at least this many items are built as OpenMP tasks, each into
+ * a node array of its own, appended to its parent's afterwards in the order
+ * of the serial build (node, left subtree, right subtree): the same splits,
+ * the same node array, bytes included, for any thread count. Below it one
+ * thread builds the subtree (a task's cost would not pay). */
+#define RT_BUILD_TASK_MIN 65536
+
+/* Appends sub's nodes to b's (interior nodes' right-child indices moved by
+ * the offset; a leaf's index is an item index and stays). */
+static int append_nodes(builder *b, const builder *sub)
+{
+    size_t off = b->nnodes;
+    if (off + sub->nnodes > b->cap) {
+        size_t cap = b->cap ? b->cap : 256;
+        while (cap < off + sub->nnodes)
+            cap *= 2;
+        rt_node *n = realloc(b->nodes, cap * sizeof *n);
+        if (!n)
+            return -1;
+        b->nodes = n;
+        b->cap = cap;
+    }
+    memcpy(b->nodes + off, sub->nodes, sub->nnodes * sizeof *sub->nodes);
+    for (size_t k = off; k < off + sub->nnodes; k++)
+        if (b->nodes[k].count == 0)
+            b->nodes[k].index += (uint32_t)off;
+    b->nnodes += sub->nnodes;
+    return 0;
+}
+
+/* build_rec with the two subtrees of a large node built as tasks. */
+static int build_par(builder *b, size_t first, size_t count, int depth)
+{
+    if (count < RT_BUILD_TASK_MIN)
+        return build_rec(b, first, count, depth);
+    size_t idx;
+    if (push_node(b, &idx))
+        return -1;
+    box3 box = box_empty();
+    for (size_t i = 0; i < count; i++)
+        box = box_union(box, b->items[first + i].box);
+    int axis = 0;
+    size_t left = depth >= RT_STACK - 2 ? 0 : sah_partition(b->items + first, count, box, &axis);
+    rt_node *n = &b->nodes[idx];
+    set_bounds(n, box);
+    if (left == 0 || left == count) {
+        RR_CHECK(count <= UINT16_MAX);
+        n->index = (uint32_t)first;
+        n->count = (uint16_t)count;
+        n->axis = 0;
+        return 0;
+    }
+    n->count = 0;
+    n->axis = (uint16_t)axis;
+    builder L = {b->items, NULL, 0, 0}, R = {b->items, NULL, 0, 0};
+    int fl = 0, fr = 0;
+#pragma omp task shared(L, fl) if (omp_in_parallel())
+    fl = build_par(&L, first, left, depth + 1);
+#pragma omp task shared(R, fr) if (omp_in_parallel())
+    fr = build_par(&R, first + left, count - left, depth + 1);
+#pragma omp taskwait
+    int failed = fl || fr || append_nodes(b, &L);
+    if (!failed)
+        b->nodes[idx].index = (uint32_t)b->nnodes; /* right child follows the whole left subtree */
+    failed = failed || append_nodes(b, &R);
+    free(L.nodes);
+    free(R.nodes);
+    return failed ? -1 : 0;
+}
+
+int rt__bvh_build_binary(rt_build_item *items, size_t n, int threads, rt_node **nodes, size_t *nnodes)
 {
     builder b = {items, NULL, 0, 0};
-    if (build_rec(&b, 0, n, 0)) {
+    int failed = 0;
+    if (threads <= 0)
+        threads = omp_get_max_threads();
+    if (n < RT_BUILD_TASK_MIN || threads == 1) {
+        failed = build_rec(&b, 0, n, 0);
+    } else {
+#pragma omp parallel num_threads(threads)
+#pragma omp single
+        failed = build_par(&b, 0, n, 0);
+    }
+    if (failed) {
         free(b.nodes);
         return -1;
     }
@@ -436,9 +578,9 @@ static int collapse(const rt_node *bin, size_t nbin, rt_rec *recs, int width, vo
 /* Leaf records in leaf order (RT_REC_LAST is set by collapse), and the
  * double copies of the triangles whose vertices are not all floats
  * (rt_internal.h). 0, or -1 when out of memory. */
-static int fill_records(const scene *s, const build_item *items, size_t n, rt_accel *a)
+static int fill_records(const scene *s, const build_item *items, size_t n, int threads, rt_accel *a)
 {
-    size_t ndv = 0;
+#pragma omp parallel for schedule(static) num_threads(threads) if (n >= RT_BUILD_TASK_MIN)
     for (size_t i = 0; i < n; i++) {
         rt_prim pr = items[i].prim;
         rt_rec *r = &a->recs[i];
@@ -466,15 +608,19 @@ static int fill_records(const scene *s, const build_item *items, size_t n, rt_ac
                 r->v[k][1] = (float)v.y;
                 r->v[k][2] = (float)v.z;
             }
-        } else {
-            r->dv = (uint32_t)ndv++;
         }
     }
+    /* The double copies, numbered in record order. */
+    size_t ndv = 0;
+    for (size_t i = 0; i < n; i++)
+        if (a->recs[i].flags & RT_REC_DBL)
+            a->recs[i].dv = (uint32_t)ndv++;
     a->ndverts = ndv;
     if (ndv == 0 || ndv > UINT32_MAX)
         return ndv == 0 ? 0 : -1;
     if (!(a->dverts = malloc(ndv * 9 * sizeof *a->dverts)))
         return -1;
+#pragma omp parallel for schedule(static) num_threads(threads) if (n >= RT_BUILD_TASK_MIN)
     for (size_t i = 0; i < n; i++) {
         const rt_rec *r = &a->recs[i];
         if (!(r->flags & RT_REC_DBL))
@@ -536,6 +682,8 @@ rr_status rt__accel_build_width(const scene *s, int width, rt_accel **out, rr_er
     size_t n = rt__prim_count(s);
     if (n > UINT32_MAX / 2)
         return rr_error_set(err, RR_ERR_LIMIT, "%s: %zu primitives exceed the BVH limit", s->path, n);
+    /* The scene's render.threads (0: OpenMP's default, all cores). */
+    int threads = s->settings.threads > 0 ? s->settings.threads : omp_get_max_threads();
     rt_accel *a = calloc(1, sizeof *a);
     builder b = {0};
     b.items = n ? malloc(n * sizeof *b.items) : NULL;
@@ -548,11 +696,12 @@ rr_status rt__accel_build_width(const scene *s, int width, rt_accel **out, rr_er
     for (size_t i = 0; i < n; i++)
         b.items[i].prim = list[i];
     free(list);
+#pragma omp parallel for schedule(static) num_threads(threads) if (n >= RT_BUILD_TASK_MIN)
     for (size_t i = 0; i < n; i++) {
         rt__prim_bounds(s, b.items[i].prim, &b.items[i].box.lo, &b.items[i].box.hi);
         b.items[i].centroid = rr_v3_scale(rr_v3_add(b.items[i].box.lo, b.items[i].box.hi), 0.5);
     }
-    if (n && rt__bvh_build_binary(b.items, n, &b.nodes, &b.nnodes))
+    if (n && rt__bvh_build_binary(b.items, n, threads, &b.nodes, &b.nnodes))
         goto nomem;
     a->scene = s;
     a->width = width;
@@ -560,7 +709,7 @@ rr_status rt__accel_build_width(const scene *s, int width, rt_accel **out, rr_er
         a->recs = malloc(n * sizeof *a->recs);
         if (!a->recs)
             goto nomem;
-        if (fill_records(s, b.items, n, a))
+        if (fill_records(s, b.items, n, threads, a))
             goto nomem;
         if (collapse(b.nodes, b.nnodes, a->recs, width, &a->wnodes, &a->nwnodes))
             goto nomem;

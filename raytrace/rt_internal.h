@@ -164,8 +164,10 @@ int rt__tri_hit(const rt_ray_pre *p, rr_vec3 A, rr_vec3 B, rr_vec3 C, int cull, 
  * depth-first order (left child next, right child at index), float bounds
  * rounded outward; items are reordered into leaf order. The scene BVH
  * collapses it into wide nodes; the solids' mesh leaves walk it as it is
- * (rt_solid_mesh.c). *nodes is malloc'd. 0, or -1 when out of memory. */
-int rt__bvh_build_binary(rt_build_item *items, size_t n, rt_node **nodes, size_t *nnodes);
+ * (rt_solid_mesh.c). *nodes is malloc'd. 0, or -1 when out of memory.
+ * Subtrees of >= 65536 items are built by `threads` threads (0: OpenMP's
+ * default) as tasks: the same nodes for any count, bytes included. */
+int rt__bvh_build_binary(rt_build_item *items, size_t n, int threads, rt_node **nodes, size_t *nnodes);
 
 /* ---- the BVH by width (rt_bvh.c, rt_traverse.c, rt_bvh_avx2.c) ---- */
 

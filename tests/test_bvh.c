@@ -10,6 +10,7 @@
 #include <stdint.h>
 #include <cmocka.h>
 
+#include <omp.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -248,6 +249,45 @@ static void bvh_fast_path_matches_reference_random(void **state)
 
 /* bvh_matches_reference_large and bvh_watertight_million_rays on float
  * vertices (the fast path). */
+/* The build runs subtrees of >= 65536 items as OpenMP tasks (rt_bvh.c): 1, 2
+ * and 3 threads must give the same nodes and records, bytes included. A
+ * sphere of 300 x 400 (about 240k triangles, 4 levels of tasks), with double
+ * vertices (RT_REC_DBL records) and after rounding them to floats. */
+static void bvh_build_threads_same_tree(void **state)
+{
+    (void)state;
+    char *json = uv_sphere_scene(300, 400, "\"auto\"");
+    scene *s = NULL;
+    assert_int_equal(scene_load_string(json, "uv-sphere", "", NULL, &s, NULL), RR_OK);
+    free(json);
+    assert_true(s->ntris > 4 * 65536 / 2);
+    int before = omp_get_max_threads();
+    for (int pass = 0; pass < 2; pass++) {
+        if (pass == 1)
+            verts_to_float(s);
+        rt_accel *a[3] = {NULL, NULL, NULL};
+        for (int t = 0; t < 3; t++) {
+            omp_set_num_threads(t + 1);
+            assert_int_equal(rt_accel_build(s, &a[t], NULL), RR_OK);
+        }
+        omp_set_num_threads(before);
+        size_t nb = a[0]->nwnodes * (a[0]->width == 8 ? sizeof(rt_wnode8) : sizeof(rt_wnode4));
+        for (int t = 1; t < 3; t++) {
+            assert_int_equal(a[t]->nwnodes, a[0]->nwnodes);
+            assert_int_equal(a[t]->nrecs, a[0]->nrecs);
+            assert_int_equal(a[t]->ndverts, a[0]->ndverts);
+            assert_memory_equal(a[t]->wnodes, a[0]->wnodes, nb);
+            assert_memory_equal(a[t]->recs, a[0]->recs, a[0]->nrecs * sizeof(rt_rec));
+            if (a[0]->ndverts)
+                assert_memory_equal(a[t]->dverts, a[0]->dverts, a[0]->ndverts * 9 * sizeof(double));
+        }
+        assert_true(pass == 1 ? a[0]->ndverts == 0 : a[0]->ndverts > s->ntris / 2);
+        for (int t = 0; t < 3; t++)
+            rt_accel_destroy(a[t]);
+    }
+    scene_destroy(s);
+}
+
 static void bvh_fast_path_large_and_watertight(void **state)
 {
     (void)state;
@@ -479,6 +519,7 @@ int main(void)
         cmocka_unit_test(bvh_negative_zero_direction),
         cmocka_unit_test(bvh_fast_path_matches_reference_random),
         cmocka_unit_test(bvh_fast_path_large_and_watertight),
+        cmocka_unit_test(bvh_build_threads_same_tree),
         cmocka_unit_test(bvh_widths_agree),
         cmocka_unit_test(bvh_occluded_matches_walk),
         cmocka_unit_test(f_round_matches_nextafter),
