@@ -469,34 +469,38 @@ static void set_leaf(collapser *c, wstage *wn, int i, uint32_t bi)
     c->recs[c->first[bi] + c->cnt[bi] - 1].flags |= RT_REC_LAST;
 }
 
-/* Wide nodes are 64-byte aligned (whole cache lines, aligned SIMD loads and
- * stores): malloc/realloc promise only 16, so the array grows by
- * aligned_alloc and a copy. */
-static int grow_wnodes(collapser *c)
+/* The wide nodes that collapse_at writes for binary inner node bi and its
+ * subtree, into wc[bi] (and wc of every inner node below that becomes a wide
+ * node); returns it. Large subtrees as tasks. */
+static uint32_t count_rec(const collapser *c, uint32_t bi, uint32_t *wc)
 {
-    size_t cap = c->cap ? 2 * c->cap : 64;
-    unsigned char *w = aligned_alloc(64, cap * c->nbytes);
-    if (!w)
-        return -1;
-    if (c->nw)
-        memcpy(w, c->w, c->nw * c->nbytes);
-    free(c->w);
-    c->w = w;
-    c->cap = cap;
-    return 0;
+    uint32_t kids[RT_WIDE_MAX], sub[RT_WIDE_MAX] = {0};
+    int m = gather(c, bi, kids);
+    for (int i = 0; i < m; i++) {
+        if (is_leaf(c, kids[i]))
+            continue;
+        uint32_t k = kids[i];
+#pragma omp task shared(sub) firstprivate(i, k) if (omp_in_parallel() && c->cnt[k] >= RT_BUILD_TASK_MIN)
+        sub[i] = count_rec(c, k, wc);
+    }
+#pragma omp taskwait
+    uint32_t n = 1;
+    for (int i = 0; i < m; i++)
+        n += sub[i];
+    wc[bi] = n;
+    return n;
 }
 
-/* Writes the wide node for binary inner node bi (and, depth first, its
- * subtree); returns its index or -1 when out of memory. */
-static long collapse_rec(collapser *c, uint32_t bi)
+/* Writes the wide node for binary inner node bi at idx and, depth first, its
+ * subtree after it (the children's subtrees at the places the counts wc
+ * give, so that large ones can be written as tasks). */
+static void collapse_at(collapser *c, uint32_t bi, size_t idx, const uint32_t *wc)
 {
-    if (c->nw == c->cap && grow_wnodes(c))
-        return -1;
-    size_t idx = c->nw++;
     uint32_t kids[RT_WIDE_MAX];
     int m = gather(c, bi, kids);
     wstage wn;
     wnode_clear(&wn);
+    size_t next = idx + 1;
     for (int i = 0; i < m; i++) {
         const rt_node *ch = &c->bin[kids[i]];
         for (int k = 0; k < 3; k++) {
@@ -505,26 +509,29 @@ static long collapse_rec(collapser *c, uint32_t bi)
         }
         if (is_leaf(c, kids[i])) {
             set_leaf(c, &wn, i, kids[i]);
-        } else {
-            long sub = collapse_rec(c, kids[i]);
-            if (sub < 0)
-                return -1;
-            wn.child[i] = (uint32_t)sub;
+            continue;
         }
+        uint32_t k = kids[i];
+        size_t at = next;
+        wn.child[i] = (uint32_t)at;
+#pragma omp task firstprivate(k, at) if (omp_in_parallel() && c->cnt[k] >= RT_BUILD_TASK_MIN)
+        collapse_at(c, k, at, wc);
+        next += wc[k];
     }
+#pragma omp taskwait
     put_node(c, idx, &wn);
-    return (long)idx;
 }
 
 /* The wide tree over binary tree bin (nbin nodes, bin[0] the root), setting
  * RT_REC_LAST on the records that end a leaf. A root that is a leaf gets a
- * wide node with that one child. */
-static int collapse(const rt_node *bin, size_t nbin, rt_rec *recs, int width, void **out, size_t *nout)
+ * wide node with that one child. The same nodes for any thread count. */
+static int collapse(const rt_node *bin, size_t nbin, rt_rec *recs, int width, int threads, void **out,
+                    size_t *nout)
 {
-    uint32_t *cnt = malloc(2 * nbin * sizeof *cnt);
+    uint32_t *cnt = malloc(3 * nbin * sizeof *cnt);
     if (!cnt)
         return -1;
-    uint32_t *first = cnt + nbin;
+    uint32_t *first = cnt + nbin, *wc = cnt + 2 * nbin;
     /* Children come after their parent (depth-first order), so one backward
      * pass sums the subtrees. */
     for (size_t i = nbin; i-- > 0;) {
@@ -538,38 +545,36 @@ static int collapse(const rt_node *bin, size_t nbin, rt_rec *recs, int width, vo
     }
     collapser c = {bin, cnt, first, recs, RT_WIDE_LEAF, width, width == 8 ? sizeof(rt_wnode8) : sizeof(rt_wnode4),
                    NULL, 0, 0};
-    int ok = 0;
-    if (is_leaf(&c, 0)) {
-        if (!grow_wnodes(&c)) {
-            wstage wn;
-            wnode_clear(&wn);
-            for (int k = 0; k < 3; k++) {
-                wn.b[2 * k][0] = bin[0].lo[k];
-                wn.b[2 * k + 1][0] = bin[0].hi[k];
-            }
-            set_leaf(&c, &wn, 0, 0);
-            put_node(&c, 0, &wn);
-            c.nw = 1;
-            ok = 1;
-        }
-    } else {
-        ok = collapse_rec(&c, 0) >= 0;
+    int root_leaf = is_leaf(&c, 0), par = threads > 1 && cnt[0] >= RT_BUILD_TASK_MIN;
+    size_t total = 1;
+    if (!root_leaf) {
+#pragma omp parallel num_threads(threads) if (par)
+#pragma omp single
+        total = count_rec(&c, 0, wc);
     }
-    free(cnt);
-    if (!ok) {
-        free(c.w);
+    /* Wide nodes are 64-byte aligned (whole cache lines, aligned SIMD loads
+     * and stores): malloc promises only 16. */
+    c.w = aligned_alloc(64, total * c.nbytes);
+    if (!c.w) {
+        free(cnt);
         return -1;
     }
-    if (c.cap > c.nw) { /* trim the doubling slack */
-        unsigned char *w = aligned_alloc(64, c.nw * c.nbytes);
-        if (!w) {
-            free(c.w);
-            return -1;
+    c.nw = c.cap = total;
+    if (root_leaf) {
+        wstage wn;
+        wnode_clear(&wn);
+        for (int k = 0; k < 3; k++) {
+            wn.b[2 * k][0] = bin[0].lo[k];
+            wn.b[2 * k + 1][0] = bin[0].hi[k];
         }
-        memcpy(w, c.w, c.nw * c.nbytes);
-        free(c.w);
-        c.w = w;
+        set_leaf(&c, &wn, 0, 0);
+        put_node(&c, 0, &wn);
+    } else {
+#pragma omp parallel num_threads(threads) if (par)
+#pragma omp single
+        collapse_at(&c, 0, 0, wc);
     }
+    free(cnt);
     *out = c.w;
     *nout = c.nw;
     return 0;
@@ -711,7 +716,7 @@ rr_status rt__accel_build_width(const scene *s, int width, rt_accel **out, rr_er
             goto nomem;
         if (fill_records(s, b.items, n, threads, a))
             goto nomem;
-        if (collapse(b.nodes, b.nnodes, a->recs, width, &a->wnodes, &a->nwnodes))
+        if (collapse(b.nodes, b.nnodes, a->recs, width, threads, &a->wnodes, &a->nwnodes))
             goto nomem;
         a->nrecs = n;
     }
