@@ -255,27 +255,40 @@ static size_t sah_partition(build_item *items, size_t count, box3 box, int *axis
     return left;
 }
 
-static int build_rec(builder *b, size_t first, size_t count, int depth)
+/* Node *idx for items[first, first+count): a leaf (*left = 0), or an inner
+ * node whose left child gets the first *left items (its right child's index
+ * is set by the caller). 0, or -1 when out of memory. */
+static int make_node(builder *b, size_t first, size_t count, int depth, size_t *idx, size_t *left)
 {
-    size_t idx;
-    if (push_node(b, &idx))
+    if (push_node(b, idx))
         return -1;
     box3 box = box_empty();
     for (size_t i = 0; i < count; i++)
         box = box_union(box, b->items[first + i].box);
     int axis = 0;
-    size_t left = depth >= RT_STACK - 2 ? 0 : sah_partition(b->items + first, count, box, &axis);
-    rt_node *n = &b->nodes[idx];
+    *left = depth >= RT_STACK - 2 ? 0 : sah_partition(b->items + first, count, box, &axis);
+    rt_node *n = &b->nodes[*idx];
     set_bounds(n, box);
-    if (left == 0 || left == count) {
+    if (*left == 0 || *left == count) {
         RR_CHECK(count <= UINT16_MAX);
         n->index = (uint32_t)first;
         n->count = (uint16_t)count;
         n->axis = 0;
+        *left = 0;
         return 0;
     }
     n->count = 0;
     n->axis = (uint16_t)axis;
+    return 0;
+}
+
+static int build_rec(builder *b, size_t first, size_t count, int depth)
+{
+    size_t idx, left;
+    if (make_node(b, first, count, depth, &idx, &left))
+        return -1;
+    if (left == 0)
+        return 0;
     if (build_rec(b, first, left, depth + 1))
         return -1;
     b->nodes[idx].index = (uint32_t)b->nnodes; /* right child follows the whole left subtree */
@@ -317,25 +330,11 @@ static int build_par(builder *b, size_t first, size_t count, int depth)
 {
     if (count < RT_BUILD_TASK_MIN)
         return build_rec(b, first, count, depth);
-    size_t idx;
-    if (push_node(b, &idx))
+    size_t idx, left;
+    if (make_node(b, first, count, depth, &idx, &left))
         return -1;
-    box3 box = box_empty();
-    for (size_t i = 0; i < count; i++)
-        box = box_union(box, b->items[first + i].box);
-    int axis = 0;
-    size_t left = depth >= RT_STACK - 2 ? 0 : sah_partition(b->items + first, count, box, &axis);
-    rt_node *n = &b->nodes[idx];
-    set_bounds(n, box);
-    if (left == 0 || left == count) {
-        RR_CHECK(count <= UINT16_MAX);
-        n->index = (uint32_t)first;
-        n->count = (uint16_t)count;
-        n->axis = 0;
+    if (left == 0)
         return 0;
-    }
-    n->count = 0;
-    n->axis = (uint16_t)axis;
     builder L = {b->items, NULL, 0, 0}, R = {b->items, NULL, 0, 0};
     int fl = 0, fr = 0;
 #pragma omp task shared(L, fl) if (omp_in_parallel())
