@@ -188,13 +188,36 @@ static void bin_all(const build_item *items, size_t count, const double lo[3], c
     free(part);
 }
 
-/* Chooses a split of items[first, first+count) by binned SAH; returns the
- * number of items put on the left (0 = make a leaf). */
-static size_t sah_partition(build_item *items, size_t count, box3 box, int *axis_out)
+/* Items [first, first + count) of the build, the union of their boxes and
+ * the bounds of their centroids. A node's span comes from its parent's
+ * partition pass (or, at the root, one pass), so each node reads its items
+ * twice: to bin them and to partition them. */
+typedef struct span {
+    size_t first, count;
+    box3 box, cb;
+} span;
+
+/* The spans of items[a, e) (one pass). */
+static void span_of(const build_item *items, size_t a, size_t e, span *out)
 {
-    box3 cb = box_empty();
-    for (size_t i = 0; i < count; i++)
-        cb = box_add(cb, items[i].centroid);
+    out->first = a;
+    out->count = e - a;
+    out->box = box_empty();
+    out->cb = box_empty();
+    for (size_t i = a; i < e; i++) {
+        out->box = box_union(out->box, items[i].box);
+        out->cb = box_add(out->cb, items[i].centroid);
+    }
+}
+
+/* Chooses a split of the items of sp by binned SAH and partitions them;
+ * returns the number put on the left (0 = make a leaf) with the two sides'
+ * spans in *l and *r. */
+static size_t sah_partition(build_item *all, const span *sp, int *axis_out, span *l, span *r)
+{
+    build_item *items = all + sp->first;
+    size_t count = sp->count;
+    box3 box = sp->box, cb = sp->cb;
     double blo[3], scale[3];
     for (int axis = 0; axis < 3; axis++) {
         double lo = rr_v3_get(cb.lo, axis), hi = rr_v3_get(cb.hi, axis);
@@ -241,40 +264,47 @@ static size_t sah_partition(build_item *items, size_t count, box3 box, int *axis
             return 0;
         /* All centroids coincide (or SAH prefers a leaf that is too big): split in the middle. */
         *axis_out = 0;
+        span_of(all, sp->first, sp->first + count / 2, l);
+        span_of(all, sp->first + count / 2, sp->first + count, r);
         return count / 2;
     }
     size_t left = 0;
+    box3 lb = box_empty(), lc = box_empty(), rb = box_empty(), rc = box_empty();
     for (size_t i = 0; i < count; i++) {
         if (bin_of(&items[i], best_axis, blo[best_axis], scale[best_axis]) < best_split) {
+            lb = box_union(lb, items[i].box);
+            lc = box_add(lc, items[i].centroid);
             build_item t = items[i];
             items[i] = items[left];
             items[left++] = t;
+        } else {
+            rb = box_union(rb, items[i].box);
+            rc = box_add(rc, items[i].centroid);
         }
     }
+    *l = (span){sp->first, left, lb, lc};
+    *r = (span){sp->first + left, count - left, rb, rc};
     *axis_out = best_axis;
     return left;
 }
 
-/* Node *idx for items[first, first+count): a leaf (*left = 0), or an inner
- * node whose left child gets the first *left items (its right child's index
- * is set by the caller). 0, or -1 when out of memory. */
-static int make_node(builder *b, size_t first, size_t count, int depth, size_t *idx, size_t *left)
+/* Node *idx for the items of sp: a leaf (l->count = 0), or an inner node
+ * whose children get the spans *l and *r (its right child's index is set by
+ * the caller). 0, or -1 when out of memory. */
+static int make_node(builder *b, const span *sp, int depth, size_t *idx, span *l, span *r)
 {
     if (push_node(b, idx))
         return -1;
-    box3 box = box_empty();
-    for (size_t i = 0; i < count; i++)
-        box = box_union(box, b->items[first + i].box);
     int axis = 0;
-    *left = depth >= RT_STACK - 2 ? 0 : sah_partition(b->items + first, count, box, &axis);
+    l->count = depth >= RT_STACK - 2 ? 0 : sah_partition(b->items, sp, &axis, l, r);
     rt_node *n = &b->nodes[*idx];
-    set_bounds(n, box);
-    if (*left == 0 || *left == count) {
-        RR_CHECK(count <= UINT16_MAX);
-        n->index = (uint32_t)first;
-        n->count = (uint16_t)count;
+    set_bounds(n, sp->box);
+    if (l->count == 0 || l->count == sp->count) {
+        RR_CHECK(sp->count <= UINT16_MAX);
+        n->index = (uint32_t)sp->first;
+        n->count = (uint16_t)sp->count;
         n->axis = 0;
-        *left = 0;
+        l->count = 0;
         return 0;
     }
     n->count = 0;
@@ -282,17 +312,18 @@ static int make_node(builder *b, size_t first, size_t count, int depth, size_t *
     return 0;
 }
 
-static int build_rec(builder *b, size_t first, size_t count, int depth)
+static int build_rec(builder *b, const span *sp, int depth)
 {
-    size_t idx, left;
-    if (make_node(b, first, count, depth, &idx, &left))
+    size_t idx;
+    span l, r;
+    if (make_node(b, sp, depth, &idx, &l, &r))
         return -1;
-    if (left == 0)
+    if (l.count == 0)
         return 0;
-    if (build_rec(b, first, left, depth + 1))
+    if (build_rec(b, &l, depth + 1))
         return -1;
     b->nodes[idx].index = (uint32_t)b->nnodes; /* right child follows the whole left subtree */
-    return build_rec(b, first + left, count - left, depth + 1);
+    return build_rec(b, &r, depth + 1);
 }
 
 /* Subtrees of at least this many items are built as OpenMP tasks, each into
@@ -326,21 +357,22 @@ static int append_nodes(builder *b, const builder *sub)
 }
 
 /* build_rec with the two subtrees of a large node built as tasks. */
-static int build_par(builder *b, size_t first, size_t count, int depth)
+static int build_par(builder *b, const span *sp, int depth)
 {
-    if (count < RT_BUILD_TASK_MIN)
-        return build_rec(b, first, count, depth);
-    size_t idx, left;
-    if (make_node(b, first, count, depth, &idx, &left))
+    if (sp->count < RT_BUILD_TASK_MIN)
+        return build_rec(b, sp, depth);
+    size_t idx;
+    span l, r;
+    if (make_node(b, sp, depth, &idx, &l, &r))
         return -1;
-    if (left == 0)
+    if (l.count == 0)
         return 0;
     builder L = {b->items, NULL, 0, 0}, R = {b->items, NULL, 0, 0};
     int fl = 0, fr = 0;
-#pragma omp task shared(L, fl) if (omp_in_parallel())
-    fl = build_par(&L, first, left, depth + 1);
-#pragma omp task shared(R, fr) if (omp_in_parallel())
-    fr = build_par(&R, first + left, count - left, depth + 1);
+#pragma omp task shared(L, fl, l) if (omp_in_parallel())
+    fl = build_par(&L, &l, depth + 1);
+#pragma omp task shared(R, fr, r) if (omp_in_parallel())
+    fr = build_par(&R, &r, depth + 1);
 #pragma omp taskwait
     int failed = fl || fr || append_nodes(b, &L);
     if (!failed)
@@ -357,12 +389,14 @@ int rt__bvh_build_binary(rt_build_item *items, size_t n, int threads, rt_node **
     int failed = 0;
     if (threads <= 0)
         threads = omp_get_max_threads();
+    span root;
+    span_of(items, 0, n, &root);
     if (n < RT_BUILD_TASK_MIN || threads == 1) {
-        failed = build_rec(&b, 0, n, 0);
+        failed = build_rec(&b, &root, 0);
     } else {
 #pragma omp parallel num_threads(threads)
 #pragma omp single
-        failed = build_par(&b, 0, n, 0);
+        failed = build_par(&b, &root, 0);
     }
     if (failed) {
         free(b.nodes);
