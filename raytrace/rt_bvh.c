@@ -15,7 +15,11 @@
  *    volume hierarchies for fast SIMD ray tracing of incoherent rays").
  *    The binary tree's leaves stay leaves; their primitives become leaf
  *    records (rt_rec) in leaf order, triangles with a float copy of their
- *    vertices where that copy is exact. The binary tree is then freed.
+ *    vertices where that copy is exact, else the index of a double copy
+ *    (rt_accel.dverts). The binary tree is then freed.
+ * Both steps run on render.threads threads for large scenes (subtrees of
+ * RT_BUILD_TASK_MIN items and more as OpenMP tasks, written where the serial
+ * build puts them): the same bytes for any thread count.
  *
  * Primitives: one small closed interface (bounds + intersect) over the kinds in
  * rt_prim_kind; every query calls the same per-kind intersection function, so
