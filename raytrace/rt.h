@@ -198,7 +198,7 @@ typedef struct rt_accel_stats {
     size_t node_bytes;    /* bytes per wide node (128 or 256) */
     size_t records;       /* leaf records (one per primitive) */
     size_t record_bytes;  /* bytes per record (48: a triangle's float copy of its vertices included) */
-    size_t bytes;         /* nodes + records + double vertex copies (72 per non-float triangle) + the solids' mesh-leaf BVHs */
+    size_t bytes;         /* nodes + records + double copies (72 per non-float triangle) + solids' BVHs */
 } rt_accel_stats;
 rt_accel_stats rt_accel_stats_of(const rt_accel *a);
 size_t rt_accel_node_count(const rt_accel *a); /* rt_accel_stats_of(a).nodes */
