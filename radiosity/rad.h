@@ -55,7 +55,7 @@ typedef struct rad_solid_grid {
 typedef struct rad_patches {
     rad_patch *p;
     size_t n;
-    rr_vec3 *verts;    /* shared corners: patches of one object share their vertices */
+    rr_vec3 *verts;    /* shared corners: patches of one object share their vertices, but not across creases */
     size_t nverts;
     /* Lookup from a scene triangle t to its patches: the triangle is split into
      * level[t]^2 similar sub-triangles, stored from first[t] on (see
@@ -98,13 +98,17 @@ typedef struct rad_patch_opts {
 /* Subdivides every triangle of every object into level^2 similar triangles,
  * with one level per object (the smallest that brings every triangle of the
  * object under both limits), so edges shared inside an object are split the
- * same way on both sides: no T-vertices. Spheres are tessellated into a UV grid
+ * same way on both sides: no T-vertices. Patches on both sides of an edge
+ * share its vertices unless the edge is a crease (its triangles meet at more
+ * than RAD_CREASE_DEG, a box's edges): Gouraud means are then taken on each
+ * side apart, as the radiosity there differs. Spheres are tessellated into a UV grid
  * fine enough for the same limits. Solids (CSG trees, quadrics) are
  * tessellated by marching tetrahedra over a grid of their bounding box, so
  * only the surface of the final solid gets patches (rad_solid.c); each patch
  * takes the material of the leaf surface under its centre. Fails
  * (RR_ERR_LIMIT) beyond 2^31 patches. */
 rr_status rad_patches_build(const scene *s, const rad_patch_opts *o, rad_patches **out, rr_error *err);
+#define RAD_CREASE_DEG 45.0
 void rad_patches_destroy(rad_patches *P);
 
 /* The patch that contains point p (on the surface) of a hit reported by the

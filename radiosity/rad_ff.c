@@ -340,7 +340,8 @@ static int cmp_u32(const void *a, const void *b)
  * back face first, and so do four probes close to the tangent plane (sine of
  * elevation RAD_FF_PROBE_SIN), at right angles in azimuth. A point under a
  * one-sided sheet (a table top) is not: some probe passes the sheet's edge,
- * unless the sheet reaches out ~4 times its height on every side. */
+ * unless the sheet reaches out ~4 times its height on every side. The probes,
+ * like the rays' first legs, see back faces that the objects cull. */
 #define RAD_FF_PROBE_SIN 0.25
 static int enclosed(const ff_ctx *c, rr_ray r, rr_vec3 n)
 {
@@ -354,7 +355,7 @@ static int enclosed(const ff_ctx *c, rr_ray r, rr_vec3 n)
         rr_vec3 t = k < 2 ? t1 : t2;
         rr_ray p = {r.o, rr_v3_norm(rr_v3_madd(rr_v3_scale(n, RAD_FF_PROBE_SIN), t, k % 2 ? -cs : cs))};
         rt_hit h;
-        if (!rt_accel_closest(c->a, p, 0.0, INFINITY, &h) || h.front)
+        if (!rt_accel_closest_two_sided(c->a, p, 0.0, INFINITY, &h) || h.front)
             return 0;
     }
     return 1;
@@ -396,9 +397,18 @@ static size_t mc_row(const ff_ctx *c, uint32_t i, ff_scratch *w)
         w->open++;
         for (int bounce = 0;; bounce++) {
             rt_hit h;
-            if (!rt_accel_closest(c->a, r, 0.0, INFINITY, &h))
+            /* The first leg sees culled back faces too: a ray from under a
+             * closed box (a shelf board's end against its side panel) meets
+             * the box's back face first, and the culled query would let it
+             * pass through the box and gather light there is none of. From
+             * outside, a closed box shows a front face first, so such a hit
+             * means the origin is inside: buried at any distance. */
+            int hit = bounce == 0 ? rt_accel_closest_two_sided(c->a, r, 0.0, INFINITY, &h)
+                                  : rt_accel_closest(c->a, r, 0.0, INFINITY, &h);
+            if (!hit)
                 break; /* escaped */
-            if (bounce == 0 && !h.front && (h.t < bury || enclosed(c, r, xn))) {
+            if (bounce == 0 && !h.front &&
+                (c->s->objects[h.object].cull_backfaces || h.t < bury || enclosed(c, r, xn))) {
                 w->open--; /* started under a surface: not counted (rad.h) */
                 break;
             }

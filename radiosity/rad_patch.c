@@ -6,6 +6,7 @@
  * grid points are shared through a map keyed by (edge, step): no T-vertices,
  * so radiosity interpolated to vertices is continuous across the object.
  * Spheres become a UV grid (one-triangle caps at the poles). */
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -289,50 +290,127 @@ static int allocate(build_ctx *c, size_t npatch, size_t nvert)
     return P->p && P->verts && P->tri_first && P->tri_level && P->sphere_first && P->solid ? 0 : -1;
 }
 
-/* Grid point (i, j) of triangle t at level n (i along AB, j along AC): the
+/* Grid point (i, j) of a triangle at level n (i along AB, j along AC): the
  * index of its vertex, shared with the neighbours through the corner table
- * (scene vertices) and the edge map (points on an edge); UINT32_MAX when out
- * of memory. */
-static uint32_t grid_vertex(build_ctx *c, const uint32_t vid[3], uint32_t n, uint32_t i, uint32_t j,
-                            uint32_t *corner, rad__edge_map *em)
+ * (keyed by the corner's smoothing group, cg[3]: corners of one scene vertex
+ * across smooth edges) and the edge map (points on an edge, keyed by the
+ * groups of its ends); UINT32_MAX when out of memory. */
+static uint32_t grid_vertex(build_ctx *c, const uint32_t vid[3], const uint32_t cg[3], uint32_t n, uint32_t i,
+                            uint32_t j, uint32_t *corner, rad__edge_map *em)
 {
     const scene *s = c->s;
     rad_patches *P = c->P;
     int corner_id = (i == 0 && j == 0) ? 0 : (i == n ? 1 : (j == n ? 2 : -1));
     if (corner_id >= 0) {
-        uint32_t sv = vid[corner_id];
-        if (corner[sv] == UINT32_MAX) {
-            corner[sv] = (uint32_t)c->nv;
-            P->verts[c->nv++] = s->verts[sv];
+        uint32_t g = cg[corner_id];
+        if (corner[g] == UINT32_MAX) {
+            corner[g] = (uint32_t)c->nv;
+            P->verts[c->nv++] = s->verts[vid[corner_id]];
         }
-        return corner[sv];
+        return corner[g];
     }
     rr_vec3 A = s->verts[vid[0]], B = s->verts[vid[1]], C = s->verts[vid[2]];
     rr_vec3 p = rr_v3_add(A, rr_v3_add(rr_v3_scale(rr_v3_sub(B, A), (double)i / n),
                                        rr_v3_scale(rr_v3_sub(C, A), (double)j / n)));
-    /* On an edge: identify it by its two scene vertices and the step counted
-     * from the smaller one, which both triangles agree on. */
-    uint32_t ea, eb, step;
+    /* On an edge: identify it by its two ends' groups and the step counted
+     * from the end with the smaller scene vertex, which both triangles
+     * across a smooth edge agree on. */
+    int ka, kb;
+    uint32_t step;
     if (j == 0) { /* AB, step i from A */
-        ea = vid[0], eb = vid[1], step = i;
+        ka = 0, kb = 1, step = i;
     } else if (i == 0) { /* AC, step j from A */
-        ea = vid[0], eb = vid[2], step = j;
+        ka = 0, kb = 2, step = j;
     } else if (i + j == n) { /* BC, step j from B */
-        ea = vid[1], eb = vid[2], step = j;
+        ka = 1, kb = 2, step = j;
     } else {
         P->verts[c->nv] = p;
         return (uint32_t)c->nv++;
     }
-    if (ea > eb) {
-        uint32_t tmp = ea;
-        ea = eb;
-        eb = tmp;
+    if (vid[ka] > vid[kb]) {
+        int tmp = ka;
+        ka = kb;
+        kb = tmp;
         step = n - step;
     }
-    uint32_t got = rad__edge_get(em, ea, eb, step, (uint32_t)c->nv);
+    uint32_t got = rad__edge_get(em, cg[ka], cg[kb], step, (uint32_t)c->nv);
     if (got != UINT32_MAX && got == c->nv)
         P->verts[c->nv++] = p;
     return got;
+}
+
+static uint32_t group_find(uint32_t *parent, uint32_t x)
+{
+    while (parent[x] != x) {
+        parent[x] = parent[parent[x]];
+        x = parent[x];
+    }
+    return x;
+}
+
+static void group_union(uint32_t *parent, uint32_t a, uint32_t b)
+{
+    a = group_find(parent, a);
+    b = group_find(parent, b);
+    if (a != b)
+        parent[a > b ? a : b] = a < b ? a : b; /* the smaller root: the same groups in any order */
+}
+
+static rr_vec3 tri_normal(const scene *s, const scene_tri *t)
+{
+    rr_vec3 A = s->verts[t->v[0]];
+    return rr_v3_norm(rr_v3_cross(rr_v3_sub(s->verts[t->v[1]], A), rr_v3_sub(s->verts[t->v[2]], A)));
+}
+
+/* Smoothing groups of the triangles' corners (parent[3 t + k], roots after
+ * group_find): corners of one scene vertex are joined across every edge whose
+ * two triangles (of one object) meet at less than RAD_CREASE_DEG. Patch
+ * vertices are shared within a group only, so the vertex means that Gouraud
+ * interpolates do not mix faces across a crease (a box's edge: the top lit,
+ * the side in shadow). 0, or -1 when out of memory. */
+static int smoothing_groups(const scene *s, uint32_t *parent)
+{
+    for (size_t i = 0; i < 3 * s->ntris; i++)
+        parent[i] = (uint32_t)i;
+    rad__edge_map first; /* scene edge -> the first corner (3 t + k) that starts it */
+    if (rad__edge_map_init(&first, 3 * s->ntris) != 0)
+        return -1;
+    const double smooth_cos = cos(RAD_CREASE_DEG * RR_PI / 180.0);
+    for (size_t t = 0; t < s->ntris; t++) {
+        const scene_tri *tr = &s->tris[t];
+        for (int k = 0; k < 3; k++) {
+            uint32_t a = tr->v[k], b = tr->v[(k + 1) % 3];
+            uint32_t me = (uint32_t)(3 * t + (size_t)k);
+            uint32_t other = rad__edge_get(&first, a < b ? a : b, a < b ? b : a, 0, me);
+            if (other == UINT32_MAX) {
+                rad__edge_map_free(&first);
+                return -1;
+            }
+            if (other == me)
+                continue;
+            const scene_tri *to = &s->tris[other / 3];
+            if (to->object != tr->object || rr_v3_dot(tri_normal(s, tr), tri_normal(s, to)) < smooth_cos)
+                continue;
+            /* The other triangle's corners at a and at b. */
+            uint32_t ko = other % 3, o_a = UINT32_MAX, o_b = UINT32_MAX;
+            for (uint32_t q = 0; q < 3; q++) {
+                uint32_t v = to->v[(ko + q) % 3];
+                uint32_t id = (other / 3) * 3 + (ko + q) % 3;
+                if (v == a)
+                    o_a = id;
+                else if (v == b)
+                    o_b = id;
+            }
+            if (o_a == UINT32_MAX || o_b == UINT32_MAX)
+                continue; /* a degenerate triangle */
+            group_union(parent, me, o_a);
+            group_union(parent, (uint32_t)(3 * t + (size_t)(k + 1) % 3), o_b);
+        }
+    }
+    rad__edge_map_free(&first);
+    for (size_t i = 0; i < 3 * s->ntris; i++)
+        parent[i] = group_find(parent, (uint32_t)i);
+    return 0;
 }
 
 /* Every scene triangle split into n^2 patches on a regular grid, n its
@@ -342,7 +420,9 @@ static int tessellate_triangles(build_ctx *c)
 {
     const scene *s = c->s;
     rad_patches *P = c->P;
-    uint32_t *corner = malloc((s->nverts ? s->nverts : 1) * sizeof *corner);
+    /* Per corner group (3 ntris corner ids, the group's root): its patch vertex. */
+    uint32_t *corner = malloc((s->ntris ? 3 * s->ntris : 1) * sizeof *corner);
+    uint32_t *group = malloc((s->ntris ? 3 * s->ntris : 1) * sizeof *group);
     /* Edge points: at most 3 (l - 1) per triangle; the map is twice that. */
     size_t edge_pts = 0;
     for (size_t t = 0; t < s->ntris; t++)
@@ -353,15 +433,16 @@ static int tessellate_triangles(build_ctx *c)
     for (size_t i = 0; i < s->nobjects; i++)
         lmax = c->olevel[i] > lmax ? c->olevel[i] : lmax;
     uint32_t *grid = malloc((size_t)(lmax + 1) * (lmax + 1) * sizeof *grid);
-    int ok = corner && em_ok && grid;
-    for (size_t i = 0; ok && i < s->nverts; i++)
+    int ok = corner && group && em_ok && grid && smoothing_groups(s, group) == 0;
+    for (size_t i = 0; ok && i < 3 * s->ntris; i++)
         corner[i] = UINT32_MAX;
     for (size_t t = 0; ok && t < s->ntris; t++) {
         const scene_tri *tr = &s->tris[t];
         uint32_t n = c->olevel[tr->object];
         for (uint32_t j = 0; ok && j <= n; j++)
             for (uint32_t i = 0; ok && i + j <= n; i++)
-                ok = (grid[i + j * (n + 1)] = grid_vertex(c, tr->v, n, i, j, corner, &em)) != UINT32_MAX;
+                ok = (grid[i + j * (n + 1)] = grid_vertex(c, tr->v, group + 3 * t, n, i, j, corner, &em)) !=
+                     UINT32_MAX;
         P->tri_first[t] = (uint32_t)c->np;
         P->tri_level[t] = n;
         const scene_material *m = &s->materials[tr->material];
@@ -377,6 +458,7 @@ static int tessellate_triangles(build_ctx *c)
     }
     free(grid);
     free(corner);
+    free(group);
     if (em_ok)
         rad__edge_map_free(&em);
     return ok ? 0 : -1;

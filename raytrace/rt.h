@@ -204,6 +204,11 @@ rt_accel_stats rt_accel_stats_of(const rt_accel *a);
 size_t rt_accel_node_count(const rt_accel *a); /* rt_accel_stats_of(a).nodes */
 /* Same contract as rt_ref_closest (and tested against it). */
 int rt_accel_closest(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_hit *hit);
+/* The same with no back faces culled, of any object: a ray that starts
+ * inside a closed box meets the box's back face first. For the form-factor
+ * rays' burial test (radiosity/rad_ff.c) and the light tracer's particles,
+ * which start on surfaces that may lie under a closed object. */
+int rt_accel_closest_two_sided(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_hit *hit);
 /* Any hit with t in (tmin, tmax): for shadow rays; stops at the first occluder. */
 int rt_accel_occluded(const rt_accel *a, rr_ray ray, double tmin, double tmax);
 /* Rays traced through rt_accel_closest (camera, mirror, bounce and BSDF

@@ -148,6 +148,9 @@ typedef struct rt_ray_pre {
      * 1e30, direction components outside [1e-30, 1e30], tmin < 0): the
      * double test is used instead. */
     int box_double;
+    /* RT_REC_CULL: back faces of objects that cull them are culled; 0 in a
+     * two-sided query (rt_accel_closest_two_sided), which sees them all. */
+    uint32_t cull_mask;
 } rt_ray_pre;
 
 void rt__ray_prepare(rr_ray ray, rt_ray_pre *p);
@@ -181,12 +184,14 @@ int rt__bvh_width_ok(int width);
  * that rt__bvh_width_ok rejects is RR_ERR_INVALID. For tests. */
 rr_status rt__accel_build_width(const scene *s, int width, rt_accel **out, rr_error *err);
 /* The walks of one width; any != 0 returns at the first hit (hit unused). */
-int rt__walk4(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_hit *hit, int any);
+#define RT_WALK_ANY 1        /* return at the first hit (no hit record) */
+#define RT_WALK_TWO_SIDED 2  /* cull no back faces (rt_accel_closest_two_sided) */
+int rt__walk4(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_hit *hit, int mode);
 /* The any-hit walks of one width (rt_accel_occluded): the same answer as
  * rt__walkN with any != 0, without ordering the children (rt_wide.h). */
 int rt__occl4(const rt_accel *a, rr_ray ray, double tmin, double tmax);
 #if RT_HAVE_W8
-int rt__walk8(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_hit *hit, int any);
+int rt__walk8(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_hit *hit, int mode);
 int rt__occl8(const rt_accel *a, rr_ray ray, double tmin, double tmax);
 #endif
 
@@ -205,5 +210,9 @@ void rt__prim_bounds(const scene *s, rt_prim p, rr_vec3 *lo, rr_vec3 *hi);
 /* Intersects one primitive; on a hit with tmin < t < *tmax fills hit (when not
  * NULL; hit->point is left to the caller) and lowers *tmax. */
 int rt__prim_hit(const rt_accel *a, rt_prim pr, const rt_ray_pre *p, double tmin, double *tmax, rt_hit *hit);
+/* rt_solid_closest with the culling given (cull: the object's, or 0 in a
+ * two-sided query); obj must be a solid (SCENE_OBJ_CSG). */
+int rt__solid_closest(const scene *s, const rt_accel *a, uint32_t obj, rr_ray ray, double tmin, double tmax, int cull,
+                      rt_hit *hit);
 
 #endif

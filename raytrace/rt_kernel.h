@@ -114,7 +114,7 @@ static inline int rt__tri_hit_rec(const rt_ray_pre *p, const rt_rec *r, double t
     return rt__tri_core(p, (double)r->v[0][kx] - ox, (double)r->v[0][ky] - oy, (double)r->v[0][kz] - oz,
                         (double)r->v[1][kx] - ox, (double)r->v[1][ky] - oy, (double)r->v[1][kz] - oz,
                         (double)r->v[2][kx] - ox, (double)r->v[2][ky] - oy, (double)r->v[2][kz] - oz,
-                        (r->flags & RT_REC_CULL) != 0, tmin, tmax, tie, t, front);
+                        (r->flags & p->cull_mask) != 0, tmin, tmax, tie, t, front);
 }
 
 /* The same on a record's double copy (RT_REC_DBL): v = A, B, C, xyz each. */

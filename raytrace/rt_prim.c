@@ -26,7 +26,7 @@ static int tri_hit(const rt_accel *a, uint32_t i, const rt_ray_pre *p, double tm
     const scene_tri *tr = &s->tris[i];
     double t;
     int front;
-    int cull = s->objects[tr->object].cull_backfaces;
+    int cull = s->objects[tr->object].cull_backfaces && p->cull_mask;
     if (!rt__tri_hit(p, s->verts[tr->v[0]], s->verts[tr->v[1]], s->verts[tr->v[2]], cull, tmin, *tmax, &t, &front))
         return 0;
     if (hit) {
@@ -68,7 +68,7 @@ static int sphere_hit(const rt_accel *a, uint32_t i, const rt_ray_pre *p, double
         return 0;
     rr_vec3 n = rr_v3_scale(rr_v3_sub(rr_ray_at(p->ray, t), o->center), 1.0 / o->radius);
     int front = rr_v3_dot(n, p->ray.d) < 0.0;
-    if (!front && o->cull_backfaces)
+    if (!front && o->cull_backfaces && p->cull_mask)
         return 0;
     if (hit) {
         hit->tri = -1;
@@ -129,7 +129,9 @@ static void solid_bounds(const scene *s, uint32_t i, rr_vec3 *lo, rr_vec3 *hi)
 static int solid_hit(const rt_accel *a, uint32_t i, const rt_ray_pre *p, double tmin, double *tmax, rt_hit *hit)
 {
     rt_hit h;
-    if (!rt_solid_closest(a->scene, a, i, p->ray, tmin, *tmax, &h))
+    const scene *s = a->scene;
+    if (s->objects[i].kind != SCENE_OBJ_CSG ||
+        !rt__solid_closest(s, a, i, p->ray, tmin, *tmax, s->objects[i].cull_backfaces && p->cull_mask, &h))
         return 0;
     if (hit)
         *hit = h;

@@ -451,9 +451,14 @@ int rt_solid_closest(const scene *s, const rt_accel *a, uint32_t obj, rr_ray ray
 {
     if (!s || obj >= s->nobjects || s->objects[obj].kind != SCENE_OBJ_CSG)
         return 0;
+    return rt__solid_closest(s, a, obj, ray, tmin, tmax, s->objects[obj].cull_backfaces, hit);
+}
+
+int rt__solid_closest(const scene *s, const rt_accel *a, uint32_t obj, rr_ray ray, double tmin, double tmax, int cull,
+                      rt_hit *hit)
+{
     rt_spans sp;
     rt_solid_spans(s, a, obj, ray, tmin, tmax, &sp);
-    int cull = s->objects[obj].cull_backfaces;
     for (int i = 0; i < sp.n; i++) {
         const rt_span *x = &sp.s[i];
         rt_span_end e;

@@ -31,6 +31,7 @@ void rt__ray_prepare(rr_ray ray, rt_ray_pre *p)
     p->Sx = d[kx] / d[kz];
     p->Sy = d[ky] / d[kz];
     p->box_double = 0;
+    p->cull_mask = RT_REC_CULL;
     for (int i = 0; i < 3; i++) {
         p->inv[i] = 1.0 / d[i]; /* +-inf for a zero component: the slab tests handle it */
         /* The sign bit, not d < 0: for d = -0, 1/d = -inf and the near plane is
@@ -58,13 +59,13 @@ int rt__tri_hit(const rt_ray_pre *p, rr_vec3 A, rr_vec3 B, rr_vec3 C, int cull, 
     return rt__tri_hit_inl(p, A, B, C, cull, tmin, tmax, t, front);
 }
 
-static int walk(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_hit *hit, int any)
+static int walk(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_hit *hit, int mode)
 {
 #if RT_HAVE_W8
     if (a->width == 8)
-        return rt__walk8(a, ray, tmin, tmax, hit, any);
+        return rt__walk8(a, ray, tmin, tmax, hit, mode);
 #endif
-    return rt__walk4(a, ray, tmin, tmax, hit, any);
+    return rt__walk4(a, ray, tmin, tmax, hit, mode);
 }
 
 /* Rays traced by this thread (rt_ray_counts). */
@@ -85,6 +86,12 @@ int rt_accel_closest(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt
 {
     t_counts.closest++;
     return walk(a, ray, tmin, tmax, hit, 0);
+}
+
+int rt_accel_closest_two_sided(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_hit *hit)
+{
+    t_counts.closest++;
+    return walk(a, ray, tmin, tmax, hit, RT_WALK_TWO_SIDED);
 }
 
 int rt_accel_occluded(const rt_accel *a, rr_ray ray, double tmin, double tmax)

@@ -208,9 +208,11 @@ typedef struct rt_stack_entry {
     float dist;
 } rt_stack_entry;
 
-/* The walk of this width (rt_internal.h): any != 0 returns at the first hit. */
-int RT_WALK(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_hit *hit, int any)
+/* The walk of this width (rt_internal.h); mode: RT_WALK_ANY returns at the
+ * first hit, RT_WALK_TWO_SIDED culls no back faces. */
+int RT_WALK(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_hit *hit, int mode)
 {
+    const int any = mode & RT_WALK_ANY;
     if (a->nwnodes == 0)
         return 0;
     RR_CHECK(a->width == RT_W);
@@ -219,6 +221,8 @@ int RT_WALK(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_hit *hit
     rt__ray_prepare(ray, &p);
     if (!(tmin >= 0.0))
         p.box_double = 1;
+    if (mode & RT_WALK_TWO_SIDED)
+        p.cull_mask = 0;
     rt_boxray br;
     rt__boxray_init(&p, &br);
     const float grow = 1.0f + RT_BOX_GROW;
@@ -318,7 +322,7 @@ int RT_WALK(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_hit *hit
                      * the helper, and primary rays lost 4 % (mesh-1m). */
                     int got = fl & RT_REC_FAST ? rt__tri_hit_rec(&p, r, tmin, best, tie, &t, &front)
                                                : rt__tri_hit_drec(&p, a->dverts + 9 * (size_t)r->dv,
-                                                                  (fl & RT_REC_CULL) != 0, tmin, best, tie, &t, &front);
+                                                                  (fl & p.cull_mask) != 0, tmin, best, tie, &t, &front);
                     if (got) {
                         if (any)
                             return 1;
@@ -406,7 +410,7 @@ int RT_OCCL(const rt_accel *a, rr_ray ray, double tmin, double tmax)
     if (a->nwnodes == 0)
         return 0;
     if (!(tmax >= 0.0))
-        return RT_WALK(a, ray, tmin, tmax, NULL, 1);
+        return RT_WALK(a, ray, tmin, tmax, NULL, RT_WALK_ANY);
     RR_CHECK(a->width == RT_W);
     const rt_wn *wnodes = a->wnodes;
     rt_ray_pre p;

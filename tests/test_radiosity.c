@@ -131,12 +131,23 @@ static void level_outlier_named(void **state)
 }
 
 /* No T-vertices: in the closed box every patch edge is shared by exactly two
- * patches (a T-vertex would leave an edge used once on each side). */
-static int cmp_u64(const void *a, const void *b)
+ * patches (a T-vertex would leave an edge used once on each side), counted
+ * by position; by vertex index, the two share the edge's vertices when they
+ * lie in one face and not across the box's edges (creases), so that the
+ * Gouraud means of one face do not take in its neighbour's. */
+typedef struct edge_use {
+    uint64_t key; /* by canonical (position) vertex ids */
+    uint64_t ikey; /* by vertex index */
+    uint32_t patch;
+} edge_use;
+
+static int cmp_use(const void *a, const void *b)
 {
-    uint64_t x = *(const uint64_t *)a, y = *(const uint64_t *)b;
-    return x < y ? -1 : x > y;
+    const edge_use *x = a, *y = b;
+    return x->key < y->key ? -1 : x->key > y->key ? 1 : (x->ikey < y->ikey ? -1 : x->ikey > y->ikey);
 }
+
+static uint64_t edge_key(uint64_t a, uint64_t b) { return a < b ? (a << 32 | b) : (b << 32 | a); }
 
 static void conforming_box(void **state)
 {
@@ -145,24 +156,42 @@ static void conforming_box(void **state)
     rad_patch_opts o = {0.03, 0.3, NULL};
     rad_patches *P = NULL;
     assert_int_equal(rad_patches_build(s, &o, &P, NULL), RR_OK);
-    size_t n = 0, cap = 3 * P->n;
-    uint64_t *edges = malloc(cap * sizeof *edges);
+    uint32_t *canon = malloc(P->nverts * sizeof *canon);
+    for (size_t v = 0; v < P->nverts; v++) {
+        canon[v] = (uint32_t)v;
+        for (size_t u = 0; u < v; u++)
+            if (rr_v3_len(rr_v3_sub(P->verts[u], P->verts[v])) < 1e-9) {
+                canon[v] = (uint32_t)u;
+                break;
+            }
+    }
+    size_t n = 0, cap = 3 * P->n, creases = 0, shared = 0;
+    edge_use *edges = malloc(cap * sizeof *edges);
     for (size_t k = 0; k < P->n; k++)
         if (P->p[k].object == 0)
             for (int e = 0; e < 3; e++) {
-                uint64_t a = P->p[k].v[e], b = P->p[k].v[(e + 1) % 3];
-                edges[n++] = a < b ? (a << 32 | b) : (b << 32 | a);
+                uint32_t a = P->p[k].v[e], b = P->p[k].v[(e + 1) % 3];
+                edges[n++] = (edge_use){edge_key(canon[a], canon[b]), edge_key(a, b), (uint32_t)k};
             }
-    qsort(edges, n, sizeof *edges, cmp_u64);
+    qsort(edges, n, sizeof *edges, cmp_use);
     assert_true(n > 300);
     for (size_t i = 0; i < n;) {
         size_t j = i;
-        while (j < n && edges[j] == edges[i])
+        while (j < n && edges[j].key == edges[i].key)
             j++;
         if (j - i != 2)
             fail_msg("edge %zu used %zu times", i, j - i);
+        double c = rr_v3_dot(P->p[edges[i].patch].normal, P->p[edges[i + 1].patch].normal);
+        int same = edges[i].ikey == edges[i + 1].ikey;
+        if (same != (c > 0.99))
+            fail_msg("edge %zu: normals' cosine %.3f, vertices %s", i, c, same ? "shared" : "apart");
+        creases += !same;
+        shared += same;
         i = j;
     }
+    /* 12 box edges, each split into as many patch edges as its face's level. */
+    assert_true(creases >= 12 && shared > creases);
+    free(canon);
     free(edges);
     rad_patches_destroy(P);
     scene_destroy(s);
