@@ -42,13 +42,24 @@ static uint64_t trace_one(const scene *s, const rt_accel *a, const rt_lights *L,
     if (!rt_lights_emit(L, u, &e))
         return 0;
     size_t src = e.object != UINT32_MAX ? e.object : s->nobjects + e.light;
-    add(v, src, RT_LEDGER_EMITTED, e.power);
     rr_rgb P = e.power;
     rr_ray ray = e.ray;
     rr_rgb *escaped = &v[rows * RT_LEDGER_COLUMNS], *lost = escaped + 1, *unabsorbed = escaped + 2;
     for (uint64_t seg = 1;; seg++) {
         rt_hit h;
-        if (!rt_accel_closest(a, ray, 0.0, INFINITY, &h)) {
+        /* The first leg of a surface's particle sees culled back faces: one
+         * that meets a culling (closed) object's back face first left from
+         * under that object (a window pane under its glazing bars), where
+         * the radiosity pass buries the emitter (rad.h) and the ray tracer's
+         * shadow rays meet the object's front: not emitted. */
+        int hit = seg == 1 && e.object != UINT32_MAX ? rt_accel_closest_two_sided(a, ray, 0.0, INFINITY, &h)
+                                                     : rt_accel_closest(a, ray, 0.0, INFINITY, &h);
+        if (seg == 1) {
+            if (hit && !h.front && e.object != UINT32_MAX && s->objects[h.object].cull_backfaces)
+                return seg;
+            add(v, src, RT_LEDGER_EMITTED, e.power);
+        }
+        if (!hit) {
             *escaped = rr_rgb_add(*escaped, P);
             *unabsorbed = rr_rgb_add(*unabsorbed, P);
             return seg;
