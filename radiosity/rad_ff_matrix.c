@@ -239,7 +239,7 @@ static int balance_rows(const rad_patches *P, const rad_ff *F, rad_ff *R)
 
 rad_ff *rad__ff_finish(const rad_patches *P, rad_ff *F, const rad_ff_opts *o)
 {
-    if (!F || o->raw || getenv("RADRAY_FF_RAW"))
+    if (!F || o->raw)
         return F;
     rad_ff *R = make_reciprocal(P, F);
     if (R && o->method == RAD_FF_MONTE_CARLO && !balance_rows(P, F, R)) {
