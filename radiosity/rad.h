@@ -337,7 +337,8 @@ typedef struct rad_solution {
     rr_rgb *emitted;     /* per patch: pi Le of its material (the patches' emission minus the first shot below) */
     rr_rgb *first_shot;  /* per patch: irradiance from point and directional lights (shadowed) */
     rr_rgb *light_landed; /* per scene light: its power that ends on patch fronts, sum (1 - m_k) A_k H0_k */
-    rr_rgb *vertex_Hind; /* per vertex: indirect irradiance, sum_j F_ij (B_j - emitted_j), area-weighted */
+    rr_rgb *vertex_Hind; /* per vertex: indirect irradiance, sum_j F_ij (B_j - emitted_j), area-weighted and
+                          * back-projected (RAD_HIND_SWEEPS) */
     rad_solve_stats stats;
     double seconds_patches, seconds_ff, seconds_solve;
     size_t nnz;          /* stored form factors */
@@ -390,7 +391,14 @@ rr_rgb rad_radiance_at(const rad_solution *sol, const scene *s, const rt_hit *h)
 /* The hybrid's indirect diffuse radiance at a hit on a surface of reflectance
  * rho: (rho / pi) times the indirect irradiance interpolated across the patch.
  * Indirect = everything that arrives after at least one diffuse reflection, so
- * the ray tracer's direct light (all lights, shadow rays) is not counted twice. */
+ * the ray tracer's direct light (all lights, shadow rays) is not counted twice.
+ * Its vertex values are the area-weighted means of the patches around each
+ * vertex, then RAD_HIND_SWEEPS sweeps of back-projection, which bring the
+ * interpolated irradiance's mean over each patch towards the patch's own: plain
+ * means flatten a peak at a surface's edge (irradiance rises into a concave
+ * corner), and a cubby's back came out 3.5 % dark (notes/radiosity.md). The
+ * radiosity display (vertex_B) keeps the plain means, the classic images. */
+#define RAD_HIND_SWEEPS 2
 rr_rgb rad_indirect_at(const rad_solution *sol, const scene *s, const rt_hit *h, rr_rgb rho);
 
 /* The one way the solution reaches the ray tracer (rt_render_opts.field):

@@ -672,8 +672,8 @@ static rr_status make_output(hctx *c, rad_patches *roots, rad_solution *sol, rr_
         sol->hier_fsum[i] = rr_rgb_mean(c->el[leaf[i]].H);
     free(grp);
     free(leaf);
-    st = rad__to_vertices(sol->P, sol->B, sol->vertex_B) != RR_OK ||
-                 rad__to_vertices(sol->P, Hind, sol->vertex_Hind) != RR_OK
+    st = rad__to_vertices(sol->P, sol->B, 0, sol->vertex_B) != RR_OK ||
+                 rad__to_vertices(sol->P, Hind, RAD_HIND_SWEEPS, sol->vertex_Hind) != RR_OK
              ? rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory", c->s->path)
              : RR_OK;
     free(Hind);

@@ -25,10 +25,14 @@ rr_status rad__hier_leaves(rad_patches *roots, const rad_split_bits *bits, rad_p
 int rad__hier_bits(const rad_patches *P, rad_split_bits *bits);
 
 /* Per-vertex values from per-patch ones: the area-weighted mean of the patches
- * around each vertex; in a hierarchical set, a vertex in the middle of a
- * leaf's edge (a T-vertex) then takes the value interpolated along that edge,
- * so that the Gouraud-shaded surface has no cracks. */
-rr_status rad__to_vertices(const rad_patches *P, const rr_rgb *per_patch, rr_rgb *per_vertex);
+ * around each vertex, then `sweeps` sweeps of back-projection (each patch's
+ * value less the mean of its vertex values, added back to its vertices,
+ * area-weighted, clamped at 0), which bring the Gouraud-shaded surface's mean
+ * over each patch towards the patch's value (RAD_HIND_SWEEPS); in a
+ * hierarchical set, a vertex in the middle of a leaf's edge (a T-vertex) then
+ * takes the value interpolated along that edge, so that the Gouraud-shaded
+ * surface has no cracks. */
+rr_status rad__to_vertices(const rad_patches *P, const rr_rgb *per_patch, int sweeps, rr_rgb *per_vertex);
 
 /* The roots' patch limits for s given o: the scene's primitives at 16 times
  * the flat method's patch area (and 4 times its edge). */

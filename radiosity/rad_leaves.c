@@ -121,11 +121,42 @@ int rad__hier_bits(const rad_patches *P, rad_split_bits *bits)
     return 0;
 }
 
-rr_status rad__to_vertices(const rad_patches *P, const rr_rgb *per_patch, rr_rgb *per_vertex)
+/* rr_rgb with every channel at least 0. */
+static rr_rgb nonnegative(rr_rgb c)
+{
+    return rr_rgb_make(c.r > 0 ? c.r : 0, c.g > 0 ? c.g : 0, c.b > 0 ? c.b : 0);
+}
+
+/* One sweep of back-projection: each patch's residual, its value less the
+ * mean of its three vertex values (the mean of the Gouraud-shaded surface
+ * over it), is added back to its vertices, area-weighted as the means were.
+ * acc: P->nverts scratch values. */
+static void back_project(const rad_patches *P, const rr_rgb *per_patch, const double *wsum, rr_rgb *acc,
+                         rr_rgb *per_vertex)
+{
+    for (size_t v = 0; v < P->nverts; v++)
+        acc[v] = rr_rgb_make(0, 0, 0);
+    for (size_t k = 0; k < P->n; k++) {
+        const uint32_t *pv = P->p[k].v;
+        rr_rgb sum = rr_rgb_add(rr_rgb_add(per_vertex[pv[0]], per_vertex[pv[1]]), per_vertex[pv[2]]);
+        rr_rgb residual = rr_rgb_add(per_patch[k], rr_rgb_scale(sum, -1.0 / 3.0));
+        for (int e = 0; e < 3; e++)
+            acc[pv[e]] = rr_rgb_add(acc[pv[e]], rr_rgb_scale(residual, P->p[k].area));
+    }
+    for (size_t v = 0; v < P->nverts; v++)
+        if (wsum[v] > 0)
+            per_vertex[v] = nonnegative(rr_rgb_add(per_vertex[v], rr_rgb_scale(acc[v], 1.0 / wsum[v])));
+}
+
+rr_status rad__to_vertices(const rad_patches *P, const rr_rgb *per_patch, int sweeps, rr_rgb *per_vertex)
 {
     double *wsum = calloc(P->nverts ? P->nverts : 1, sizeof *wsum);
-    if (!wsum)
+    rr_rgb *acc = sweeps > 0 ? malloc((P->nverts ? P->nverts : 1) * sizeof *acc) : NULL;
+    if (!wsum || (sweeps > 0 && !acc)) {
+        free(wsum);
+        free(acc);
         return RR_ERR_NOMEM;
+    }
     for (size_t v = 0; v < P->nverts; v++)
         per_vertex[v] = rr_rgb_make(0, 0, 0);
     for (size_t k = 0; k < P->n; k++)
@@ -137,6 +168,9 @@ rr_status rad__to_vertices(const rad_patches *P, const rr_rgb *per_patch, rr_rgb
     for (size_t v = 0; v < P->nverts; v++)
         if (wsum[v] > 0)
             per_vertex[v] = rr_rgb_scale(per_vertex[v], 1.0 / wsum[v]);
+    for (int it = 0; it < sweeps; it++)
+        back_project(P, per_patch, wsum, acc, per_vertex);
+    free(acc);
     free(wsum);
     if (!P->roots)
         return RR_OK;
