@@ -9,10 +9,10 @@
  *    outward so a node still contains its primitives exactly.
  * 2. Collapsed into the wide tree the queries walk (W = 4 or 8 children in
  *    SoA float boxes, rt_wnode4 / rt_wnode8 in rt_internal.h; W chosen per
- *    build, rt__bvh_width_default): each wide node takes a binary node's two
- *    children and keeps opening the child of largest surface area until it
- *    has W (as in Dammertz et al. 2008, "Shallow bounding
- *    volume hierarchies for fast SIMD ray tracing of incoherent rays").
+ *    build, rt__bvh_width_default) by the surface area heuristic over every
+ *    way of spreading a subtree over up to W children (a table per binary
+ *    node, Ylitie et al. 2017; see collapse_costs), small subtrees (up to
+ *    RT_WIDE_LEAF_MAX primitives) merged into one leaf where that costs less.
  *    The binary tree's leaves stay leaves; their primitives become leaf
  *    records (rt_rec) in leaf order, triangles with a float copy of their
  *    vertices where that copy is exact, else the index of a double copy
@@ -417,13 +417,39 @@ int rt__bvh_build_binary(rt_build_item *items, size_t n, int threads, rt_node **
  * wide tree (its primitives are contiguous). Measured: 4 (fewer, fuller nodes,
  * more triangle tests) was 10-20 % slower than 1 (the binary leaves as they
  * are), since a double triangle test costs more than a SIMD node test. */
-#define RT_WIDE_LEAF 1
+/* The collapse by cost (Ylitie, Karras & Laine 2017, "Efficient incoherent
+ * ray traversal on GPUs through compressed wide BVHs", section 3): for every
+ * binary node n and every j <= W, the cheapest way to hand n's subtree to a
+ * wide parent as at most j children, by the surface area heuristic with a
+ * wide node's box test costing RT_COST_NODE and a primitive test
+ * RT_COST_PRIM (areas relative to any common unit):
+ *   leaf(n)    = A(n) RT_COST_PRIM cnt(n), for a binary leaf or cnt(n) <= RT_WIDE_LEAF_MAX
+ *   node(n)    = A(n) RT_COST_NODE + split(n, W)     (n a wide node of its own)
+ *   C(n, 1)    = min(leaf(n), node(n))
+ *   split(n, j) = min over k of C(left, k) + C(right, j - k)   (n opened in place)
+ *   C(n, j)    = min(C(n, j - 1), split(n, j)),  j >= 2 (a binary leaf: C(n, 1))
+ * One backward pass over the depth-first array (children after parents)
+ * fills the table; the wide tree is then read from its choices. The greedy
+ * collapse it replaces (open the child of largest area until W) left most
+ * nodes near the leaves half empty (3.7 children of 8 on average). */
+#define RT_WIDE_LEAF_MAX 3u
+#define RT_COST_NODE 1.0f
+#define RT_COST_PRIM 1.0f
+
+/* Per binary node: cost[j - 1] = C(n, j); how[j - 1] = the choice: for j = 1,
+ * 0 leaf, 1 wide node; for j >= 2, 0 = as with j - 1 slots, else the slots k
+ * given to the left child. */
+typedef struct collapse_cell {
+    float cost[RT_WIDE_MAX];
+    uint8_t how[RT_WIDE_MAX];
+    uint8_t node_k; /* inner nodes: the slots split(n, W) gives the left child */
+} collapse_cell;
 
 typedef struct collapser {
     const rt_node *bin;
     const uint32_t *cnt, *first; /* per binary node: primitives below it, the first one */
+    const collapse_cell *cell;   /* per binary node: the cost table */
     rt_rec *recs;
-    uint32_t leaf_max;
     int width;      /* W: 4 or 8 */
     size_t nbytes;  /* sizeof(rt_wnode4) or sizeof(rt_wnode8) */
     unsigned char *w; /* the nodes, 64-byte aligned */
@@ -453,38 +479,84 @@ static void put_node(collapser *c, size_t idx, const wstage *st)
     }
 }
 
-static double node_area(const rt_node *n)
+static float node_area(const rt_node *n)
 {
-    double dx = (double)n->hi[0] - n->lo[0], dy = (double)n->hi[1] - n->lo[1], dz = (double)n->hi[2] - n->lo[2];
+    float dx = n->hi[0] - n->lo[0], dy = n->hi[1] - n->lo[1], dz = n->hi[2] - n->lo[2];
     return dx * dy + dy * dz + dz * dx;
 }
 
-static int is_leaf(const collapser *c, uint32_t i) { return c->bin[i].count || c->cnt[i] <= c->leaf_max; }
-
-/* Children of binary inner node `bi` for a wide node: starts from its two
- * children and keeps opening the inner child of largest surface area (the one
- * most rays enter) until W children or only leaves are left. */
-static int gather(const collapser *c, uint32_t bi, uint32_t out[RT_WIDE_MAX])
+/* The cost table of every binary node (see above), W = width. */
+static void collapse_costs(const rt_node *bin, size_t nbin, const uint32_t *cnt, int width, collapse_cell *cell)
 {
-    const rt_node *bin = c->bin;
-    int m = 2;
-    out[0] = bi + 1;
-    out[1] = bin[bi].index;
-    while (m < c->width) {
-        int best = -1;
-        double best_area = -1.0;
-        for (int i = 0; i < m; i++) {
-            if (!is_leaf(c, out[i]) && node_area(&bin[out[i]]) > best_area) {
-                best_area = node_area(&bin[out[i]]);
-                best = i;
+    for (size_t i = nbin; i-- > 0;) {
+        collapse_cell *c = &cell[i];
+        float area = node_area(&bin[i]);
+        if (bin[i].count) {
+            c->cost[0] = area * RT_COST_PRIM * (float)cnt[i];
+            c->how[0] = 0;
+            c->node_k = 0;
+            for (int j = 1; j < width; j++) {
+                c->cost[j] = c->cost[0];
+                c->how[j] = 0;
+            }
+            continue;
+        }
+        const collapse_cell *l = &cell[i + 1], *r = &cell[bin[i].index];
+        float split[RT_WIDE_MAX];
+        uint8_t split_k[RT_WIDE_MAX];
+        for (int j = 2; j <= width; j++) {
+            split[j - 1] = INFINITY;
+            split_k[j - 1] = 1;
+            for (int k = 1; k < j; k++) {
+                float v = l->cost[k - 1] + r->cost[j - k - 1];
+                if (v < split[j - 1]) {
+                    split[j - 1] = v;
+                    split_k[j - 1] = (uint8_t)k;
+                }
             }
         }
-        if (best < 0)
-            break;
-        uint32_t o = out[best];
-        out[best] = o + 1;
-        out[m++] = bin[o].index;
+        c->node_k = split_k[width - 1];
+        float as_node = area * RT_COST_NODE + split[width - 1];
+        float as_leaf = cnt[i] <= RT_WIDE_LEAF_MAX ? area * RT_COST_PRIM * (float)cnt[i] : INFINITY;
+        c->cost[0] = as_leaf <= as_node ? as_leaf : as_node;
+        c->how[0] = as_leaf <= as_node ? 0 : 1;
+        for (int j = 2; j <= width; j++) {
+            if (split[j - 1] < c->cost[j - 2]) {
+                c->cost[j - 1] = split[j - 1];
+                c->how[j - 1] = split_k[j - 1];
+            } else {
+                c->cost[j - 1] = c->cost[j - 2];
+                c->how[j - 1] = 0;
+            }
+        }
     }
+}
+
+/* 1 when binary node i is a leaf of the wide tree (as one child). */
+static int is_leaf(const collapser *c, uint32_t i) { return c->cell[i].how[0] == 0; }
+
+/* The children that binary node bi, opened with j slots, hands its wide
+ * parent, appended to out[*m]. */
+static void emit(const collapser *c, uint32_t bi, int j, uint32_t out[RT_WIDE_MAX], int *m)
+{
+    while (j > 1 && c->cell[bi].how[j - 1] == 0)
+        j--;
+    if (j == 1) {
+        out[(*m)++] = bi;
+        return;
+    }
+    int k = c->cell[bi].how[j - 1];
+    emit(c, bi + 1, k, out, m);
+    emit(c, c->bin[bi].index, j - k, out, m);
+}
+
+/* Children of binary inner node bi as a wide node: its subtree split over
+ * W slots as the cost table chose. */
+static int gather(const collapser *c, uint32_t bi, uint32_t out[RT_WIDE_MAX])
+{
+    int m = 0, k = c->cell[bi].node_k;
+    emit(c, bi + 1, k, out, &m);
+    emit(c, c->bin[bi].index, c->width - k, out, &m);
     return m;
 }
 
@@ -580,7 +652,13 @@ static int collapse(const rt_node *bin, size_t nbin, rt_rec *recs, int width, in
             first[i] = first[i + 1];
         }
     }
-    collapser c = {bin, cnt, first, recs, RT_WIDE_LEAF, width, width == 8 ? sizeof(rt_wnode8) : sizeof(rt_wnode4),
+    collapse_cell *cell = malloc(nbin * sizeof *cell);
+    if (!cell) {
+        free(cnt);
+        return -1;
+    }
+    collapse_costs(bin, nbin, cnt, width, cell);
+    collapser c = {bin, cnt, first, cell, recs, width, width == 8 ? sizeof(rt_wnode8) : sizeof(rt_wnode4),
                    NULL, 0, 0};
     int root_leaf = is_leaf(&c, 0), par = threads > 1 && cnt[0] >= RT_BUILD_TASK_MIN;
     size_t total = 1;
@@ -593,6 +671,7 @@ static int collapse(const rt_node *bin, size_t nbin, rt_rec *recs, int width, in
      * and stores): malloc promises only 16. */
     c.w = aligned_alloc(64, total * c.nbytes);
     if (!c.w) {
+        free(cell);
         free(cnt);
         return -1;
     }
@@ -611,6 +690,7 @@ static int collapse(const rt_node *bin, size_t nbin, rt_rec *recs, int width, in
 #pragma omp single
         collapse_at(&c, 0, 0, wc);
     }
+    free(cell);
     free(cnt);
     *out = c.w;
     *nout = c.nw;
