@@ -413,10 +413,6 @@ int rt__bvh_build_binary(rt_build_item *items, size_t n, int threads, rt_node **
 
 /* ---- collapse into the wide tree ---- */
 
-/* A binary subtree with at most this many primitives becomes one leaf of the
- * wide tree (its primitives are contiguous). Measured: 4 (fewer, fuller nodes,
- * more triangle tests) was 10-20 % slower than 1 (the binary leaves as they
- * are), since a double triangle test costs more than a SIMD node test. */
 /* The collapse by cost (Ylitie, Karras & Laine 2017, "Efficient incoherent
  * ray traversal on GPUs through compressed wide BVHs", section 3): for every
  * binary node n and every j <= W, the cheapest way to hand n's subtree to a
@@ -431,7 +427,9 @@ int rt__bvh_build_binary(rt_build_item *items, size_t n, int threads, rt_node **
  * One backward pass over the depth-first array (children after parents)
  * fills the table; the wide tree is then read from its choices. The greedy
  * collapse it replaces (open the child of largest area until W) left most
- * nodes near the leaves half empty (3.7 children of 8 on average). */
+ * nodes near the leaves half empty (3.7 children of 8 on average). Merged
+ * leaves stay small: their primitives are tested one by one in double, and
+ * leaves of up to 8 were about 20 % slower than up to 3 (notes/performance.md). */
 #define RT_WIDE_LEAF_MAX 3u
 #define RT_COST_NODE 1.0f
 #define RT_COST_PRIM 1.0f
