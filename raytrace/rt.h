@@ -193,9 +193,9 @@ rr_status rt_accel_build(const scene *s, rt_accel **out, rr_error *err);
 void rt_accel_destroy(rt_accel *a); /* NULL is a no-op */
 /* What an accel holds, for benchmarks and tools. */
 typedef struct rt_accel_stats {
-    int width;            /* children per node: 4 or 8 */
+    int width;            /* children per node: 4, 8 or 16 */
     size_t nodes;         /* wide nodes of the scene BVH */
-    size_t node_bytes;    /* bytes per wide node (128 or 256) */
+    size_t node_bytes;    /* bytes per wide node (128, 256 or 448) */
     size_t records;       /* leaf records (one per primitive) */
     size_t record_bytes;  /* bytes per record (48: a triangle's float copy of its vertices included) */
     size_t bytes;         /* nodes + records + double copies (72 per non-float triangle) + solids' BVHs */

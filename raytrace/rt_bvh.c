@@ -7,8 +7,8 @@
  *    leaves of at most 8 primitives, nodes in one flat array in depth-first
  *    order (left child next, right child at `index`), bounds as floats rounded
  *    outward so a node still contains its primitives exactly.
- * 2. Collapsed into the wide tree the queries walk (W = 4 or 8 children in
- *    SoA float boxes, rt_wnode4 / rt_wnode8 in rt_internal.h; W chosen per
+ * 2. Collapsed into the wide tree the queries walk (W = 4, 8 or 16 children in
+ *    SoA float boxes, rt_wnode4 / 8 / 16 in rt_internal.h; W chosen per
  *    build, rt__bvh_width_default) by the surface area heuristic over every
  *    way of spreading a subtree over up to W children (a table per binary
  *    node, Ylitie et al. 2017; see collapse_costs), small subtrees (up to
@@ -434,22 +434,22 @@ int rt__bvh_build_binary(rt_build_item *items, size_t n, int threads, rt_node **
 #define RT_COST_NODE 1.0f
 #define RT_COST_PRIM 1.0f
 
-/* Per binary node: cost[j - 1] = C(n, j); how[j - 1] = the choice: for j = 1,
- * 0 leaf, 1 wide node; for j >= 2, 0 = as with j - 1 slots, else the slots k
- * given to the left child. */
-typedef struct collapse_cell {
-    float cost[RT_WIDE_MAX];
-    uint8_t how[RT_WIDE_MAX];
-    uint8_t node_k; /* inner nodes: the slots split(n, W) gives the left child */
-} collapse_cell;
+/* The cost table, W entries per binary node i at i W: cost[i W + j - 1] =
+ * C(i, j); how[i W + j - 1] = the choice: for j = 1, 0 leaf, 1 wide node; for
+ * j >= 2, 0 = as with j - 1 slots, else the slots k given to the left child;
+ * node_k[i] (inner nodes): the slots split(i, W) gives the left child. */
+typedef struct collapse_table {
+    float *cost;
+    uint8_t *how, *node_k;
+} collapse_table;
 
 typedef struct collapser {
     const rt_node *bin;
     const uint32_t *cnt, *first; /* per binary node: primitives below it, the first one */
-    const collapse_cell *cell;   /* per binary node: the cost table */
+    collapse_table t;            /* the cost table */
     rt_rec *recs;
-    int width;      /* W: 4 or 8 */
-    size_t nbytes;  /* sizeof(rt_wnode4) or sizeof(rt_wnode8) */
+    int width;      /* W: 4, 8 or 16 */
+    size_t nbytes;  /* rt__wnode_bytes(width) */
     unsigned char *w; /* the nodes, 64-byte aligned */
     size_t nw, cap;
 } collapser;
@@ -463,9 +463,15 @@ typedef struct wstage {
 
 static void put_node(collapser *c, size_t idx, const wstage *st)
 {
-    if (c->width == 8) {
+    if (c->width == 16) {
+        rt_wnode16 *n = (rt_wnode16 *)c->w + idx;
+        for (int k = 0; k < 6; k++)
+            memcpy(n->b[k], st->b[k], sizeof n->b[k]);
+        memcpy(n->child, st->child, sizeof n->child);
+    } else if (c->width == 8) {
         rt_wnode8 *n = (rt_wnode8 *)c->w + idx;
-        memcpy(n->b, st->b, sizeof n->b);
+        for (int k = 0; k < 6; k++)
+            memcpy(n->b[k], st->b[k], sizeof n->b[k]);
         memcpy(n->child, st->child, sizeof n->child);
         memset(n->pad, 0, sizeof n->pad);
     } else {
@@ -484,66 +490,70 @@ static float node_area(const rt_node *n)
 }
 
 /* The cost table of every binary node (see above), W = width. */
-static void collapse_costs(const rt_node *bin, size_t nbin, const uint32_t *cnt, int width, collapse_cell *cell)
+static void collapse_costs(const rt_node *bin, size_t nbin, const uint32_t *cnt, int width, collapse_table *t)
 {
     for (size_t i = nbin; i-- > 0;) {
-        collapse_cell *c = &cell[i];
+        float *cost = t->cost + i * (size_t)width;
+        uint8_t *how = t->how + i * (size_t)width;
         float area = node_area(&bin[i]);
         if (bin[i].count) {
-            c->cost[0] = area * RT_COST_PRIM * (float)cnt[i];
-            c->how[0] = 0;
-            c->node_k = 0;
+            cost[0] = area * RT_COST_PRIM * (float)cnt[i];
+            how[0] = 0;
+            t->node_k[i] = 0;
             for (int j = 1; j < width; j++) {
-                c->cost[j] = c->cost[0];
-                c->how[j] = 0;
+                cost[j] = cost[0];
+                how[j] = 0;
             }
             continue;
         }
-        const collapse_cell *l = &cell[i + 1], *r = &cell[bin[i].index];
+        const float *l = t->cost + (i + 1) * (size_t)width, *r = t->cost + (size_t)bin[i].index * (size_t)width;
         float split[RT_WIDE_MAX];
         uint8_t split_k[RT_WIDE_MAX];
         for (int j = 2; j <= width; j++) {
             split[j - 1] = INFINITY;
             split_k[j - 1] = 1;
             for (int k = 1; k < j; k++) {
-                float v = l->cost[k - 1] + r->cost[j - k - 1];
+                float v = l[k - 1] + r[j - k - 1];
                 if (v < split[j - 1]) {
                     split[j - 1] = v;
                     split_k[j - 1] = (uint8_t)k;
                 }
             }
         }
-        c->node_k = split_k[width - 1];
+        t->node_k[i] = split_k[width - 1];
         float as_node = area * RT_COST_NODE + split[width - 1];
         float as_leaf = cnt[i] <= RT_WIDE_LEAF_MAX ? area * RT_COST_PRIM * (float)cnt[i] : INFINITY;
-        c->cost[0] = as_leaf <= as_node ? as_leaf : as_node;
-        c->how[0] = as_leaf <= as_node ? 0 : 1;
+        cost[0] = as_leaf <= as_node ? as_leaf : as_node;
+        how[0] = as_leaf <= as_node ? 0 : 1;
         for (int j = 2; j <= width; j++) {
-            if (split[j - 1] < c->cost[j - 2]) {
-                c->cost[j - 1] = split[j - 1];
-                c->how[j - 1] = split_k[j - 1];
+            if (split[j - 1] < cost[j - 2]) {
+                cost[j - 1] = split[j - 1];
+                how[j - 1] = split_k[j - 1];
             } else {
-                c->cost[j - 1] = c->cost[j - 2];
-                c->how[j - 1] = 0;
+                cost[j - 1] = cost[j - 2];
+                how[j - 1] = 0;
             }
         }
     }
 }
 
+/* The choice for binary node i with j slots. */
+static int how_of(const collapser *c, uint32_t i, int j) { return c->t.how[(size_t)i * (size_t)c->width + (size_t)j - 1]; }
+
 /* 1 when binary node i is a leaf of the wide tree (as one child). */
-static int is_leaf(const collapser *c, uint32_t i) { return c->cell[i].how[0] == 0; }
+static int is_leaf(const collapser *c, uint32_t i) { return how_of(c, i, 1) == 0; }
 
 /* The children that binary node bi, opened with j slots, hands its wide
  * parent, appended to out[*m]. */
 static void emit(const collapser *c, uint32_t bi, int j, uint32_t out[RT_WIDE_MAX], int *m)
 {
-    while (j > 1 && c->cell[bi].how[j - 1] == 0)
+    while (j > 1 && how_of(c, bi, j) == 0)
         j--;
     if (j == 1) {
         out[(*m)++] = bi;
         return;
     }
-    int k = c->cell[bi].how[j - 1];
+    int k = how_of(c, bi, j);
     emit(c, bi + 1, k, out, m);
     emit(c, c->bin[bi].index, j - k, out, m);
 }
@@ -552,7 +562,7 @@ static void emit(const collapser *c, uint32_t bi, int j, uint32_t out[RT_WIDE_MA
  * W slots as the cost table chose. */
 static int gather(const collapser *c, uint32_t bi, uint32_t out[RT_WIDE_MAX])
 {
-    int m = 0, k = c->cell[bi].node_k;
+    int m = 0, k = c->t.node_k[bi];
     emit(c, bi + 1, k, out, &m);
     emit(c, c->bin[bi].index, c->width - k, out, &m);
     return m;
@@ -650,14 +660,16 @@ static int collapse(const rt_node *bin, size_t nbin, rt_rec *recs, int width, in
             first[i] = first[i + 1];
         }
     }
-    collapse_cell *cell = malloc(nbin * sizeof *cell);
-    if (!cell) {
+    collapse_table t = {malloc(nbin * (size_t)width * sizeof *t.cost), malloc(nbin * (size_t)width), malloc(nbin)};
+    if (!t.cost || !t.how || !t.node_k) {
+        free(t.cost);
+        free(t.how);
+        free(t.node_k);
         free(cnt);
         return -1;
     }
-    collapse_costs(bin, nbin, cnt, width, cell);
-    collapser c = {bin, cnt, first, cell, recs, width, width == 8 ? sizeof(rt_wnode8) : sizeof(rt_wnode4),
-                   NULL, 0, 0};
+    collapse_costs(bin, nbin, cnt, width, &t);
+    collapser c = {bin, cnt, first, t, recs, width, rt__wnode_bytes(width), NULL, 0, 0};
     int root_leaf = is_leaf(&c, 0), par = threads > 1 && cnt[0] >= RT_BUILD_TASK_MIN;
     size_t total = 1;
     if (!root_leaf) {
@@ -669,7 +681,9 @@ static int collapse(const rt_node *bin, size_t nbin, rt_rec *recs, int width, in
      * and stores): malloc promises only 16. */
     c.w = aligned_alloc(64, total * c.nbytes);
     if (!c.w) {
-        free(cell);
+        free(t.cost);
+        free(t.how);
+        free(t.node_k);
         free(cnt);
         return -1;
     }
@@ -688,7 +702,9 @@ static int collapse(const rt_node *bin, size_t nbin, rt_rec *recs, int width, in
 #pragma omp single
         collapse_at(&c, 0, 0, wc);
     }
-    free(cell);
+    free(t.cost);
+    free(t.how);
+    free(t.node_k);
     free(cnt);
     *out = c.w;
     *nout = c.nw;
@@ -762,14 +778,12 @@ static int fill_records(const scene *s, const build_item *items, size_t n, int t
  * renderer (both widths give the same hits). */
 int rt__bvh_width_default(void)
 {
-#if RT_HAVE_W8
     const char *env = getenv("RADRAY_BVH_WIDTH");
     if (env && strcmp(env, "4") == 0)
         return 4;
-    return rt__bvh_width_ok(8) ? 8 : 4;
-#else
-    return 4;
-#endif
+    if (env && strcmp(env, "8") == 0 && rt__bvh_width_ok(8))
+        return 8;
+    return rt__bvh_width_ok(16) ? 16 : rt__bvh_width_ok(8) ? 8 : 4;
 }
 
 int rt__bvh_width_ok(int width)
@@ -777,8 +791,11 @@ int rt__bvh_width_ok(int width)
     if (width == 4)
         return 1;
 #if RT_HAVE_W8 && RT_SIMD == 3
-    /* Dispatching build: rt__walk8 is AVX2 code in an SSE2 binary. */
+    /* Dispatching build: rt__walk8 is AVX2 code, rt__walk16 AVX-512 code, in
+     * an SSE2 binary. */
     __builtin_cpu_init();
+    if (width == 16)
+        return RT_HAVE_W16 && __builtin_cpu_supports("avx512f");
     return width == 8 && __builtin_cpu_supports("avx2");
 #elif RT_HAVE_W8
     return width == 8; /* the whole binary needs AVX2 anyway */
@@ -876,7 +893,7 @@ rt_accel_stats rt_accel_stats_of(const rt_accel *a)
     rt_accel_stats st;
     st.width = a->width;
     st.nodes = a->nwnodes;
-    st.node_bytes = a->width == 8 ? sizeof(rt_wnode8) : sizeof(rt_wnode4);
+    st.node_bytes = rt__wnode_bytes(a->width);
     st.records = a->nrecs;
     st.record_bytes = sizeof(rt_rec);
     st.bytes = st.nodes * st.node_bytes + st.records * st.record_bytes + a->ndverts * 9 * sizeof(double) +

@@ -40,12 +40,12 @@ typedef struct rt_node {
 
 /* ---- the wide BVH the queries walk ----
  *
- * W children per node (W = 4 or 8, chosen per accel at build time: see
+ * W children per node (W = 4, 8 or 16, chosen per accel at build time: see
  * rt_accel.width), their boxes stored SoA as floats rounded outward (so a box
  * still contains its primitives exactly): b[2k] = lower bounds on axis k,
  * b[2k+1] = upper bounds, one lane per child. An unused lane has the empty box
  * lo = +inf, hi = -inf, which every ray misses (no NaN arises from it, see
- * rt_wide.h). 128 bytes (two cache lines) for 4 wide, 256 for 8.
+ * rt_wide.h). 128 bytes (two cache lines) for 4 wide, 256 for 8, 512 for 16.
  *
  * child[i]: an inner node's index in wnodes, or RT_LEAF | the index of the
  * leaf's first primitive record; a leaf runs to the record flagged
@@ -56,9 +56,11 @@ typedef struct rt_node {
  *   2 (AVX2, or AUTO when the compiler targets AVX2)  8 wide, AVX2 everywhere
  *   3 (AUTO otherwise: runtime dispatch)  4 wide SSE2, plus 8 wide AVX2 in
  *     rt_bvh_avx2.c (the only file compiled for AVX2), used when the CPU has
- *     AVX2 (__builtin_cpu_supports at rt_accel_build)
- * In builds with the 8-wide path, RADRAY_BVH_WIDTH=4 in the environment makes
- * rt_accel_build use 4-wide nodes (tests and benchmarks). */
+ *     AVX2, and (RT_HAVE_AVX512: the compiler can build it) 16 wide AVX-512
+ *     in rt_bvh_avx512.c, used when the CPU has AVX-512F
+ *     (__builtin_cpu_supports at rt_accel_build)
+ * In builds with the wider paths, RADRAY_BVH_WIDTH=4 or 8 in the environment
+ * makes rt_accel_build use that width (tests and benchmarks). */
 #if defined(RT_SIMD) && RT_SIMD >= 2
 #define RT_HAVE_W8 1
 #define RT_WIDE 8 /* the widest node of this build (bench/bench_rays.c prints it) */
@@ -66,7 +68,15 @@ typedef struct rt_node {
 #define RT_HAVE_W8 0
 #define RT_WIDE 4
 #endif
+#if RT_HAVE_W8 && RT_SIMD == 3 && defined(RT_HAVE_AVX512)
+#define RT_HAVE_W16 1
+#undef RT_WIDE
+#define RT_WIDE 16
+#define RT_WIDE_MAX 16
+#else
+#define RT_HAVE_W16 0
 #define RT_WIDE_MAX 8
+#endif
 #define RT_LEAF 0x80000000u
 #define RT_EMPTY 0xffffffffu
 #define RT_STACK_SIZE ((RT_WIDE_MAX - 1) * RT_BVH_STACK + 1)
@@ -81,10 +91,21 @@ typedef struct rt_wnode8 {
     uint32_t child[8];
     uint32_t pad[8];
 } rt_wnode8;
-_Static_assert(sizeof(rt_wnode4) == 128 && sizeof(rt_wnode8) == 256,
+typedef struct rt_wnode16 {
+    _Alignas(64) float b[6][16];
+    uint32_t child[16];
+} rt_wnode16;
+_Static_assert(sizeof(rt_wnode4) == 128 && sizeof(rt_wnode8) == 256 && sizeof(rt_wnode16) == 448,
                "wide nodes: whole cache lines (aligned_alloc needs a multiple of 64)");
+/* Bytes of one node of a width (4, 8 or 16). */
+static inline size_t rt__wnode_bytes(int width)
+{
+    return width == 16 ? sizeof(rt_wnode16) : width == 8 ? sizeof(rt_wnode8) : sizeof(rt_wnode4);
+}
 /* The widest node of this build (sizes printed by the benchmark). */
-#if RT_HAVE_W8
+#if RT_HAVE_W16
+typedef rt_wnode16 rt_wnode;
+#elif RT_HAVE_W8
 typedef rt_wnode8 rt_wnode;
 #else
 typedef rt_wnode4 rt_wnode;
@@ -118,10 +139,10 @@ typedef struct rt_rec {
 
 struct rt_accel {
     const scene *scene;
-    void *wnodes; /* rt_wnode4 or rt_wnode8 by width, 64-byte aligned; wnodes[0] is the root;
+    void *wnodes; /* rt_wnode4, rt_wnode8 or rt_wnode16 by width, 64-byte aligned; wnodes[0] is the root;
                      NULL when the scene has no primitives */
     size_t nwnodes;
-    int width; /* 4 or 8: the node layout and the walk (rt__walk4 / rt__walk8) */
+    int width; /* 4, 8 or 16: the node layout and the walk (rt__walk4 / 8 / 16) */
     rt_rec *recs;
     size_t nrecs;
     double *dverts; /* 9 per RT_REC_DBL record: x, y, z of A, B, C (NULL if none) */
@@ -174,11 +195,11 @@ int rt__bvh_build_binary(rt_build_item *items, size_t n, int threads, rt_node **
 
 /* ---- the BVH by width (rt_bvh.c, rt_traverse.c, rt_bvh_avx2.c) ---- */
 
-/* The width rt_accel_build uses: 8 when this build has the 8-wide path and
- * (dispatching builds) the CPU has AVX2, unless RADRAY_BVH_WIDTH=4 is set;
- * else 4. */
+/* The width rt_accel_build uses: the widest that this build and the CPU
+ * have (16: AVX-512F, 8: AVX2, else 4), or RADRAY_BVH_WIDTH (4 or 8) when set
+ * and available. */
 int rt__bvh_width_default(void);
-/* 1 when width (4 or 8) can be built and walked on this build and CPU. */
+/* 1 when width (4, 8 or 16) can be built and walked on this build and CPU. */
 int rt__bvh_width_ok(int width);
 /* rt_accel_build with a given width (0 = rt__bvh_width_default()); a width
  * that rt__bvh_width_ok rejects is RR_ERR_INVALID. For tests. */
@@ -193,6 +214,10 @@ int rt__occl4(const rt_accel *a, rr_ray ray, double tmin, double tmax);
 #if RT_HAVE_W8
 int rt__walk8(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_hit *hit, int mode);
 int rt__occl8(const rt_accel *a, rr_ray ray, double tmin, double tmax);
+#endif
+#if RT_HAVE_W16
+int rt__walk16(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_hit *hit, int mode);
+int rt__occl16(const rt_accel *a, rr_ray ray, double tmin, double tmax);
 #endif
 
 /* ---- rt_solid.c: acceleration for the solids' mesh leaves ---- */

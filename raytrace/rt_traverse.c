@@ -3,8 +3,9 @@
  * Both walk the same nodes with the same per-primitive kernels; the only
  * difference is that the any-hit query returns at the first occluder. The
  * walk itself is in rt_wide.h, instantiated here for 4-wide nodes
- * (rt__walk4) and in rt_bvh_avx2.c for 8-wide nodes (rt__walk8); the
- * queries take the one of the accel's width. */
+ * (rt__walk4), in rt_bvh_avx2.c for 8-wide nodes (rt__walk8) and in
+ * rt_bvh_avx512.c for 16-wide nodes (rt__walk16); the queries take the one
+ * of the accel's width. */
 #include <float.h>
 
 #define RT_W 4
@@ -62,6 +63,10 @@ int rt__tri_hit(const rt_ray_pre *p, rr_vec3 A, rr_vec3 B, rr_vec3 C, int cull, 
 static int walk(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_hit *hit, int mode)
 {
 #if RT_HAVE_W8
+#if RT_HAVE_W16
+    if (a->width == 16)
+        return rt__walk16(a, ray, tmin, tmax, hit, mode);
+#endif
     if (a->width == 8)
         return rt__walk8(a, ray, tmin, tmax, hit, mode);
 #endif
@@ -98,6 +103,10 @@ int rt_accel_occluded(const rt_accel *a, rr_ray ray, double tmin, double tmax)
 {
     t_counts.occluded++;
 #if RT_HAVE_W8
+#if RT_HAVE_W16
+    if (a->width == 16)
+        return rt__occl16(a, ray, tmin, tmax);
+#endif
     if (a->width == 8)
         return rt__occl8(a, ray, tmin, tmax);
 #endif

@@ -2,15 +2,17 @@
  * ray (all children at once) and the walk of the wide BVH, for one node width
  * per translation unit (the width-independent kernel is rt_kernel.h).
  *
- * A file defines RT_W (4 or 8; 4 if not) and, to get the walk, RT_WALK (the
- * function's name), then includes this header: rt_traverse.c instantiates
- * rt__walk4, rt_bvh_avx2.c (compiled for AVX2) rt__walk8.
+ * A file defines RT_W (4, 8 or 16; 4 if not) and, to get the walk, RT_WALK
+ * (the function's name), then includes this header: rt_traverse.c
+ * instantiates rt__walk4, rt_bvh_avx2.c (compiled for AVX2) rt__walk8,
+ * rt_bvh_avx512.c (compiled for AVX-512F) rt__walk16.
  *
  * Versions of the box test, one contract (tests/test_bvh.c checks that they
  * agree and that none culls a box the ray touches):
  *   rt__box4_fast    float, on operands prepared once per ray (rt_boxray):
- *                    the one the walk calls; AVX 8 lanes (RT_W 8), SSE2 4
- *                    lanes (RT_W 4, RT_SIMD >= 1), else rt__box4_scalar
+ *                    the one the walk calls; AVX-512 16 lanes (RT_W 16), AVX
+ *                    8 lanes (RT_W 8), SSE2 4 lanes (RT_W 4, RT_SIMD >= 1),
+ *                    else rt__box4_scalar
  *   rt__box4_scalar  float, plain C (the portable fallback, RADRAY_SIMD=OFF,
  *                    and the reference the SIMD versions must equal)
  *   rt__box4_double  double, for the rays the float test cannot take
@@ -60,6 +62,13 @@
 typedef rt_wnode8 rt_wn;
 #define RT_BOX_SIMD 2 /* AVX, 8 lanes */
 #include <immintrin.h>
+#elif RT_W == 16
+#if !RT_HAVE_W16 || !defined(__AVX512F__)
+#error "rt_wide.h: RT_W 16 needs RT_HAVE_W16 and a file compiled for AVX-512F"
+#endif
+typedef rt_wnode16 rt_wn;
+#define RT_BOX_SIMD 3 /* AVX-512, 16 lanes */
+#include <immintrin.h>
 #elif RT_W == 4
 typedef rt_wnode4 rt_wn;
 #if defined(RT_SIMD) && RT_SIMD >= 1
@@ -69,7 +78,7 @@ typedef rt_wnode4 rt_wn;
 #define RT_BOX_SIMD 0
 #endif
 #else
-#error "rt_wide.h: RT_W must be 4 or 8"
+#error "rt_wide.h: RT_W must be 4, 8 or 16"
 #endif
 
 static inline unsigned rt__box4_scalar(const rt_wn *n, const rt_ray_pre *p, float tmin, float tmax,
@@ -96,7 +105,10 @@ static inline unsigned rt__box4_scalar(const rt_wn *n, const rt_ray_pre *p, floa
  * wants them (for SSE: broadcast once per ray, kept in registers during the
  * walk, instead of once per node). */
 typedef struct rt_boxray {
-#if RT_BOX_SIMD == 2
+#if RT_BOX_SIMD == 3
+    __m512 on[3], of[3], inv[3];
+    int row[3];
+#elif RT_BOX_SIMD == 2
     __m256 on[3], of[3], inv[3];
     int row[3];
 #elif RT_BOX_SIMD == 1
@@ -109,7 +121,14 @@ typedef struct rt_boxray {
 
 static inline void rt__boxray_init(const rt_ray_pre *p, rt_boxray *br)
 {
-#if RT_BOX_SIMD == 2
+#if RT_BOX_SIMD == 3
+    for (int k = 0; k < 3; k++) {
+        br->on[k] = _mm512_set1_ps(p->org_near[k]);
+        br->of[k] = _mm512_set1_ps(p->org_far[k]);
+        br->inv[k] = _mm512_set1_ps(p->inv_f[k]);
+        br->row[k] = p->near_row[k];
+    }
+#elif RT_BOX_SIMD == 2
     for (int k = 0; k < 3; k++) {
         br->on[k] = _mm256_set1_ps(p->org_near[k]);
         br->of[k] = _mm256_set1_ps(p->org_far[k]);
@@ -135,7 +154,21 @@ static inline void rt__boxray_init(const rt_ray_pre *p, rt_boxray *br)
 static inline unsigned rt__box4_fast(const rt_wn *n, const rt_boxray *br, float tmin, float tmax,
                                      float dist[RT_W])
 {
-#if RT_BOX_SIMD == 2
+#if RT_BOX_SIMD == 3
+    const int nx = br->row[0], ny = br->row[1], nz = br->row[2];
+    __m512 tx0 = _mm512_mul_ps(_mm512_sub_ps(_mm512_load_ps(n->b[nx]), br->on[0]), br->inv[0]);
+    __m512 ty0 = _mm512_mul_ps(_mm512_sub_ps(_mm512_load_ps(n->b[ny]), br->on[1]), br->inv[1]);
+    __m512 tz0 = _mm512_mul_ps(_mm512_sub_ps(_mm512_load_ps(n->b[nz]), br->on[2]), br->inv[2]);
+    __m512 tx1 = _mm512_mul_ps(_mm512_sub_ps(_mm512_load_ps(n->b[nx ^ 1]), br->of[0]), br->inv[0]);
+    __m512 ty1 = _mm512_mul_ps(_mm512_sub_ps(_mm512_load_ps(n->b[ny ^ 1]), br->of[1]), br->inv[1]);
+    __m512 tz1 = _mm512_mul_ps(_mm512_sub_ps(_mm512_load_ps(n->b[nz ^ 1]), br->of[2]), br->inv[2]);
+    /* VMAXPS/VMINPS on zmm registers have the NaN rule of MAXPS/MINPS. */
+    __m512 t0 = _mm512_max_ps(tz0, _mm512_max_ps(ty0, _mm512_max_ps(tx0, _mm512_set1_ps(tmin))));
+    __m512 t1 = _mm512_min_ps(tz1, _mm512_min_ps(ty1, _mm512_min_ps(tx1, _mm512_set1_ps(INFINITY))));
+    t1 = _mm512_min_ps(_mm512_set1_ps(tmax), _mm512_mul_ps(t1, _mm512_set1_ps(1.0f + RT_BOX_GROW)));
+    _mm512_storeu_ps(dist, t0);
+    return (unsigned)_mm512_cmp_ps_mask(t0, t1, _CMP_LE_OQ);
+#elif RT_BOX_SIMD == 2
     const int nx = br->row[0], ny = br->row[1], nz = br->row[2];
     __m256 tx0 = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(n->b[nx]), br->on[0]), br->inv[0]);
     __m256 ty0 = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(n->b[ny]), br->on[1]), br->inv[1]);
@@ -392,7 +425,9 @@ out:
  * empty lanes, RT_EMPTY, also read as leaves, but the ray never enters them). */
 static inline unsigned rt__leaf_mask(const rt_wn *n)
 {
-#if RT_BOX_SIMD == 2
+#if RT_BOX_SIMD == 3
+    return (unsigned)_mm512_cmplt_epi32_mask(_mm512_load_si512((const void *)n->child), _mm512_setzero_si512());
+#elif RT_BOX_SIMD == 2
     return (unsigned)_mm256_movemask_ps(_mm256_castsi256_ps(_mm256_load_si256((const __m256i *)n->child)));
 #elif RT_BOX_SIMD == 1
     return (unsigned)_mm_movemask_ps(_mm_castsi128_ps(_mm_load_si128((const __m128i *)n->child)));

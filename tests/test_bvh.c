@@ -271,7 +271,7 @@ static void bvh_build_threads_same_tree(void **state)
             assert_int_equal(rt_accel_build(s, &a[t], NULL), RR_OK);
         }
         omp_set_num_threads(before);
-        size_t nb = a[0]->nwnodes * (a[0]->width == 8 ? sizeof(rt_wnode8) : sizeof(rt_wnode4));
+        size_t nb = a[0]->nwnodes * rt__wnode_bytes(a[0]->width);
         for (int t = 1; t < 3; t++) {
             assert_int_equal(a[t]->nwnodes, a[0]->nwnodes);
             assert_int_equal(a[t]->nrecs, a[0]->nrecs);
@@ -328,12 +328,39 @@ static void bvh_fast_path_large_and_watertight(void **state)
     }
 }
 
-/* Both node widths of this build (4 wide, and 8 wide where the build and the
- * CPU have the AVX2 walk) give the same hits bit for bit: same triangle or
- * sphere, t, normal, point and occlusion, on random scenes with double and
- * with float vertices (the leaf-record fast path) and on a UV sphere with
- * rays aimed at its vertices. The nodes are 64-byte aligned (aligned SIMD
- * loads). RADRAY_BVH_WIDTH=4 selects 4-wide nodes. */
+/* Every node width of this build (4 wide; 8 wide where the build and the CPU
+ * have the AVX2 walk; 16 wide where they have the AVX-512 walk) gives the
+ * same hits bit for bit: same triangle or sphere, t, normal, point and
+ * occlusion, on random scenes with double and with float vertices (the
+ * leaf-record fast path) and on a UV sphere with rays aimed at its vertices.
+ * The nodes are 64-byte aligned (aligned SIMD loads). RADRAY_BVH_WIDTH=4 or
+ * 8 selects that width. */
+
+/* The widths this build and CPU walk: 4, then 8 and 16 where available. */
+static int widths_available(int w[3])
+{
+    int n = 0;
+    w[n++] = 4;
+    if (rt__bvh_width_ok(8))
+        w[n++] = 8;
+    if (rt__bvh_width_ok(16))
+        w[n++] = 16;
+    return n;
+}
+
+/* rt__walkN of width w (the ordered walk, any-hit mode). */
+static int walk_any(const rt_accel *a, int w, rr_ray r, double tmin, double tmax)
+{
+#if RT_HAVE_W16
+    if (w == 16)
+        return rt__walk16(a, r, tmin, tmax, NULL, 1);
+#endif
+#if RT_HAVE_W8
+    if (w == 8)
+        return rt__walk8(a, r, tmin, tmax, NULL, 1);
+#endif
+    return w == 4 ? rt__walk4(a, r, tmin, tmax, NULL, 1) : -1;
+}
 static int same_hit(int f1, const rt_hit *h1, int f2, const rt_hit *h2)
 {
     if (f1 != f2)
@@ -352,16 +379,19 @@ static void bvh_widths_agree(void **state)
     rr_error err;
     assert_int_equal(rt__bvh_width_ok(4), 1);
     assert_int_equal(rt__bvh_width_ok(3), 0);
-    assert_int_equal(rt__bvh_width_ok(16), 0);
-    int w = rt__bvh_width_default();
-    assert_true(w == 4 || (w == 8 && rt__bvh_width_ok(8)));
+    assert_int_equal(rt__bvh_width_ok(32), 0);
+    int ws[3], nw = widths_available(ws);
+    int w = rt__bvh_width_default(), widest = ws[nw - 1];
     const char *env = getenv("RADRAY_BVH_WIDTH");
-    if (!env || strcmp(env, "4") != 0)
-        assert_int_equal(w, rt__bvh_width_ok(8) ? 8 : 4); /* the widest available by default */
-    else
+    if (env && strcmp(env, "4") == 0)
         assert_int_equal(w, 4);
-    const int w2 = rt__bvh_width_ok(8) ? 8 : 4; /* on a CPU without AVX2: 4 against 4 */
-    for (int pass = 0; pass < 3; pass++) {
+    else if (env && strcmp(env, "8") == 0 && rt__bvh_width_ok(8))
+        assert_int_equal(w, 8);
+    else
+        assert_int_equal(w, widest); /* the widest available by default */
+    /* Each scene against each wider width (on a CPU without AVX2: 4 against 4). */
+    for (int round = 0; round < 3 * (nw > 1 ? nw - 1 : 1); round++) {
+        const int pass = round % 3, w2 = ws[nw == 1 ? 0 : 1 + round / 3];
         rr_rng rng = rr_rng_make(31, (uint64_t)pass);
         char *json = pass < 2 ? random_scene(&rng, 600, 8) : uv_sphere_scene(50, 80, "\"auto\"");
         scene *s = NULL;
@@ -369,13 +399,13 @@ static void bvh_widths_agree(void **state)
         free(json);
         if (pass >= 1)
             verts_to_float(s);
-        rt_accel *a4 = NULL, *a8 = NULL, *bad = NULL;
+        rt_accel *a4 = NULL, *aw = NULL, *bad = NULL;
         assert_int_equal(rt__accel_build_width(s, 4, &a4, &err), RR_OK);
-        assert_int_equal(rt__accel_build_width(s, w2, &a8, &err), RR_OK);
+        assert_int_equal(rt__accel_build_width(s, w2, &aw, &err), RR_OK);
         assert_int_equal(rt__accel_build_width(s, 5, &bad, &err), RR_ERR_INVALID);
         assert_null(bad);
         assert_int_equal(a4->width, 4);
-        assert_int_equal(a8->width, w2);
+        assert_int_equal(aw->width, w2);
         /* Every triangle has a record of its own: float copies once the
          * vertices are floats, else double copies (pass 0). */
         size_t nfast = 0, ndbl = 0;
@@ -390,7 +420,7 @@ static void bvh_widths_agree(void **state)
         else
             assert_true(ndbl > s->ntris / 2);
         assert_int_equal((uintptr_t)a4->wnodes % 64, 0);
-        assert_int_equal((uintptr_t)a8->wnodes % 64, 0);
+        assert_int_equal((uintptr_t)aw->wnodes % 64, 0);
         int hits = 0, n = 200000;
         for (int i = 0; i < n; i++) {
             rr_ray r;
@@ -406,31 +436,31 @@ static void bvh_widths_agree(void **state)
             rt_hit h1, h2;
             memset(&h1, 0, sizeof h1);
             memset(&h2, 0, sizeof h2);
-            int f1 = rt_accel_closest(a4, r, 1e-9, tmax, &h1), f2 = rt_accel_closest(a8, r, 1e-9, tmax, &h2);
+            int f1 = rt_accel_closest(a4, r, 1e-9, tmax, &h1), f2 = rt_accel_closest(aw, r, 1e-9, tmax, &h2);
             if (!same_hit(f1, &h1, f2, &h2))
                 fprintf(stderr, "pass %d ray %d: %d %d tri %lld %lld t %.17g %.17g\n", pass, i, f1, f2,
                         (long long)h1.tri, (long long)h2.tri, h1.t, h2.t);
             assert_true(same_hit(f1, &h1, f2, &h2));
             assert_int_equal(rt_accel_occluded(a4, r, 1e-9, tmax), f1);
-            assert_int_equal(rt_accel_occluded(a8, r, 1e-9, tmax), f2);
+            assert_int_equal(rt_accel_occluded(aw, r, 1e-9, tmax), f2);
             hits += f1;
         }
         assert_true(hits > n / 5);
         rt_accel_destroy(a4);
-        rt_accel_destroy(a8);
+        rt_accel_destroy(aw);
         scene_destroy(s);
     }
 }
 
 /* The any-hit walk (rt__occlN, rt_accel_occluded) answers as the ordered walk
- * with any = 1 (rt__walkN) for both widths, on random rays and segments,
+ * with any = 1 (rt__walkN) for every width, on random rays and segments,
  * tmin < 0 (the double box test), tmax 0, negative and NaN included; and it
  * answers whether a closest hit exists. */
 static void bvh_occluded_matches_walk(void **state)
 {
     (void)state;
     rr_error err;
-    const int w2 = rt__bvh_width_ok(8) ? 8 : 4;
+    int ws[3], nw = widths_available(ws);
     for (int pass = 0; pass < 2; pass++) {
         rr_rng rng = rr_rng_make(77, (uint64_t)pass);
         char *json = random_scene(&rng, 400, 6);
@@ -439,8 +469,8 @@ static void bvh_occluded_matches_walk(void **state)
         free(json);
         if (pass == 1)
             verts_to_float(s);
-        for (int wi = 0; wi < 2; wi++) {
-            const int w = wi ? w2 : 4;
+        for (int wi = 0; wi < nw; wi++) {
+            const int w = ws[wi];
             rt_accel *a = NULL;
             assert_int_equal(rt__accel_build_width(s, w, &a, &err), RR_OK);
             int occl = 0, n = 40000;
@@ -458,13 +488,7 @@ static void bvh_occluded_matches_walk(void **state)
                 default: tmax = 2.0 * rr_rng_uniform(&rng); break;
                 }
                 int f = rt_accel_occluded(a, r, tmin, tmax);
-                int g = w == 8 ?
-#if RT_HAVE_W8
-                               rt__walk8(a, r, tmin, tmax, NULL, 1)
-#else
-                               -1
-#endif
-                               : rt__walk4(a, r, tmin, tmax, NULL, 1);
+                int g = walk_any(a, w, r, tmin, tmax);
                 if (f != g)
                     fprintf(stderr, "width %d ray %d: occluded %d walk %d (tmin %g tmax %g)\n", w, i, f, g, tmin,
                             tmax);
