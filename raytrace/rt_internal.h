@@ -182,7 +182,7 @@ void rt__ray_prepare(rr_ray ray, rt_ray_pre *p);
 int rt__tri_hit(const rt_ray_pre *p, rr_vec3 A, rr_vec3 B, rr_vec3 C, int cull, double tmin, double tmax, double *t,
                 int *front);
 
-/* ---- the one BVH builder (rt_bvh.c) ----
+/* ---- the one BVH builder (rt_bvh_binary.c) ----
  * A binary tree over items[0..n) (n >= 1) by binned SAH, leaves of at most
  * 8 items (deeper than RT_BVH_STACK - 2: a leaf), in one array in
  * depth-first order (left child next, right child at index), float bounds
@@ -192,6 +192,12 @@ int rt__tri_hit(const rt_ray_pre *p, rr_vec3 A, rr_vec3 B, rr_vec3 C, int cull, 
  * Subtrees of >= 65536 items are built by `threads` threads (0: OpenMP's
  * default) as tasks: the same nodes for any count, bytes included. */
 int rt__bvh_build_binary(rt_build_item *items, size_t n, int threads, rt_node **nodes, size_t *nnodes);
+/* Subtrees of at least this many items are built as OpenMP tasks, each into
+ * a node array of its own, appended to its parent's afterwards in the order
+ * of the serial build (node, left subtree, right subtree): the same splits,
+ * the same node array, bytes included, for any thread count. Below it one
+ * thread builds the subtree (a task's cost would not pay). */
+#define RT_BUILD_TASK_MIN 65536
 
 /* ---- the BVH by width (rt_bvh.c, rt_traverse.c, rt_bvh_avx2.c) ---- */
 
