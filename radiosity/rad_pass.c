@@ -293,7 +293,8 @@ rr_status rad_pass_run(const scene *s, const rt_accel *a, const rad_pass_opts *o
     }
     /* Vertex values: mean of the patches around a vertex, weighted by area
      * (the classic display of Cohen & Greenberg; patches of one object share
-     * vertices, so the interpolated image is continuous across the object). */
+     * vertices, so the interpolated image is continuous across the object);
+     * the hybrid's indirect irradiance then back-projected (RAD_HIND_SWEEPS). */
     if (rad__to_vertices(sol->P, sol->B, 0, sol->vertex_B) != RR_OK || rad__to_vertices(sol->P, Hind, RAD_HIND_SWEEPS, sol->vertex_Hind) != RR_OK) {
         free(Hind);
         st = rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory", s->path);

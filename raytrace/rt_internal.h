@@ -45,7 +45,7 @@ typedef struct rt_node {
  * still contains its primitives exactly): b[2k] = lower bounds on axis k,
  * b[2k+1] = upper bounds, one lane per child. An unused lane has the empty box
  * lo = +inf, hi = -inf, which every ray misses (no NaN arises from it, see
- * rt_wide.h). 128 bytes (two cache lines) for 4 wide, 256 for 8, 512 for 16.
+ * rt_wide.h). 128 bytes (two cache lines) for 4 wide, 256 for 8, 448 for 16.
  *
  * child[i]: an inner node's index in wnodes, or RT_LEAF | the index of the
  * leaf's first primitive record; a leaf runs to the record flagged
