@@ -180,7 +180,7 @@ static rr_status new_material(mtl_reader *r, imp__mtl *lib, const char *name)
         return bad(r, "newmtl '%.40s...': the name is longer than %s bytes", name, "63");
     for (size_t i = 0; i < lib->n; i++)
         if (strcmp(lib->e[i].name, name) == 0)
-            return bad(r, "material '%s' is defined twice (first in %s)", name, lib->e[i].file);
+            return bad(r, "material '%s' is defined twice (first in %.400s)", name, lib->e[i].file);
     if (lib->n == lib->cap) {
         size_t cap = lib->cap ? 2 * lib->cap : 16;
         mtl_entry *e = realloc(lib->e, cap * sizeof *e);
@@ -240,7 +240,7 @@ static rr_status statement(mtl_reader *r, char **tok, int n, const char *dir)
         /* Options (-s 1 1 1, -clamp on, ...) come first; the file is last. */
         rr_error jerr;
         if (rr_path_join(dir, tok[n - 1], e->map_kd, sizeof e->map_kd, &jerr) != RR_OK)
-            return bad(r, "map_Kd: %s%s", jerr.msg, "");
+            return bad(r, "map_Kd: %.480s%s", jerr.msg, "");
         return RR_OK;
     }
     double v; /* Ni, sharpness and the PBR numbers: read, checked, not used */
