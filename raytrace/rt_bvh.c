@@ -36,6 +36,7 @@
  */
 #include <math.h>
 #include <omp.h>
+#include <stddef.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -77,6 +78,13 @@ typedef struct collapse_table {
     uint8_t *how, *node_k;
 } collapse_table;
 
+static void table_free(collapse_table *t)
+{
+    free(t->cost);
+    free(t->how);
+    free(t->node_k);
+}
+
 typedef struct collapser {
     const rt_node *bin;
     const uint32_t *cnt, *first; /* per binary node: primitives below it, the first one */
@@ -95,26 +103,20 @@ typedef struct wstage {
     uint32_t child[RT_WIDE_MAX];
 } wstage;
 
+/* Every width's node is b[6][W], then child[W], then padding to whole cache
+ * lines (rt_internal.h), so one copy serves them all. */
+_Static_assert(offsetof(rt_wnode4, child) == 6 * 4 * sizeof(float) &&
+                   offsetof(rt_wnode8, child) == 6 * 8 * sizeof(float) &&
+                   offsetof(rt_wnode16, child) == 6 * 16 * sizeof(float),
+               "wide nodes: child[] right after the boxes");
 static void put_node(collapser *c, size_t idx, const wstage *st)
 {
-    if (c->width == 16) {
-        rt_wnode16 *n = (rt_wnode16 *)c->w + idx;
-        for (int k = 0; k < 6; k++)
-            memcpy(n->b[k], st->b[k], sizeof n->b[k]);
-        memcpy(n->child, st->child, sizeof n->child);
-    } else if (c->width == 8) {
-        rt_wnode8 *n = (rt_wnode8 *)c->w + idx;
-        for (int k = 0; k < 6; k++)
-            memcpy(n->b[k], st->b[k], sizeof n->b[k]);
-        memcpy(n->child, st->child, sizeof n->child);
-        memset(n->pad, 0, sizeof n->pad);
-    } else {
-        rt_wnode4 *n = (rt_wnode4 *)c->w + idx;
-        for (int k = 0; k < 6; k++)
-            memcpy(n->b[k], st->b[k], sizeof n->b[k]);
-        memcpy(n->child, st->child, sizeof n->child);
-        memset(n->pad, 0, sizeof n->pad);
-    }
+    unsigned char *n = c->w + idx * c->nbytes;
+    size_t w = (size_t)c->width;
+    memset(n, 0, c->nbytes);
+    for (int k = 0; k < 6; k++)
+        memcpy(n + (size_t)k * w * sizeof(float), st->b[k], w * sizeof(float));
+    memcpy(n + 6 * w * sizeof(float), st->child, w * sizeof(uint32_t));
 }
 
 static float node_area(const rt_node *n)
@@ -296,9 +298,7 @@ static int collapse(const rt_node *bin, size_t nbin, rt_rec *recs, int width, in
     }
     collapse_table t = {malloc(nbin * (size_t)width * sizeof *t.cost), malloc(nbin * (size_t)width), malloc(nbin)};
     if (!t.cost || !t.how || !t.node_k) {
-        free(t.cost);
-        free(t.how);
-        free(t.node_k);
+        table_free(&t);
         free(cnt);
         return -1;
     }
@@ -315,9 +315,7 @@ static int collapse(const rt_node *bin, size_t nbin, rt_rec *recs, int width, in
      * and stores): malloc promises only 16. */
     c.w = aligned_alloc(64, total * c.nbytes);
     if (!c.w) {
-        free(t.cost);
-        free(t.how);
-        free(t.node_k);
+        table_free(&t);
         free(cnt);
         return -1;
     }
@@ -336,9 +334,7 @@ static int collapse(const rt_node *bin, size_t nbin, rt_rec *recs, int width, in
 #pragma omp single
         collapse_at(&c, 0, 0, wc);
     }
-    free(t.cost);
-    free(t.how);
-    free(t.node_k);
+    table_free(&t);
     free(cnt);
     *out = c.w;
     *nout = c.nw;

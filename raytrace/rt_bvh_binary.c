@@ -306,7 +306,6 @@ static int build_rec(builder *b, const span *sp, int depth)
     return build_rec(b, &r, depth + 1);
 }
 
-
 /* Appends sub's nodes to b's (interior nodes' right-child indices moved by
  * the offset; a leaf's index is an item index and stays). */
 static int append_nodes(builder *b, const builder *sub)
