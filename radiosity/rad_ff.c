@@ -343,7 +343,7 @@ static int cmp_u32(const void *a, const void *b)
  * unless the sheet reaches out ~4 times its height on every side. The probes,
  * like the rays' first legs, see back faces that the objects cull. */
 #define RAD_FF_PROBE_SIN 0.25
-static int enclosed(const ff_ctx *c, rr_ray r, rr_vec3 n)
+static int enclosed(const rt_accel *a, rr_ray r, rr_vec3 n)
 {
     rr_vec3 t1 = rr_v3_madd(r.d, n, -rr_v3_dot(r.d, n));
     if (rr_v3_len2(t1) < 1e-12)
@@ -355,10 +355,21 @@ static int enclosed(const ff_ctx *c, rr_ray r, rr_vec3 n)
         rr_vec3 t = k < 2 ? t1 : t2;
         rr_ray p = {r.o, rr_v3_norm(rr_v3_madd(rr_v3_scale(n, RAD_FF_PROBE_SIN), t, k % 2 ? -cs : cs))};
         rt_hit h;
-        if (!rt_accel_closest_two_sided(c->a, p, 0.0, INFINITY, &h) || h.front)
+        if (!rt_accel_closest_two_sided(a, p, 0.0, INFINITY, &h) || h.front)
             return 0;
     }
     return 1;
+}
+
+int rad__ff_buried(const scene *s, const rt_accel *a, rr_ray r, rr_vec3 n, const rt_hit *h, double bury)
+{
+    return !h->front && (s->objects[h->object].cull_backfaces || h->t < bury || enclosed(a, r, n));
+}
+
+int rad__ff_point_buried(const scene *s, const rt_accel *a, rr_ray r, rr_vec3 n, double bury)
+{
+    rt_hit h;
+    return rt_accel_closest_two_sided(a, r, 0.0, INFINITY, &h) && rad__ff_buried(s, a, r, n, &h, bury);
 }
 
 /* Row i by Monte Carlo: the patches hit, in w->hits[0 .. return).
@@ -407,8 +418,7 @@ static size_t mc_row(const ff_ctx *c, uint32_t i, ff_scratch *w)
                                   : rt_accel_closest(c->a, r, 0.0, INFINITY, &h);
             if (!hit)
                 break; /* escaped */
-            if (bounce == 0 && !h.front &&
-                (c->s->objects[h.object].cull_backfaces || h.t < bury || enclosed(c, r, xn))) {
+            if (bounce == 0 && rad__ff_buried(c->s, c->a, r, xn, &h, bury)) {
                 w->open--; /* started under a surface: not counted (rad.h) */
                 break;
             }

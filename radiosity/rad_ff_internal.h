@@ -9,6 +9,7 @@
 #include <stdint.h>
 
 #include "rr_core.h"
+#include "rt.h"
 
 /* Largest m with m * m <= n. */
 static inline uint32_t rad_ff_isqrt(uint32_t n)
@@ -108,5 +109,17 @@ int rad__clip_front(const rr_vec3 tri[3], rr_vec3 n, rr_vec3 p0, double tol, rr_
 /* Point (u, v) of a clipped polygon of 3 or 4 vertices, the quad's triangle
  * picked by area with the golden-ratio sequence in k (rad_ff.c). */
 rr_vec3 rad__poly_point(const rr_vec3 *poly, int nv, double u, double v, uint32_t k);
+
+/* ---- buried parts (rad.h; rad_ff.c, rad_hier.c) ---- */
+
+/* Whether the first leg r of a ray from a surface point of normal n, whose
+ * two-sided closest hit is h, started under a surface: h is a back face of an
+ * object that culls back faces (the origin is inside a closed box) at any
+ * distance, or of any surface closer than bury, or of one that encloses the
+ * origin (probes near the tangent plane meet back faces too). */
+int rad__ff_buried(const scene *s, const rt_accel *a, rr_ray r, rr_vec3 n, const rt_hit *h, double bury);
+/* The same for a ray not yet traced (a probe): its two-sided closest hit,
+ * then the rule; a ray that meets nothing is open. */
+int rad__ff_point_buried(const scene *s, const rt_accel *a, rr_ray r, rr_vec3 n, double bury);
 
 #endif

@@ -15,6 +15,9 @@ typedef struct hel {
     double area, radius;
     uint32_t root, child, depth;
     int closed;     /* leaf: its closedness rays all landed on fronts */
+    int probed;     /* its burial probes are done (open, bur) */
+    double open;    /* the open share of its area: not buried under another surface (rad.h: buried parts) */
+    unsigned bur;   /* bit k: its fixed point k_pts[k] is buried */
     int fresh;      /* leaf data (first shot, closedness) still to compute */
     double spread;  /* leaf: the first shot's largest difference between its points */
     rr_rgb B, src, H, E, H0;
@@ -99,6 +102,17 @@ static inline double node_rho(const hctx *c, uint32_t x)
 static const double k_pts[4][3] = {
     {1. / 3, 1. / 3, 1. / 3}, {2. / 3, 1. / 6, 1. / 6}, {1. / 6, 2. / 3, 1. / 6}, {1. / 6, 1. / 6, 2. / 3}};
 
+/* Index of the k-th of element e's fixed points that is not buried (cyclic
+ * in k), or -1 when all four are: receivers gather at open points only. */
+static inline int open_pt(const hel *e, int k)
+{
+    int idx[4], m = 0;
+    for (int q = 0; q < 4; q++)
+        if (!(e->bur & (1u << q)))
+            idx[m++] = q;
+    return m ? idx[k % m] : -1;
+}
+
 static inline rr_vec3 tri_at(const rr_vec3 v[3], double a, double b, double g)
 {
     return rr_v3_add(rr_v3_add(rr_v3_scale(v[0], a), rr_v3_scale(v[1], b)), rr_v3_scale(v[2], g));
@@ -114,6 +128,12 @@ static inline rr_vec3 tri_random(const rr_vec3 v[3], rr_rng *rng)
     return tri_at(v, 1.0 - u - w, u, w);
 }
 
+
+/* ---- buried parts (rad_hier.c) ---- */
+
+/* Whether surface point xs (normal ns) of element e lies under another
+ * surface, by the flat pass's rule (rad__ff_buried) for a probe along ns. */
+int rad__hier_buried(const hctx *c, const hel *e, rr_vec3 xs, rr_vec3 ns);
 
 /* ---- clusters (rad_hier_cluster.c) ---- */
 

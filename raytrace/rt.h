@@ -207,7 +207,10 @@ int rt_accel_closest(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt
 /* The same with no back faces culled, of any object: a ray that starts
  * inside a closed box meets the box's back face first. For the form-factor
  * rays' burial test (radiosity/rad_ff.c) and the light tracer's particles,
- * which start on surfaces that may lie under a closed object. */
+ * which start on surfaces that may lie under a closed object. A back face
+ * of a culling object within 1e-9 (relative) beyond the front face found
+ * first is returned instead: where a box's face lies flush with another
+ * surface, a ray leaving the box meets the box. */
 int rt_accel_closest_two_sided(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_hit *hit);
 /* Any hit with t in (tmin, tmax): for shadow rays; stops at the first occluder. */
 int rt_accel_occluded(const rt_accel *a, rr_ray ray, double tmin, double tmax);

@@ -213,6 +213,9 @@ rr_status rt__accel_build_width(const scene *s, int width, rt_accel **out, rr_er
 /* The walks of one width; any != 0 returns at the first hit (hit unused). */
 #define RT_WALK_ANY 1        /* return at the first hit (no hit record) */
 #define RT_WALK_TWO_SIDED 2  /* cull no back faces (rt_accel_closest_two_sided) */
+/* Two-sided walks: how far (relative) beyond a front-face hit a back face of
+ * a culling object still counts as first (flush faces, rt_wide.h). */
+#define RT_TIE_REL 1e-9
 int rt__walk4(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_hit *hit, int mode);
 /* The any-hit walks of one width (rt_accel_occluded): the same answer as
  * rt__walkN with any != 0, without ordering the children (rt_wide.h). */

@@ -245,7 +245,7 @@ typedef struct rt_stack_entry {
  * first hit, RT_WALK_TWO_SIDED culls no back faces. */
 int RT_WALK(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_hit *hit, int mode)
 {
-    const int any = mode & RT_WALK_ANY;
+    const int any = mode & RT_WALK_ANY, two = mode & RT_WALK_TWO_SIDED;
     if (a->nwnodes == 0)
         return 0;
     RR_CHECK(a->width == RT_W);
@@ -267,7 +267,7 @@ int RT_WALK(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_hit *hit
     /* A triangle hit is filled in at the end (one normal instead of one per
      * improving hit); tri_best != NULL says the best hit is that record's triangle. */
     const rt_rec *tri_best = NULL;
-    int tri_front = 0;
+    int tri_front = 0, tri_back_cull = 0;
     double best = tmax;
     float best_f = rt__f_up(best);
     float cull = best_f * grow;
@@ -351,11 +351,21 @@ int RT_WALK(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_hit *hit
                      * so the hit does not depend on the order the walk
                      * meets the triangles in (the two widths' trees differ). */
                     int tie = tri_best && r->index < tri_best->index;
+                    /* Two-sided: a back face of a culling object a hair
+                     * beyond a front face wins (RT_TIE_REL), so that a ray
+                     * leaving a closed box through a face that lies flush
+                     * with another surface (a shelf's back panel on the
+                     * wall) meets the box first, as the burial rule needs. */
+                    double lim = two && tri_best && tri_front ? best + fabs(best) * RT_TIE_REL : best;
                     /* Two inline calls, not one helper: gcc did not inline
                      * the helper, and primary rays lost 4 % (mesh-1m). */
-                    int got = fl & RT_REC_FAST ? rt__tri_hit_rec(&p, r, tmin, best, tie, &t, &front)
+                    int got = fl & RT_REC_FAST ? rt__tri_hit_rec(&p, r, tmin, lim, tie, &t, &front)
                                                : rt__tri_hit_drec(&p, a->dverts + 9 * (size_t)r->dv,
-                                                                  (fl & p.cull_mask) != 0, tmin, best, tie, &t, &front);
+                                                                  (fl & p.cull_mask) != 0, tmin, lim, tie, &t, &front);
+                    if (got && t >= best && !(t == best && tie))
+                        got = !front && (fl & RT_REC_CULL);
+                    else if (got && two && tri_back_cull && front && t > best - fabs(best) * RT_TIE_REL)
+                        got = 0; /* nor does a front face a hair before it */
                     if (got) {
                         if (any)
                             return 1;
@@ -363,6 +373,7 @@ int RT_WALK(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_hit *hit
                         best = t;
                         tri_best = r;
                         tri_front = front;
+                        tri_back_cull = !front && (fl & RT_REC_CULL);
                         best_f = rt__f_up(best);
                         cull = best_f * grow;
                     }
@@ -373,6 +384,7 @@ int RT_WALK(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_hit *hit
                             return 1;
                         found = 1;
                         tri_best = NULL;
+                        tri_back_cull = 0;
                         best_f = rt__f_up(best);
                         cull = best_f * grow;
                     }
