@@ -97,6 +97,7 @@
  * biased (its walls +5 %).
  *
  * Files: this one builds and refines the hierarchy and runs the rounds;
+ * rad_hier_bury.c probes the elements for buried parts;
  * rad_hier_cluster.c builds the clusters and evaluates links from them;
  * rad_hier_solve.c solves on the hierarchy (rad_hier_ctx.h, their shared
  * types); rad_leaves.c turns the final tree into the leaves' patch set.
@@ -338,61 +339,6 @@ static void refine(hctx *c, uint32_t r, uint32_t s)
     link_add(c, r, s);
 }
 
-/* ---- buried parts ---- */
-
-int rad__hier_buried(const hctx *c, const hel *e, rr_vec3 xs, rr_vec3 ns)
-{
-    rr_ray r = {rt_offset_origin(c->ext, xs, ns, ns), ns};
-    return rad__ff_point_buried(c->s, c->a, r, ns, RAD_FF_BURY * sqrt(e->area));
-}
-
-/* Whether point x of element e (on its flat triangle) is buried. */
-static int point_buried(const hctx *c, const hel *e, rr_vec3 x)
-{
-    rr_vec3 xs, ns;
-    rad_patch_surface(c->R, c->s, c->a, e->root, x, &xs, &ns);
-    return rad__hier_buried(c, e, xs, ns);
-}
-
-/* Element x's burial: which of its fixed points are buried (a probe along
- * the normal from each), and its open share, from PROBES cosine-distributed
- * rays from stratified points by the flat pass's rule for a ray's first leg
- * (rad_ff.c). Without it, the parts of a window pane under its glazing bars
- * (closed boxes against it) emitted (+6.9 % of its light against the light
- * tracer), and shelf boards gathered light under the books (+20..41 %). */
-#define PROBES 16
-static void el_probe(hctx *c, uint32_t x)
-{
-    hel *e = &c->el[x];
-    e->bur = 0;
-    for (int k = 0; k < 4; k++)
-        if (point_buried(c, e, tri_at(e->c, k_pts[k][0], k_pts[k][1], k_pts[k][2])))
-            e->bur |= 1u << k;
-    rr_rng rng = rr_rng_make(c->seed ^ 0x5851f42d4c957f2dULL, x);
-    double bury = RAD_FF_BURY * sqrt(e->area);
-    int open = 0;
-    for (uint32_t k = 0; k < PROBES; k++) {
-        double u, v, u1, u2;
-        rad_ff_tri_stratum(k, PROBES, &rng, &u, &v);
-        rad_ff_square_stratum((k * 7) % PROBES, PROBES, &rng, &u1, &u2); /* strata paired across */
-        rr_vec3 xs, ns;
-        rad_patch_surface(c->R, c->s, c->a, e->root, tri_at(e->c, 1.0 - u - v, u, v), &xs, &ns);
-        rr_vec3 d = rad_ff_cosine_dir(ns, u1, u2);
-        rr_ray r = {rt_offset_origin(c->ext, xs, ns, ns), d};
-        open += !rad__ff_point_buried(c->s, c->a, r, ns, bury);
-    }
-    e->open = (double)open / PROBES;
-    e->probed = 1;
-}
-
-static void probe_new(hctx *c)
-{
-#pragma omp parallel for schedule(dynamic, 64)
-    for (long i = 0; i < (long)c->nel; i++)
-        if (!c->el[i].probed && !interrupted(c))
-            el_probe(c, (uint32_t)i);
-}
-
 /* ---- link evaluation ---- */
 
 /* The quadrature points of an element, as barycentrics: the 4 of k_pts, or
@@ -475,7 +421,7 @@ static double side_ff(const hctx *c, uint32_t xi, uint32_t yi, int near, rr_rng 
     double sum = 0.0, lo = INFINITY, hi = 0.0;
     for (int k = 0; k < np; k++) {
         rr_vec3 x = tri_at(ex->c, b[k][0], b[k][1], b[k][2]);
-        if (near ? ex->open < 1.0 && point_buried(c, ex, x) : (ex->bur & (1u << k)) != 0)
+        if (near ? ex->open < 1.0 && rad__hier_point_buried(c, ex, x) : (ex->bur & (1u << k)) != 0)
             continue; /* a buried point of r gathers nothing that its open part gets */
         nopen++;
         double f = rr_v3_dot(ny, rr_v3_sub(x, ey->ctr)) > c->plane_tol ? rad_ff_point_polygon(x, nx, poly, nv) : 0.0;
@@ -571,7 +517,7 @@ static rr_status settle(hctx *c, void (*progress)(void *, size_t, size_t), void 
 {
     for (int pass = 0; pass < 32; pass++) {
         size_t lo = c->first_new, hi = c->nln, done = 0;
-        probe_new(c); /* the links read their ends' burial */
+        rad__hier_probe_new(c); /* the links read their ends' burial */
         /* Progress: links evaluated of those made so far, from one thread. */
 #pragma omp parallel for schedule(dynamic, 256)
         for (long i = (long)lo; i < (long)hi; i++) {
@@ -878,7 +824,7 @@ static rr_status hier_run(const scene *s, const rt_accel *a, const rad_pass_opts
         el_add(&c, v, (uint32_t)i, 0);
     }
     if (c.cl && c.rn6 && !c.nomem)
-        probe_new(&c); /* the roots' burial, which their leaf data reads */
+        rad__hier_probe_new(&c); /* the roots' burial, which their leaf data reads */
     if (!c.cl || !c.rn6 || c.nomem || nr == 0 || (c.top = rad__hier_clusters(&c)) == NONE) {
         free(c.rn6);
         free(c.cl);

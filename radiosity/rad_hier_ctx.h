@@ -129,11 +129,16 @@ static inline rr_vec3 tri_random(const rr_vec3 v[3], rr_rng *rng)
 }
 
 
-/* ---- buried parts (rad_hier.c) ---- */
+/* ---- buried parts (rad_hier_bury.c) ---- */
 
 /* Whether surface point xs (normal ns) of element e lies under another
  * surface, by the flat pass's rule (rad__ff_buried) for a probe along ns. */
 int rad__hier_buried(const hctx *c, const hel *e, rr_vec3 xs, rr_vec3 ns);
+/* The same for point x of e's flat triangle (on the true surface first). */
+int rad__hier_point_buried(const hctx *c, const hel *e, rr_vec3 x);
+/* Probes every element not yet probed, in parallel: its fixed points'
+ * burial (hel.bur) and its open share (hel.open). */
+void rad__hier_probe_new(hctx *c);
 
 /* ---- clusters (rad_hier_cluster.c) ---- */
 
