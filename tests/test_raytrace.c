@@ -188,6 +188,48 @@ static rt_render_opts default_opts(void)
  * straight down the view axis onto the sphere's pole gives (rho/pi) pi (N.L) =
  * rho; the wall behind the sphere is in its shadow; beside it, the wall gets
  * rho_a, plus its ambient term a * A * rho. */
+/* A two-sided query from inside a closed box whose bottom lies flush on a
+ * floor: the ray leaves through the box's bottom, where it meets the floor's
+ * front at the same t. The box's back face must come first (rt.h), or a
+ * point under the box looks open to the burial rule (rad.h: buried parts):
+ * the floor, listed first, won the exact tie before. From above the box the
+ * query still meets the box's top, front side, and the floor beside it. */
+static void two_sided_flush_faces(void **state)
+{
+    (void)state;
+    const char *json =
+        "{\"format\":\"radray-scene/1\",\"camera\":{\"type\":\"lecture\",\"E\":[0,3,5],\"O\":[0,2.8,4],"
+        "\"U\":[0,1,0],\"s\":0.25,\"w\":4,\"h\":3},\"materials\":{\"a\":{\"diffuse\":0.5}},\"objects\":["
+        "{\"name\":\"floor\",\"type\":\"quad\",\"material\":\"a\",\"vertices\":[[-3,0,-3],[-3,0,3],[3,0,3],[3,0,-3]]},"
+        "{\"name\":\"box\",\"type\":\"box\",\"material\":\"a\",\"min\":[-1,0,-1],\"max\":[1,0.5,1]}]}";
+    scene *s = NULL;
+    rr_error err;
+    if (scene_load_string(json, "flush", "", NULL, &s, &err) != RR_OK)
+        fail_msg("%s", err.msg);
+    rt_accel *a = NULL;
+    assert_int_equal(rt_accel_build(s, &a, &err), RR_OK);
+    rt_hit h;
+    const rr_vec3 dirs[] = {rr_v3(0, -1, 0), rr_v3(0.05, -1, 0.03), rr_v3(-0.3, -1, 0.2)};
+    for (int k = 0; k < 3; k++) {
+        rr_ray r = {rr_v3(0.1, 0.25, 0.2), rr_v3_norm(dirs[k])};
+        assert_true(rt_accel_closest_two_sided(a, r, 0.0, INFINITY, &h));
+        assert_int_equal(h.object, 1);
+        assert_false(h.front);
+        assert_near(h.point.y, 0.0, 1e-9);
+    }
+    rr_ray top = {rr_v3(0.1, 2, 0.2), rr_v3(0, -1, 0)};
+    assert_true(rt_accel_closest_two_sided(a, top, 0.0, INFINITY, &h));
+    assert_int_equal(h.object, 1);
+    assert_true(h.front);
+    assert_near(h.t, 1.5, 1e-12);
+    rr_ray beside = {rr_v3(2, 2, 0.2), rr_v3(0, -1, 0)};
+    assert_true(rt_accel_closest_two_sided(a, beside, 0.0, INFINITY, &h));
+    assert_int_equal(h.object, 0);
+    assert_true(h.front);
+    rt_accel_destroy(a);
+    scene_destroy(s);
+}
+
 static void render_direct_light_and_shadow(void **state)
 {
     (void)state;
@@ -766,6 +808,7 @@ int main(void)
         cmocka_unit_test(lecture_vs_moller_trumbore_random),
         cmocka_unit_test(sphere_hits),
         cmocka_unit_test(closest_hit_brute_force),
+        cmocka_unit_test(two_sided_flush_faces),
         cmocka_unit_test(render_direct_light_and_shadow),
         cmocka_unit_test(white_furnace),
         cmocka_unit_test(shadows_no_acne_no_leaks),
