@@ -78,9 +78,11 @@
  * carries more than eps of power split, and so do receivers whose fixed
  * points are all buried though part of them is open. The leaves' patch areas
  * are their open parts' (the ledger, the vertex means), as in the flat pass.
- * Known gap: a surface flush with two others (a shelf's back panel against
- * the wall and on the floor) makes the probes' exit hit tie with the other
- * surface's front, and the covered part counts as open (it gathers nothing).
+ * Known gap: a face lying against a one-sided wall (a shelf's back panel on
+ * the back wall) counts as open, since its probes leave into the void behind
+ * the wall; it gathers nothing and is never seen, but its area is in the
+ * ledger. (A face flush with another's front, a book on a board on the floor,
+ * is caught: the two-sided walk gives such ties to the box, rt.h.)
  *
  * Solving (rad_hier_solve.c): Jacobi sweeps of gather (every link,
  * receivers in parallel, each receiver's links in one fixed order) and push-pull (irradiance down to the

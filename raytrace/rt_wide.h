@@ -354,8 +354,8 @@ int RT_WALK(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_hit *hit
                     /* Two-sided: a back face of a culling object a hair
                      * beyond a front face wins (RT_TIE_REL), so that a ray
                      * leaving a closed box through a face that lies flush
-                     * with another surface (a shelf's back panel on the
-                     * wall) meets the box first, as the burial rule needs. */
+                     * with another surface's front (a board standing on the
+                     * floor) meets the box first, as the burial rule needs. */
                     double lim = two && tri_best && tri_front ? best + fabs(best) * RT_TIE_REL : best;
                     /* Two inline calls, not one helper: gcc did not inline
                      * the helper, and primary rays lost 4 % (mesh-1m). */
