@@ -15,9 +15,10 @@
  *    node, Ylitie et al. 2017; see collapse_costs), small subtrees (up to
  *    RT_WIDE_LEAF_MAX primitives) merged into one leaf where that costs less.
  *    The binary tree's leaves stay leaves; their primitives become leaf
- *    records (rt_rec) in leaf order, triangles with a float copy of their
- *    vertices where that copy is exact, else the index of a double copy
- *    (rt_accel.dverts). The binary tree is then freed.
+ *    packets (rt_pk, RT_PK lanes SoA, rt_internal.h) in leaf order,
+ *    triangles with a float copy of their vertices (exact, or for the float
+ *    test only, with a double copy in rt_accel.dverts). The binary tree is
+ *    then freed.
  * Both steps run on render.threads threads for large scenes (subtrees of
  * RT_BUILD_TASK_MIN items and more as OpenMP tasks, written where the serial
  * build puts them): the same bytes for any thread count.
@@ -40,7 +41,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "rt_internal.h"
+#include "rt_kernel.h"
 
 typedef rt_build_item build_item;
 
@@ -50,9 +51,9 @@ typedef rt_build_item build_item;
  * ray traversal on GPUs through compressed wide BVHs", section 3): for every
  * binary node n and every j <= W, the cheapest way to hand n's subtree to a
  * wide parent as at most j children, by the surface area heuristic with a
- * wide node's box test costing RT_COST_NODE and a primitive test
- * RT_COST_PRIM (areas relative to any common unit):
- *   leaf(n)    = A(n) RT_COST_PRIM cnt(n), for a binary leaf or cnt(n) <= RT_WIDE_LEAF_MAX
+ * wide node's box test costing RT_COST_NODE and a leaf packet's float test
+ * RT_COST_PK (areas relative to any common unit):
+ *   leaf(n)    = A(n) RT_COST_PK ceil(cnt(n) / RT_PK), for a binary leaf or cnt(n) <= RT_WIDE_LEAF_MAX
  *   node(n)    = A(n) RT_COST_NODE + split(n, W)     (n a wide node of its own)
  *   C(n, 1)    = min(leaf(n), node(n))
  *   split(n, j) = min over k of C(left, k) + C(right, j - k)   (n opened in place)
@@ -60,14 +61,14 @@ typedef rt_build_item build_item;
  * One backward pass over the depth-first array (children after parents)
  * fills the table; the wide tree is then read from its choices. The greedy
  * collapse it replaces (open the child of largest area until W) left most
- * nodes near the leaves half empty (3.7 children of 8 on average). Merged
- * leaves stay small: their primitives are tested one by one in double, and
- * leaves of up to 8 were about 20 % slower than up to 3 (notes/performance.md). */
-#define RT_WIDE_LEAF_MAX 3u
-/* A wide node's test at twice a primitive's: 3.5-4.3 % less memory than at
- * 1, rays as fast within the noise (8 and 16 wide; notes/performance.md). */
-#define RT_COST_NODE 2.0f
-#define RT_COST_PRIM 1.0f
+ * nodes near the leaves half empty (3.7 children of 8 on average). The exact
+ * tests of the lanes a packet keeps are left out of leaf(n): their number
+ * follows the triangles' areas, however they are grouped. Leaves of up to 8
+ * primitives (two packets) and a node at 3 packet tests: 58-61 bytes per
+ * triangle against 66-70 at 4 primitives and 2 (notes/performance.md). */
+#define RT_WIDE_LEAF_MAX 8u
+#define RT_COST_NODE 3.0f
+#define RT_COST_PK 1.0f
 
 /* The cost table, W entries per binary node i at i W: cost[i W + j - 1] =
  * C(i, j); how[i W + j - 1] = the choice: for j = 1, 0 leaf, 1 wide node; for
@@ -89,7 +90,9 @@ typedef struct collapser {
     const rt_node *bin;
     const uint32_t *cnt, *first; /* per binary node: primitives below it, the first one */
     collapse_table t;            /* the cost table */
-    rt_rec *recs;
+    /* Per item: the primitive count of the wide leaf that starts at it (0:
+     * none starts there), and that leaf's first packet. */
+    uint32_t *lcnt, *lpk;
     int width;      /* W: 4, 8 or 16 */
     size_t nbytes;  /* rt__wnode_bytes(width) */
     unsigned char *w; /* the nodes, 64-byte aligned */
@@ -125,6 +128,10 @@ static float node_area(const rt_node *n)
     return dx * dy + dy * dz + dz * dx;
 }
 
+/* A leaf's cost: its packets' float tests (the exact tests of the lanes
+ * they keep depend on the triangles' areas, not on how they are grouped). */
+static float leaf_cost(uint32_t n) { return RT_COST_PK * (float)((n + RT_PK - 1) / RT_PK); }
+
 /* The cost table of every binary node (see above), W = width. */
 static void collapse_costs(const rt_node *bin, size_t nbin, const uint32_t *cnt, int width, collapse_table *t)
 {
@@ -133,7 +140,7 @@ static void collapse_costs(const rt_node *bin, size_t nbin, const uint32_t *cnt,
         uint8_t *how = t->how + i * (size_t)width;
         float area = node_area(&bin[i]);
         if (bin[i].count) {
-            cost[0] = area * RT_COST_PRIM * (float)cnt[i];
+            cost[0] = area * leaf_cost(cnt[i]);
             how[0] = 0;
             t->node_k[i] = 0;
             for (int j = 1; j < width; j++) {
@@ -158,7 +165,7 @@ static void collapse_costs(const rt_node *bin, size_t nbin, const uint32_t *cnt,
         }
         t->node_k[i] = split_k[width - 1];
         float as_node = area * RT_COST_NODE + split[width - 1];
-        float as_leaf = cnt[i] <= RT_WIDE_LEAF_MAX ? area * RT_COST_PRIM * (float)cnt[i] : INFINITY;
+        float as_leaf = cnt[i] <= RT_WIDE_LEAF_MAX ? area * leaf_cost(cnt[i]) : INFINITY;
         cost[0] = as_leaf <= as_node ? as_leaf : as_node;
         how[0] = as_leaf <= as_node ? 0 : 1;
         for (int j = 2; j <= width; j++) {
@@ -215,12 +222,8 @@ static void wnode_clear(wstage *wn)
     }
 }
 
-/* Child slot i of wn := binary node bi as a leaf. */
-static void set_leaf(collapser *c, wstage *wn, int i, uint32_t bi)
-{
-    wn->child[i] = RT_LEAF | c->first[bi];
-    c->recs[c->first[bi] + c->cnt[bi] - 1].flags |= RT_REC_LAST;
-}
+/* Child slot i of wn := binary node bi as a leaf (its packets: lpk). */
+static void set_leaf(collapser *c, wstage *wn, int i, uint32_t bi) { wn->child[i] = RT_LEAF | c->lpk[c->first[bi]]; }
 
 /* The wide nodes that collapse_at writes for binary inner node bi and its
  * subtree, into wc[bi] (and wc of every inner node below that becomes a wide
@@ -230,8 +233,10 @@ static uint32_t count_rec(const collapser *c, uint32_t bi, uint32_t *wc)
     uint32_t kids[RT_WIDE_MAX], sub[RT_WIDE_MAX] = {0};
     int m = gather(c, bi, kids);
     for (int i = 0; i < m; i++) {
-        if (is_leaf(c, kids[i]))
+        if (is_leaf(c, kids[i])) {
+            c->lcnt[c->first[kids[i]]] = c->cnt[kids[i]]; /* leaves: disjoint runs of items */
             continue;
+        }
         uint32_t k = kids[i];
 #pragma omp task shared(sub) firstprivate(i, k) if (omp_in_parallel() && c->cnt[k] >= RT_BUILD_TASK_MIN)
         sub[i] = count_rec(c, k, wc);
@@ -275,11 +280,14 @@ static void collapse_at(collapser *c, uint32_t bi, size_t idx, const uint32_t *w
     put_node(c, idx, &wn);
 }
 
-/* The wide tree over binary tree bin (nbin nodes, bin[0] the root), setting
- * RT_REC_LAST on the records that end a leaf. A root that is a leaf gets a
- * wide node with that one child. The same nodes for any thread count. */
-static int collapse(const rt_node *bin, size_t nbin, rt_rec *recs, int width, int threads, void **out,
-                    size_t *nout)
+/* The wide tree over binary tree bin (nbin nodes, bin[0] the root, n items).
+ * Per item, lcnt (zeroed by the caller) gets the primitive count of the leaf
+ * that starts there and lpk that leaf's first packet (leaves in item order,
+ * ceil(count / RT_PK) packets each); *npk the packets in all. A root that
+ * is a leaf gets a wide node with that one child. The same nodes for any
+ * thread count. */
+static int collapse(const rt_node *bin, size_t nbin, size_t n, uint32_t *lcnt, uint32_t *lpk, int width, int threads,
+                    void **out, size_t *nout, size_t *npk)
 {
     uint32_t *cnt = malloc(3 * nbin * sizeof *cnt);
     if (!cnt)
@@ -303,14 +311,22 @@ static int collapse(const rt_node *bin, size_t nbin, rt_rec *recs, int width, in
         return -1;
     }
     collapse_costs(bin, nbin, cnt, width, &t);
-    collapser c = {bin, cnt, first, t, recs, width, rt__wnode_bytes(width), NULL, 0, 0};
+    collapser c = {bin, cnt, first, t, lcnt, lpk, width, rt__wnode_bytes(width), NULL, 0, 0};
     int root_leaf = is_leaf(&c, 0), par = threads > 1 && cnt[0] >= RT_BUILD_TASK_MIN;
     size_t total = 1;
     if (!root_leaf) {
 #pragma omp parallel num_threads(threads) if (par)
 #pragma omp single
         total = count_rec(&c, 0, wc);
+    } else {
+        lcnt[0] = cnt[0];
     }
+    size_t np = 0;
+    for (size_t i = 0; i < n; i++) {
+        lpk[i] = (uint32_t)np;
+        np += (lcnt[i] + RT_PK - 1) / RT_PK;
+    }
+    *npk = np;
     /* Wide nodes are 64-byte aligned (whole cache lines, aligned SIMD loads
      * and stores): malloc promises only 16. */
     c.w = aligned_alloc(64, total * c.nbytes);
@@ -341,63 +357,86 @@ static int collapse(const rt_node *bin, size_t nbin, rt_rec *recs, int width, in
     return 0;
 }
 
-/* Leaf records in leaf order (RT_REC_LAST is set by collapse), and the
- * double copies of the triangles whose vertices are not all floats
- * (rt_internal.h). 0, or -1 when out of memory. */
-static int fill_records(const scene *s, const build_item *items, size_t n, int threads, rt_accel *a)
+/* Lane i of packet k := primitive pr (ref and vertices; the double copy
+ * is written later). Returns the largest |coordinate| of a triangle's
+ * vertices (0 for other kinds); *dbl is set for a DBL lane. */
+static double fill_lane(const scene *s, rt_prim pr, rt_pk *k, int i, int *dbl)
 {
-#pragma omp parallel for schedule(static) num_threads(threads) if (n >= RT_BUILD_TASK_MIN)
-    for (size_t i = 0; i < n; i++) {
-        rt_prim pr = items[i].prim;
-        rt_rec *r = &a->recs[i];
-        memset(r, 0, sizeof *r);
-        r->index = pr.index;
-        r->flags = pr.kind & RT_REC_KIND;
-        if (pr.kind != RT_PRIM_TRIANGLE)
-            continue;
-        const scene_tri *t = &s->tris[pr.index];
-        if (t->object >= (UINT32_MAX >> RT_REC_OBJ_SHIFT))
-            continue; /* rt__prim_hit */
-        int exact = 1;
-        for (int k = 0; k < 3; k++) {
-            rr_vec3 v = s->verts[t->v[k]];
-            exact = exact && (double)(float)v.x == v.x && (double)(float)v.y == v.y && (double)(float)v.z == v.z;
-        }
-        r->flags |= (exact ? RT_REC_FAST : RT_REC_DBL) | t->object << RT_REC_OBJ_SHIFT;
-        r->material = t->material;
-        if (s->objects[t->object].cull_backfaces)
-            r->flags |= RT_REC_CULL;
-        if (exact) {
-            for (int k = 0; k < 3; k++) {
-                rr_vec3 v = s->verts[t->v[k]];
-                r->v[k][0] = (float)v.x;
-                r->v[k][1] = (float)v.y;
-                r->v[k][2] = (float)v.z;
-            }
-        }
+    if (pr.kind != RT_PRIM_TRIANGLE) {
+        k->ref[i] = pr.index << RT_REF_SHIFT | RT_REF_PRIM;
+        for (int r = 0; r < 9; r++)
+            k->v[r][i] = NAN; /* never rejected by the float test: rt__prim_hit decides */
+        return 0.0;
     }
-    /* The double copies, numbered in record order. */
-    size_t ndv = 0;
-    for (size_t i = 0; i < n; i++)
-        if (a->recs[i].flags & RT_REC_DBL)
-            a->recs[i].dv = (uint32_t)ndv++;
-    a->ndverts = ndv;
-    if (ndv == 0 || ndv > UINT32_MAX)
-        return ndv == 0 ? 0 : -1;
-    if (!(a->dverts = malloc(ndv * 9 * sizeof *a->dverts)))
+    const scene_tri *t = &s->tris[pr.index];
+    int exact = 1;
+    double vm = 0.0;
+    for (int c = 0; c < 3; c++) {
+        rr_vec3 v = s->verts[t->v[c]];
+        exact = exact && (double)(float)v.x == v.x && (double)(float)v.y == v.y && (double)(float)v.z == v.z;
+        double m = fmax(fabs(v.x), fmax(fabs(v.y), fabs(v.z)));
+        vm = m > vm ? m : vm;
+        k->v[3 * c][i] = (float)v.x;
+        k->v[3 * c + 1][i] = (float)v.y;
+        k->v[3 * c + 2][i] = (float)v.z;
+    }
+    k->ref[i] = pr.index << RT_REF_SHIFT | (exact ? RT_REF_FAST : RT_REF_DBL) |
+                (s->objects[t->object].cull_backfaces ? RT_REF_CULL : 0);
+    *dbl |= !exact;
+    return vm;
+}
+
+/* The leaf packets (rt_internal.h) from the items in leaf order and the
+ * leaves collapse found (lcnt, lpk), the double copies of the triangles whose
+ * vertices are not all floats, and rt_accel.vmax. 0, or -1 when out of
+ * memory. */
+static int fill_packets(const scene *s, const build_item *items, size_t n, const uint32_t *lcnt, const uint32_t *lpk,
+                        size_t npk, int threads, rt_accel *a)
+{
+    size_t bytes = (npk * sizeof(rt_pk) + 63) / 64 * 64;
+    if (!(a->pks = aligned_alloc(64, bytes)))
+        return -1;
+    memset(a->pks, 0, bytes);
+    a->npks = npk;
+    a->nprims = n;
+    int dbl = 0;
+    double vmax = 0.0;
+#pragma omp parallel for schedule(static) num_threads(threads) if (n >= RT_BUILD_TASK_MIN) reduction(|                 \
+                                                                                                     : dbl)            \
+    reduction(max                                                                                                      \
+              : vmax)
+    for (size_t j = 0; j < n; j++) {
+        if (!lcnt[j])
+            continue;
+        rt_pk *k = a->pks + lpk[j];
+        for (uint32_t q = 0; q < lcnt[j]; q++) {
+            double vm = fill_lane(s, items[j + q].prim, k + q / RT_PK, (int)(q % RT_PK), &dbl);
+            vmax = vm > vmax ? vm : vmax;
+        }
+        k[(lcnt[j] - 1) / RT_PK].ref[0] |= RT_REF_LAST;
+    }
+    a->vmax = rt__f_up(vmax * (1.0 + 1e-6));
+    if (!dbl)
+        return 0;
+    a->ndverts = npk * RT_PK;
+    if (!(a->dverts = malloc(a->ndverts * 9 * sizeof *a->dverts)))
         return -1;
 #pragma omp parallel for schedule(static) num_threads(threads) if (n >= RT_BUILD_TASK_MIN)
-    for (size_t i = 0; i < n; i++) {
-        const rt_rec *r = &a->recs[i];
-        if (!(r->flags & RT_REC_DBL))
-            continue;
-        const scene_tri *t = &s->tris[r->index];
-        double *d = a->dverts + 9 * (size_t)r->dv;
-        for (int k = 0; k < 3; k++) {
-            rr_vec3 v = s->verts[t->v[k]];
-            d[3 * k] = v.x;
-            d[3 * k + 1] = v.y;
-            d[3 * k + 2] = v.z;
+    for (size_t q = 0; q < npk; q++) {
+        for (int i = 0; i < RT_PK; i++) {
+            double *d = a->dverts + 9 * (q * RT_PK + (size_t)i);
+            uint32_t ref = a->pks[q].ref[i];
+            if ((ref & RT_REF_LANE) != RT_REF_DBL) {
+                memset(d, 0, 9 * sizeof *d);
+                continue;
+            }
+            const scene_tri *t = &s->tris[ref >> RT_REF_SHIFT];
+            for (int c = 0; c < 3; c++) {
+                rr_vec3 v = s->verts[t->v[c]];
+                d[3 * c] = v.x;
+                d[3 * c + 1] = v.y;
+                d[3 * c + 2] = v.z;
+            }
         }
     }
     return 0;
@@ -447,8 +486,9 @@ rr_status rt__accel_build_width(const scene *s, int width, rt_accel **out, rr_er
         return rr_error_set(err, RR_ERR_INVALID, "%s: %d-wide BVH nodes are not available in this build or on this CPU",
                             s->path, width);
     size_t n = rt__prim_count(s);
-    if (n > UINT32_MAX / 2)
-        return rr_error_set(err, RR_ERR_LIMIT, "%s: %zu primitives exceed the BVH limit", s->path, n);
+    if (n >= RT_REF_MAX)
+        return rr_error_set(err, RR_ERR_LIMIT, "%s: %zu primitives exceed the BVH limit of %u", s->path, n,
+                            RT_REF_MAX - 1);
     /* The scene's render.threads (0: OpenMP's default, all cores). */
     int threads = s->settings.threads > 0 ? s->settings.threads : omp_get_max_threads();
     rt_accel *a = calloc(1, sizeof *a);
@@ -477,14 +517,16 @@ rr_status rt__accel_build_width(const scene *s, int width, rt_accel **out, rr_er
     a->scene = s;
     a->width = width;
     if (n) {
-        a->recs = malloc(n * sizeof *a->recs);
-        if (!a->recs)
+        uint32_t *lcnt = calloc(2 * n, sizeof *lcnt), *lpk = lcnt + n;
+        size_t npk = 0;
+        if (!lcnt)
             goto nomem;
-        if (fill_records(s, b.items, n, threads, a))
+        if (collapse(b.nodes, b.nnodes, n, lcnt, lpk, width, threads, &a->wnodes, &a->nwnodes, &npk) ||
+            fill_packets(s, b.items, n, lcnt, lpk, npk, threads, a)) {
+            free(lcnt);
             goto nomem;
-        if (collapse(b.nodes, b.nnodes, a->recs, width, threads, &a->wnodes, &a->nwnodes))
-            goto nomem;
-        a->nrecs = n;
+        }
+        free(lcnt);
     }
     free(b.items);
     free(b.nodes);
@@ -501,7 +543,7 @@ nomem:
     free(b.items);
     free(b.nodes);
     if (a) {
-        free(a->recs);
+        free(a->pks);
         free(a->dverts);
         free(a->wnodes);
     }
@@ -514,7 +556,7 @@ void rt_accel_destroy(rt_accel *a)
     if (!a)
         return;
     free(a->wnodes);
-    free(a->recs);
+    free(a->pks);
     free(a->dverts);
     rt__solids_destroy(a->solids);
     free(a);
@@ -528,8 +570,8 @@ rt_accel_stats rt_accel_stats_of(const rt_accel *a)
     st.width = a->width;
     st.nodes = a->nwnodes;
     st.node_bytes = rt__wnode_bytes(a->width);
-    st.records = a->nrecs;
-    st.record_bytes = sizeof(rt_rec);
+    st.records = a->npks;
+    st.record_bytes = sizeof(rt_pk);
     st.bytes = st.nodes * st.node_bytes + st.records * st.record_bytes + a->ndverts * 9 * sizeof(double) +
                rt__solids_bytes(a->solids);
     return st;

@@ -48,8 +48,8 @@ typedef struct rt_node {
  * rt_wide.h). 128 bytes (two cache lines) for 4 wide, 256 for 8, 448 for 16.
  *
  * child[i]: an inner node's index in wnodes, or RT_LEAF | the index of the
- * leaf's first primitive record; a leaf runs to the record flagged
- * RT_REC_LAST.
+ * leaf's first packet (rt_pk); a leaf runs to the packet flagged
+ * RT_REF_LAST.
  *
  * Widths by RT_SIMD (set by CMake from RADRAY_SIMD):
  *   0 (OFF) / 1 (SSE)  4 wide only (scalar / SSE2 box test)
@@ -111,42 +111,57 @@ typedef rt_wnode8 rt_wnode;
 typedef rt_wnode4 rt_wnode;
 #endif
 
-/* A leaf primitive record, in leaf order: the primitive (kind in flags) and,
- * for a triangle, its object and material and its vertices, so that the test
- * and the hit record read the record instead of scene->tris -> scene->verts ->
- * scene->objects: a float copy when the vertices are all floats exactly
- * (RT_REC_FAST: meshes read from PLY, OBJ, STL are; the test converts them
- * back to the same doubles, so results are those of the double vertices bit
- * for bit), else the index of their double copy in rt_accel.dverts
- * (RT_REC_DBL: scenes written in decimals, such as the Cornell box, whose
- * walls went through rt__prim_hit and cost its shadow rays ~10 %). Other
- * kinds go through rt__prim_hit. 48 bytes (+ 72 in dverts for RT_REC_DBL). */
-#define RT_REC_KIND 0x3u   /* rt_prim_kind */
-#define RT_REC_CULL 0x4u   /* triangle of an object that culls back faces (FAST or DBL) */
-#define RT_REC_LAST 0x8u   /* last record of its leaf */
-#define RT_REC_FAST 0x10u  /* v, object and material are valid */
-#define RT_REC_DBL 0x20u   /* dv, object and material are valid */
-#define RT_REC_OBJ_SHIFT 6 /* flags >> RT_REC_OBJ_SHIFT = object (FAST and DBL triangles) */
-typedef struct rt_rec {
-    union {
-        float v[3][3]; /* RT_REC_FAST: vertices A, B, C */
-        uint32_t dv;   /* RT_REC_DBL: A, B, C are rt_accel.dverts[9 dv .. 9 dv + 9) */
-    };
-    uint32_t index;    /* scene triangle index, or object index (rt_prim.index) */
-    uint32_t flags;    /* RT_REC_* | object << RT_REC_OBJ_SHIFT */
-    uint32_t material; /* FAST and DBL triangles: scene->tris[index].material */
-} rt_rec;
+/* A leaf packet: up to RT_PK primitives of one leaf, in leaf order, SoA, so
+ * that one float test over the packet (rt__pk_cand, rt_kernel.h) rejects the
+ * triangles the ray clearly misses and only the rest go to the exact double
+ * test. A leaf is one packet or more in a row, the last flagged RT_REF_LAST
+ * (in its lane 0).
+ *
+ * v[3c + k][i]: lane i's vertex c (A, B, C), axis k. For a triangle whose
+ * vertices are floats exactly (RT_REF_FAST: meshes from PLY, OBJ, STL) these
+ * are the vertices themselves, and the exact test converts them back to the
+ * same doubles, so results are those of the double vertices bit for bit.
+ * Otherwise (RT_REF_DBL: scenes written in decimals, such as the Cornell box)
+ * they are the vertices rounded to nearest float, for the float test only,
+ * and the exact test reads the double copy at rt_accel.dverts[9 (RT_PK pk +
+ * i) ..] (one slot per lane of every packet; dverts exists only when some
+ * triangle needs it). Lanes of spheres and solids (RT_REF_PRIM) hold NaN
+ * vertices, which the float test never rejects, and go through
+ * rt__prim_hit. Unused lanes have ref 0.
+ *
+ * ref[i] = primitive index << RT_REF_SHIFT | the lane's bits: the scene
+ * triangle index (FAST, DBL) or the object index (PRIM). Object and material
+ * come from scene->tris at hit time. 160 bytes: 40 per triangle in a full
+ * packet; primitives below 2^28 (rt__accel_build_width checks). */
+#define RT_PK 4
+#define RT_REF_LANE 0x3u /* the lane's kind: */
+#define RT_REF_FAST 0x1u /*   triangle, v exact */
+#define RT_REF_DBL 0x2u  /*   triangle, double copy in dverts */
+#define RT_REF_PRIM 0x3u /*   sphere or solid (rt_prim_kind_of its object) */
+#define RT_REF_CULL 0x4u /* triangle of an object that culls back faces */
+#define RT_REF_LAST 0x8u /* in lane 0: the last packet of its leaf */
+#define RT_REF_SHIFT 4
+#define RT_REF_MAX (1u << (32 - RT_REF_SHIFT)) /* primitives per BVH, at most */
+typedef struct rt_pk {
+    _Alignas(16) float v[9][RT_PK];
+    uint32_t ref[RT_PK];
+} rt_pk;
+_Static_assert(sizeof(rt_pk) == 160, "leaf packets: 160 bytes, 16-byte aligned rows");
 
 struct rt_accel {
     const scene *scene;
     void *wnodes; /* rt_wnode4, rt_wnode8 or rt_wnode16 by width, 64-byte aligned; wnodes[0] is the root;
                      NULL when the scene has no primitives */
     size_t nwnodes;
-    int width; /* 4, 8 or 16: the node layout and the walk (rt__walk4 / 8 / 16) */
-    rt_rec *recs;
-    size_t nrecs;
-    double *dverts; /* 9 per RT_REC_DBL record: x, y, z of A, B, C (NULL if none) */
-    size_t ndverts; /* records with RT_REC_DBL */
+    int width;  /* 4, 8 or 16: the node layout and the walk (rt__walk4 / 8 / 16) */
+    rt_pk *pks; /* leaf packets (64-byte aligned) */
+    size_t npks;
+    size_t nprims;  /* primitives in the packets */
+    double *dverts; /* 9 per packet lane (x, y, z of A, B, C) when some lane is RT_REF_DBL, else NULL */
+    size_t ndverts; /* lanes in dverts: RT_PK npks, or 0 */
+    /* The largest |coordinate| of any vertex in the packets, rounded up (the
+     * float test's error bound, rt__pk_cand). */
+    float vmax;
     struct rt_solid_accel *solids; /* per-mesh-leaf BVHs of the scene's solids (rt_solid.c); NULL if none */
 };
 
@@ -163,13 +178,13 @@ typedef struct rt_ray_pre {
     /* Float slab test: the origin rounded towards the near planes (org_near)
      * and towards the far planes (org_far), 1/d rounded to float, and which
      * row of rt_wnode.b holds each axis's near planes (2k + neg[k]). */
-    float org_near[3], org_far[3], inv_f[3];
+    float org_near[4], org_far[4], inv_f[4]; /* [3]: unused (SSE stores) */
     int near_row[3];
     /* 1 when the float test is not safe for this ray (coordinates beyond
      * 1e30, direction components outside [1e-30, 1e30], tmin < 0): the
      * double test is used instead. */
     int box_double;
-    /* RT_REC_CULL: back faces of objects that cull them are culled; 0 in a
+    /* RT_REF_CULL: back faces of objects that cull them are culled; 0 in a
      * two-sided query (rt_accel_closest_two_sided), which sees them all. */
     uint32_t cull_mask;
 } rt_ray_pre;
@@ -177,8 +192,8 @@ typedef struct rt_ray_pre {
 void rt__ray_prepare(rr_ray ray, rt_ray_pre *p);
 
 /* Watertight ray/triangle test. Returns 1 with *t and *front (1 when the ray
- * meets the counter-clockwise side) for a hit with tmin < t < tmax. cull: reject
- * back faces. */
+ * meets the counter-clockwise side) for a hit with tmin < t < tmax. cull:
+ * reject back faces. */
 int rt__tri_hit(const rt_ray_pre *p, rr_vec3 A, rr_vec3 B, rr_vec3 C, int cull, double tmin, double tmax, double *t,
                 int *front);
 

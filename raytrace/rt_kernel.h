@@ -103,21 +103,22 @@ static inline int rt__tri_hit_inl(const rt_ray_pre *p, rr_vec3 A, rr_vec3 B, rr_
                         rt__comp(c, p->kz), cull, tmin, tmax, 0, t, front);
 }
 
-/* The test on a leaf record's fast triangle: the same arithmetic (the float
- * vertices are the scene's doubles exactly), with the coordinates loaded in
- * the ray's axis order instead of selected. */
-static inline int rt__tri_hit_rec(const rt_ray_pre *p, const rt_rec *r, double tmin, double tmax, int tie,
-                                  double *t, int *front)
+/* The test on a packet lane's fast triangle (RT_REF_FAST): the same
+ * arithmetic as rt__tri_hit_inl (the float vertices are the scene's doubles
+ * exactly), with the coordinates loaded in the ray's axis order instead of
+ * selected. */
+static inline int rt__tri_hit_pk(const rt_ray_pre *p, const rt_pk *k, int i, double tmin, double tmax, int tie,
+                                 double *t, int *front)
 {
     const int kx = p->kx, ky = p->ky, kz = p->kz;
     const double ox = p->ok[0], oy = p->ok[1], oz = p->ok[2];
-    return rt__tri_core(p, (double)r->v[0][kx] - ox, (double)r->v[0][ky] - oy, (double)r->v[0][kz] - oz,
-                        (double)r->v[1][kx] - ox, (double)r->v[1][ky] - oy, (double)r->v[1][kz] - oz,
-                        (double)r->v[2][kx] - ox, (double)r->v[2][ky] - oy, (double)r->v[2][kz] - oz,
-                        (r->flags & p->cull_mask) != 0, tmin, tmax, tie, t, front);
+    return rt__tri_core(p, (double)k->v[kx][i] - ox, (double)k->v[ky][i] - oy, (double)k->v[kz][i] - oz,
+                        (double)k->v[3 + kx][i] - ox, (double)k->v[3 + ky][i] - oy, (double)k->v[3 + kz][i] - oz,
+                        (double)k->v[6 + kx][i] - ox, (double)k->v[6 + ky][i] - oy, (double)k->v[6 + kz][i] - oz,
+                        (k->ref[i] & p->cull_mask) != 0, tmin, tmax, tie, t, front);
 }
 
-/* The same on a record's double copy (RT_REC_DBL): v = A, B, C, xyz each. */
+/* The same on a lane's double copy (RT_REF_DBL): v = A, B, C, xyz each. */
 static inline int rt__tri_hit_drec(const rt_ray_pre *p, const double *v, int cull, double tmin, double tmax, int tie,
                                    double *t, int *front)
 {
@@ -127,30 +128,180 @@ static inline int rt__tri_hit_drec(const rt_ray_pre *p, const double *v, int cul
                         v[6 + kx] - ox, v[6 + ky] - oy, v[6 + kz] - oz, cull, tmin, tmax, tie, t, front);
 }
 
-/* Vertex k of a FAST or DBL record (dverts: the accel's double copies). */
-static inline rr_vec3 rt__rec_vert(const rt_rec *r, const double *dverts, int k)
+/* The double copy of lane i of packet k (RT_REF_DBL). */
+static inline const double *rt__pk_dverts(const rt_accel *a, const rt_pk *k, int i)
 {
-    if (r->flags & RT_REC_FAST)
-        return rr_v3((double)r->v[k][0], (double)r->v[k][1], (double)r->v[k][2]);
-    const double *v = dverts + 9 * (size_t)r->dv + 3 * k;
+    return a->dverts + 9 * ((size_t)(k - a->pks) * RT_PK + (size_t)i);
+}
+
+/* Vertex c of a FAST or DBL lane. */
+static inline rr_vec3 rt__pk_vert(const rt_accel *a, const rt_pk *k, int i, int c)
+{
+    if ((k->ref[i] & RT_REF_LANE) == RT_REF_FAST)
+        return rr_v3((double)k->v[3 * c][i], (double)k->v[3 * c + 1][i], (double)k->v[3 * c + 2][i]);
+    const double *v = rt__pk_dverts(a, k, i) + 3 * c;
     return rr_v3(v[0], v[1], v[2]);
 }
 
-/* Fills hit for the FAST or DBL triangle of record r met with `front` at t,
- * as rt__prim_hit does (the normal by the formula of scene_tri_normal, on
- * the same doubles). */
-static inline void rt__tri_fill(const rt_rec *r, const double *dverts, int front, double t, rt_hit *hit)
+/* Fills hit for the FAST or DBL triangle of lane i of packet k met with
+ * `front` at t, as rt__prim_hit does (the normal by the formula of
+ * scene_tri_normal, on the same doubles). */
+static inline void rt__tri_fill(const rt_accel *a, const rt_pk *k, int i, int front, double t, rt_hit *hit)
 {
-    rr_vec3 A = rt__rec_vert(r, dverts, 0);
-    rr_vec3 n = rr_v3_norm(
-        rr_v3_cross(rr_v3_sub(rt__rec_vert(r, dverts, 1), A), rr_v3_sub(rt__rec_vert(r, dverts, 2), A)));
-    hit->tri = (int64_t)r->index;
+    rr_vec3 A = rt__pk_vert(a, k, i, 0);
+    rr_vec3 n = rr_v3_norm(rr_v3_cross(rr_v3_sub(rt__pk_vert(a, k, i, 1), A), rr_v3_sub(rt__pk_vert(a, k, i, 2), A)));
+    const scene_tri *tri = &a->scene->tris[k->ref[i] >> RT_REF_SHIFT];
+    hit->tri = (int64_t)(k->ref[i] >> RT_REF_SHIFT);
     hit->part = -1;
-    hit->object = r->flags >> RT_REC_OBJ_SHIFT;
-    hit->material = r->material;
+    hit->object = tri->object;
+    hit->material = tri->material;
     hit->normal = front ? n : rr_v3_neg(n);
     hit->t = t;
     hit->front = front;
+}
+
+/* ---- the packets' float test ----
+ *
+ * rt__pk_cand returns the lanes of a packet that the exact test must see:
+ * every used lane but the triangles that the exact test would certainly
+ * reject because their edge functions have opposite signs. It evaluates
+ * the watertight test's sheared coordinates and edge functions in float, on
+ * the origin and the shear rounded to nearest, and rejects a lane only when
+ * one of U, V, W is below -E and another above +E, E bounding the float
+ * values' distance from the exact ones (and so from the double ones, whose
+ * own error is 2^29 times smaller and inside the bound's slack). Every
+ * rejection is one the double test makes too, and the long-double
+ * recomputation at exact zeros cannot happen for it (|U| > E > 0): the hits
+ * are the double test's, bit for bit.
+ *
+ * The bound, u = 2^-24, V >= every |vertex coordinate| (rt_accel.vmax, the
+ * double ones for RT_REF_DBL lanes), O = max |origin coordinate| in float,
+ * |Sx|, |Sy| <= 1 (kz is the direction's largest axis):
+ *   a = v - o in float: off by u|v - o| + u|v| (DBL rounding) + u|o|
+ *     (origin rounding) <= 2u (V + O)(1 + u);
+ *   Ax = a_x - Sx a_z: twice that, plus u|a_z| for the rounded shear, the
+ *     product's and the difference's roundings: in all at most
+ *     8u (V + O)(1 + 5u) < Ep := 9u (V + O)  (rt__pkray_init);
+ *   U = Cx By - Cy Bx with each input within Ep of exact and M the largest
+ *     |Ax|, |Ay|, ..., |Cy| of the lane: off by at most 4 Ep M + 2 Ep^2 (the
+ *     inputs) + 4u M^2 (1 + 3u) (two products and a difference);
+ *   E = M (4 Ep + 5u M) + 2 Ep^2 + 1e-37 (the last term for products that
+ *     underflow, whose error is absolute, at most 2^-150).
+ * The slack (9 against 8 (1 + 5u), 5 against 4 (1 + 3u)) covers the roundings
+ * of E's own computation and the double test's errors. Rays whose origin
+ * and vertices do not satisfy V + O < 1e18 (M^2 would overflow), and those
+ * the slab test hands to double (rt_ray_pre.box_double), get Ep = +inf: E is
+ * then +inf or NaN, and no lane is rejected. NaN vertices (lanes of other
+ * primitives) give NaN edge values, which no comparison rejects.
+ *
+ * In a packet of 4 it is about 60 SSE instructions; the exact test it saves
+ * is about 40 scalar double operations and branches per triangle. */
+#if defined(RT_SIMD) && RT_SIMD >= 1
+#define RT_PK_SIMD 1
+#include <emmintrin.h>
+#else
+#define RT_PK_SIMD 0
+#endif
+#define RT_PK_U 5.9604645e-8f /* 2^-24 */
+
+/* Per-ray operands of rt__pk_cand (broadcast once per ray). */
+typedef struct rt_pkray {
+#if RT_PK_SIMD
+    __m128 o[3], sx, sy, e1, e2; /* e1 = 4 Ep, e2 = 2 Ep^2 + 1e-37 */
+#else
+    float o[3], sx, sy, e1, e2;
+#endif
+    int kx, ky, kz;
+} rt_pkray;
+
+static inline void rt__pkray_init(const rt_ray_pre *p, float vmax, rt_pkray *r)
+{
+    float o[3];
+    double om = 0.0;
+    for (int k = 0; k < 3; k++) {
+        o[k] = (float)p->ok[k];
+        om = fabs((double)o[k]) > om ? fabs((double)o[k]) : om;
+    }
+    double ep = 9.0 * 0x1p-24 * ((double)vmax + om);
+    float e1 = 4.0f * rt__f_up(ep), e2 = rt__f_up(2.0 * ep * ep + 1e-37);
+    if (p->box_double || !((double)vmax + om < 1e18)) {
+        e1 = INFINITY;
+        e2 = INFINITY;
+    }
+    float sx = (float)p->Sx, sy = (float)p->Sy;
+#if RT_PK_SIMD
+    for (int k = 0; k < 3; k++)
+        r->o[k] = _mm_set1_ps(o[k]);
+    r->sx = _mm_set1_ps(sx);
+    r->sy = _mm_set1_ps(sy);
+    r->e1 = _mm_set1_ps(e1);
+    r->e2 = _mm_set1_ps(e2);
+#else
+    for (int k = 0; k < 3; k++)
+        r->o[k] = o[k];
+    r->sx = sx;
+    r->sy = sy;
+    r->e1 = e1;
+    r->e2 = e2;
+#endif
+    r->kx = p->kx;
+    r->ky = p->ky;
+    r->kz = p->kz;
+}
+
+/* The float test in plain C, lane by lane (RADRAY_SIMD=OFF, and the
+ * reference of the SSE version: the same operations). */
+static inline unsigned rt__pk_cand_scalar(const rt_pk *k, float o[3], float sx, float sy, float e1, float e2, int kx,
+                                          int ky, int kz)
+{
+    unsigned m = 0;
+    for (int i = 0; i < RT_PK; i++) {
+        float az = k->v[kz][i] - o[2], bz = k->v[3 + kz][i] - o[2], cz = k->v[6 + kz][i] - o[2];
+        float ax = (k->v[kx][i] - o[0]) - sx * az, ay = (k->v[ky][i] - o[1]) - sy * az;
+        float bx = (k->v[3 + kx][i] - o[0]) - sx * bz, by = (k->v[3 + ky][i] - o[1]) - sy * bz;
+        float cx = (k->v[6 + kx][i] - o[0]) - sx * cz, cy = (k->v[6 + ky][i] - o[1]) - sy * cz;
+        float U = cx * by - cy * bx, V = ax * cy - ay * cx, W = bx * ay - by * ax;
+        float M = fmaxf(fmaxf(fmaxf(fabsf(ax), fabsf(ay)), fmaxf(fabsf(bx), fabsf(by))), fmaxf(fabsf(cx), fabsf(cy)));
+        float E = M * (e1 + M * (5.0f * RT_PK_U)) + e2;
+        int neg = (U < -E) | (V < -E) | (W < -E), pos = (U > E) | (V > E) | (W > E);
+        m |= (unsigned)((k->ref[i] != 0) & !(neg & pos)) << i;
+    }
+    return m;
+}
+
+static inline unsigned rt__pk_cand(const rt_pk *k, const rt_pkray *r)
+{
+    const int kx = r->kx, ky = r->ky, kz = r->kz;
+#if RT_PK_SIMD
+    __m128 az = _mm_sub_ps(_mm_load_ps(k->v[kz]), r->o[2]);
+    __m128 bz = _mm_sub_ps(_mm_load_ps(k->v[3 + kz]), r->o[2]);
+    __m128 cz = _mm_sub_ps(_mm_load_ps(k->v[6 + kz]), r->o[2]);
+    __m128 ax = _mm_sub_ps(_mm_sub_ps(_mm_load_ps(k->v[kx]), r->o[0]), _mm_mul_ps(r->sx, az));
+    __m128 ay = _mm_sub_ps(_mm_sub_ps(_mm_load_ps(k->v[ky]), r->o[1]), _mm_mul_ps(r->sy, az));
+    __m128 bx = _mm_sub_ps(_mm_sub_ps(_mm_load_ps(k->v[3 + kx]), r->o[0]), _mm_mul_ps(r->sx, bz));
+    __m128 by = _mm_sub_ps(_mm_sub_ps(_mm_load_ps(k->v[3 + ky]), r->o[1]), _mm_mul_ps(r->sy, bz));
+    __m128 cx = _mm_sub_ps(_mm_sub_ps(_mm_load_ps(k->v[6 + kx]), r->o[0]), _mm_mul_ps(r->sx, cz));
+    __m128 cy = _mm_sub_ps(_mm_sub_ps(_mm_load_ps(k->v[6 + ky]), r->o[1]), _mm_mul_ps(r->sy, cz));
+    __m128 U = _mm_sub_ps(_mm_mul_ps(cx, by), _mm_mul_ps(cy, bx));
+    __m128 V = _mm_sub_ps(_mm_mul_ps(ax, cy), _mm_mul_ps(ay, cx));
+    __m128 W = _mm_sub_ps(_mm_mul_ps(bx, ay), _mm_mul_ps(by, ax));
+    const __m128 abs = _mm_castsi128_ps(_mm_set1_epi32(0x7fffffff));
+    __m128 M = _mm_max_ps(_mm_max_ps(_mm_and_ps(ax, abs), _mm_and_ps(ay, abs)),
+                          _mm_max_ps(_mm_and_ps(bx, abs), _mm_and_ps(by, abs)));
+    M = _mm_max_ps(M, _mm_max_ps(_mm_and_ps(cx, abs), _mm_and_ps(cy, abs)));
+    __m128 E = _mm_add_ps(_mm_mul_ps(M, _mm_add_ps(r->e1, _mm_mul_ps(M, _mm_set1_ps(5.0f * RT_PK_U)))), r->e2);
+    /* One of U, V, W below -E and another above E: the least below -E and
+     * the greatest above E. (MINPS and MAXPS return the second operand when
+     * one is NaN; U, V, W are NaN all three or none, since finite vertices
+     * within V + O < 1e18 give finite values, so a NaN lane stays NaN.) */
+    __m128 lo = _mm_min_ps(_mm_min_ps(U, V), W), hi = _mm_max_ps(_mm_max_ps(U, V), W);
+    __m128 miss = _mm_and_ps(_mm_cmplt_ps(lo, _mm_xor_ps(E, _mm_set1_ps(-0.0f))), _mm_cmpgt_ps(hi, E));
+    __m128i unused = _mm_cmpeq_epi32(_mm_load_si128((const __m128i *)k->ref), _mm_setzero_si128());
+    return (unsigned)_mm_movemask_ps(_mm_or_ps(miss, _mm_castsi128_ps(unused))) ^ 0xfu;
+#else
+    float o[3] = {r->o[0], r->o[1], r->o[2]};
+    return rt__pk_cand_scalar(k, o, r->sx, r->sy, r->e1, r->e2, kx, ky, kz);
+#endif
 }
 
 #endif /* RT_KERNEL_H */

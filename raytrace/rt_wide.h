@@ -234,8 +234,9 @@ static inline unsigned rt__box4_double(const rt_wn *n, const rt_ray_pre *p, doub
  * Ordered traversal: the children a ray enters are visited nearest entry
  * first; the others go on the stack with their entry distance, and an entry
  * taken from the stack that lies beyond the best hit so far is dropped without
- * touching its node. Triangles are tested from the leaf records (rt_rec, a
- * private copy of the vertices), other primitives through rt__prim_hit. */
+ * touching its node. A leaf's packets go through the float test first
+ * (rt__pk_cand); the lanes it keeps get the exact test, triangles from the
+ * packet's copy of their vertices, other primitives through rt__prim_hit. */
 typedef struct rt_stack_entry {
     uint32_t ref;
     float dist;
@@ -258,6 +259,8 @@ int RT_WALK(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_hit *hit
         p.cull_mask = 0;
     rt_boxray br;
     rt__boxray_init(&p, &br);
+    rt_pkray pr;
+    rt__pkray_init(&p, a->vmax, &pr);
     const float grow = 1.0f + RT_BOX_GROW;
     const float tmin_f = rt__f_down(tmin);
     rt_stack_entry stack[RT_STACK_SIZE];
@@ -265,9 +268,10 @@ int RT_WALK(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_hit *hit
     uint32_t cur = 0; /* the root */
     int found = 0;
     /* A triangle hit is filled in at the end (one normal instead of one per
-     * improving hit); tri_best != NULL says the best hit is that record's triangle. */
-    const rt_rec *tri_best = NULL;
-    int tri_front = 0, tri_back_cull = 0;
+     * improving hit); tri_best != NULL says the best hit is the triangle of
+     * lane tri_lane of that packet. */
+    const rt_pk *tri_best = NULL;
+    int tri_lane = 0, tri_front = 0, tri_back_cull = 0;
     double best = tmax;
     float best_f = rt__f_up(best);
     float cull = best_f * grow;
@@ -340,56 +344,63 @@ int RT_WALK(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_hit *hit
                 continue;
             }
         } else {
-            const rt_rec *r = &a->recs[cur & ~RT_LEAF];
-            for (;; r++) {
-                uint32_t fl = r->flags;
-                if (fl & (RT_REC_FAST | RT_REC_DBL)) {
-                    double t;
-                    int front;
-                    /* Exact ties (a ray through a shared edge or vertex)
-                     * go to the lowest triangle index, as in rt_ref_closest,
-                     * so the hit does not depend on the order the walk
-                     * meets the triangles in (the two widths' trees differ). */
-                    int tie = tri_best && r->index < tri_best->index;
-                    /* Two-sided: a back face of a culling object a hair
-                     * beyond a front face wins (RT_TIE_REL), so that a ray
-                     * leaving a closed box through a face that lies flush
-                     * with another surface's front (a board standing on the
-                     * floor) meets the box first, as the burial rule needs. */
-                    double lim = two && tri_best && tri_front ? best + fabs(best) * RT_TIE_REL : best;
-                    /* Two inline calls, not one helper: gcc did not inline
-                     * the helper, and primary rays lost 4 % (mesh-1m). */
-                    int got = fl & RT_REC_FAST ? rt__tri_hit_rec(&p, r, tmin, lim, tie, &t, &front)
-                                               : rt__tri_hit_drec(&p, a->dverts + 9 * (size_t)r->dv,
-                                                                  (fl & p.cull_mask) != 0, tmin, lim, tie, &t, &front);
-                    if (got && t >= best && !(t == best && tie))
-                        got = !front && (fl & RT_REC_CULL);
-                    else if (got && two && tri_back_cull && front && t > best - fabs(best) * RT_TIE_REL)
-                        got = 0; /* nor does a front face a hair before it */
-                    if (got) {
-                        if (any)
-                            return 1;
-                        found = 1;
-                        best = t;
-                        tri_best = r;
-                        tri_front = front;
-                        tri_back_cull = !front && (fl & RT_REC_CULL);
-                        best_f = rt__f_up(best);
-                        cull = best_f * grow;
-                    }
-                } else {
-                    rt_prim pr = {fl & RT_REC_KIND, r->index};
-                    if (rt__prim_hit(a, pr, &p, tmin, &best, any ? NULL : hit)) {
-                        if (any)
-                            return 1;
-                        found = 1;
-                        tri_best = NULL;
-                        tri_back_cull = 0;
-                        best_f = rt__f_up(best);
-                        cull = best_f * grow;
+            const rt_pk *k = &a->pks[cur & ~RT_LEAF];
+            for (;; k++) {
+                for (unsigned lanes = rt__pk_cand(k, &pr); lanes; lanes &= lanes - 1) {
+                    int i = __builtin_ctz(lanes);
+                    uint32_t fl = k->ref[i], lk = fl & RT_REF_LANE;
+                    if (lk != RT_REF_PRIM) {
+                        double t;
+                        int front;
+                        /* Exact ties (a ray through a shared edge or vertex)
+                         * go to the lowest triangle index, as in
+                         * rt_ref_closest, so the hit does not depend on the
+                         * order the walk meets the triangles in (the widths'
+                         * trees differ). */
+                        int tie = tri_best && fl >> RT_REF_SHIFT < tri_best->ref[tri_lane] >> RT_REF_SHIFT;
+                        /* Two-sided: a back face of a culling object a hair
+                         * beyond a front face wins (RT_TIE_REL), so that a ray
+                         * leaving a closed box through a face that lies flush
+                         * with another surface's front (a board standing on
+                         * the floor) meets the box first, as the burial rule
+                         * needs. */
+                        double lim = two && tri_best && tri_front ? best + fabs(best) * RT_TIE_REL : best;
+                        /* Two inline calls, not one helper: gcc did not inline
+                         * the helper, and primary rays lost 4 % (mesh-1m). */
+                        int got = lk == RT_REF_FAST
+                                      ? rt__tri_hit_pk(&p, k, i, tmin, lim, tie, &t, &front)
+                                      : rt__tri_hit_drec(&p, rt__pk_dverts(a, k, i), (fl & p.cull_mask) != 0, tmin, lim,
+                                                         tie, &t, &front);
+                        if (got && t >= best && !(t == best && tie))
+                            got = !front && (fl & RT_REF_CULL);
+                        else if (got && two && tri_back_cull && front && t > best - fabs(best) * RT_TIE_REL)
+                            got = 0; /* nor does a front face a hair before it */
+                        if (got) {
+                            if (any)
+                                return 1;
+                            found = 1;
+                            best = t;
+                            tri_best = k;
+                            tri_lane = i;
+                            tri_front = front;
+                            tri_back_cull = !front && (fl & RT_REF_CULL);
+                            best_f = rt__f_up(best);
+                            cull = best_f * grow;
+                        }
+                    } else {
+                        rt_prim pr_ = {rt_prim_kind_of(a->scene, fl >> RT_REF_SHIFT), fl >> RT_REF_SHIFT};
+                        if (rt__prim_hit(a, pr_, &p, tmin, &best, any ? NULL : hit)) {
+                            if (any)
+                                return 1;
+                            found = 1;
+                            tri_best = NULL;
+                            tri_back_cull = 0;
+                            best_f = rt__f_up(best);
+                            cull = best_f * grow;
+                        }
                     }
                 }
-                if (fl & RT_REC_LAST)
+                if (k->ref[0] & RT_REF_LAST)
                     break;
             }
         }
@@ -407,7 +418,7 @@ int RT_WALK(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_hit *hit
 out:
     if (found && hit) {
         if (tri_best)
-            rt__tri_fill(tri_best, a->dverts, tri_front, best, hit);
+            rt__tri_fill(a, tri_best, tri_lane, tri_front, best, hit);
         hit->point = rr_ray_at(ray, hit->t);
     }
     return found;
@@ -466,6 +477,8 @@ int RT_OCCL(const rt_accel *a, rr_ray ray, double tmin, double tmax)
         p.box_double = 1;
     rt_boxray br;
     rt__boxray_init(&p, &br);
+    rt_pkray pr;
+    rt__pkray_init(&p, a->vmax, &pr);
     const float tmin_f = rt__f_down(tmin);
     const float cull = rt__f_up(tmax) * (1.0f + RT_BOX_GROW);
     const double tmax_d = tmax + fabs(tmax) * 1e-15;
@@ -479,23 +492,26 @@ int RT_OCCL(const rt_accel *a, rr_ray ray, double tmin, double tmax)
                                      : rt__box4_fast(n, &br, tmin_f, cull, dist);
         unsigned lm = rt__leaf_mask(n);
         for (unsigned leaves = mask & lm; leaves; leaves &= leaves - 1) {
-            const rt_rec *r = &a->recs[n->child[__builtin_ctz(leaves)] & ~RT_LEAF];
-            for (;; r++) {
-                uint32_t fl = r->flags;
-                if (fl & (RT_REC_FAST | RT_REC_DBL)) {
-                    double t;
-                    int front;
-                    if (fl & RT_REC_FAST ? rt__tri_hit_rec(&p, r, tmin, tmax, 0, &t, &front)
-                                         : rt__tri_hit_drec(&p, a->dverts + 9 * (size_t)r->dv, (fl & RT_REC_CULL) != 0,
-                                                            tmin, tmax, 0, &t, &front))
-                        return 1;
-                } else {
-                    rt_prim pr = {fl & RT_REC_KIND, r->index};
-                    double best = tmax;
-                    if (rt__prim_hit(a, pr, &p, tmin, &best, NULL))
-                        return 1;
+            const rt_pk *k = &a->pks[n->child[__builtin_ctz(leaves)] & ~RT_LEAF];
+            for (;; k++) {
+                for (unsigned lanes = rt__pk_cand(k, &pr); lanes; lanes &= lanes - 1) {
+                    int i = __builtin_ctz(lanes);
+                    uint32_t fl = k->ref[i], lk = fl & RT_REF_LANE;
+                    if (lk != RT_REF_PRIM) {
+                        double t;
+                        int front;
+                        if (lk == RT_REF_FAST ? rt__tri_hit_pk(&p, k, i, tmin, tmax, 0, &t, &front)
+                                              : rt__tri_hit_drec(&p, rt__pk_dverts(a, k, i), (fl & RT_REF_CULL) != 0,
+                                                                 tmin, tmax, 0, &t, &front))
+                            return 1;
+                    } else {
+                        rt_prim pr_ = {rt_prim_kind_of(a->scene, fl >> RT_REF_SHIFT), fl >> RT_REF_SHIFT};
+                        double best = tmax;
+                        if (rt__prim_hit(a, pr_, &p, tmin, &best, NULL))
+                            return 1;
+                    }
                 }
-                if (fl & RT_REC_LAST)
+                if (k->ref[0] & RT_REF_LAST)
                     break;
             }
         }
@@ -514,7 +530,6 @@ int RT_OCCL(const rt_accel *a, rr_ray ray, double tmin, double tmax)
     }
 }
 #endif /* RT_OCCL */
-
 
 
 #endif /* RT_WIDE_W_DONE */

@@ -59,9 +59,10 @@ static float rand_coord(rr_rng *rng)
 }
 
 /* The scalar, SSE and double versions (4 wide; the 8-wide AVX2 test is
- * checked through whole queries, bvh_widths_agree) agree on random nodes and rays, and
- * none culls a box the ray touches (rays aimed exactly at box corners, edges
- * and faces, directions with +0 and -0 components, origins on box planes). */
+ * checked through whole queries, bvh_widths_agree) agree on random nodes and
+ * rays, and none culls a box the ray touches (rays aimed exactly at box
+ * corners, edges and faces, directions with +0 and -0 components, origins on
+ * box planes). */
 static void wide_box_tests_agree_and_conservative(void **state)
 {
     (void)state;
@@ -83,7 +84,8 @@ static void wide_box_tests_agree_and_conservative(void **state)
         r.o = rr_v3(rand_coord(&rng), rand_coord(&rng), rand_coord(&rng));
         int lane = (int)rr_rng_below(&rng, RT_W), kind = (int)rr_rng_below(&rng, 4);
         if (kind < 3 && n.b[0][lane] <= n.b[1][lane]) {
-            /* Aim at a corner (kind 0), an edge point (1) or a face point (2) of one box. */
+            /* Aim at a corner (kind 0), an edge point (1) or a face point (2) of one
+             * box. */
             double t[3];
             for (int k = 0; k < 3; k++) {
                 int side = (int)rr_rng_below(&rng, 2);
@@ -144,10 +146,12 @@ static void wide_box_tests_agree_and_conservative(void **state)
 static void bvh_negative_zero_direction(void **state)
 {
     (void)state;
-    const char *json = "{\"format\":\"radray-scene/1\",\"camera\":{\"type\":\"lecture\",\"E\":[0,0,5],"
+    const char *json = "{\"format\":\"radray-scene/"
+                       "1\",\"camera\":{\"type\":\"lecture\",\"E\":[0,0,5],"
                        "\"O\":[0,0,4],\"U\":[0,1,0],\"s\":0.1,\"w\":2,\"h\":2},"
                        "\"materials\":{\"a\":{\"diffuse\":[0.5,0.5,0.5]}},\"objects\":["
-                       "{\"type\":\"triangles\",\"material\":\"a\",\"vertices\":[[-1,-1,0],[1,-1,0],[0,1,0],"
+                       "{\"type\":\"triangles\",\"material\":\"a\",\"vertices\":[[-1,-1,0],[1,-"
+                       "1,0],[0,1,0],"
                        "[-1,-1,2],[1,-1,2],[0,1,2.5]],\"indices\":[[0,1,2],[3,4,5]]}]}";
     scene *s = NULL;
     rr_error err;
@@ -252,7 +256,7 @@ static void bvh_fast_path_matches_reference_random(void **state)
 /* The build runs subtrees of >= 65536 items as OpenMP tasks (rt_bvh.c): 1, 2
  * and 3 threads must give the same nodes and records, bytes included. A
  * sphere of 300 x 400 (about 240k triangles, 4 levels of tasks), with double
- * vertices (RT_REC_DBL records) and after rounding them to floats. */
+ * vertices (RT_REF_DBL lanes) and after rounding them to floats. */
 static void bvh_build_threads_same_tree(void **state)
 {
     (void)state;
@@ -274,10 +278,10 @@ static void bvh_build_threads_same_tree(void **state)
         size_t nb = a[0]->nwnodes * rt__wnode_bytes(a[0]->width);
         for (int t = 1; t < 3; t++) {
             assert_int_equal(a[t]->nwnodes, a[0]->nwnodes);
-            assert_int_equal(a[t]->nrecs, a[0]->nrecs);
+            assert_int_equal(a[t]->npks, a[0]->npks);
             assert_int_equal(a[t]->ndverts, a[0]->ndverts);
             assert_memory_equal(a[t]->wnodes, a[0]->wnodes, nb);
-            assert_memory_equal(a[t]->recs, a[0]->recs, a[0]->nrecs * sizeof(rt_rec));
+            assert_memory_equal(a[t]->pks, a[0]->pks, a[0]->npks * sizeof(rt_pk));
             if (a[0]->ndverts)
                 assert_memory_equal(a[t]->dverts, a[0]->dverts, a[0]->ndverts * 9 * sizeof(double));
         }
@@ -406,15 +410,18 @@ static void bvh_widths_agree(void **state)
         assert_null(bad);
         assert_int_equal(a4->width, 4);
         assert_int_equal(aw->width, w2);
-        /* Every triangle has a record of its own: float copies once the
-         * vertices are floats, else double copies (pass 0). */
+        /* Every triangle has a packet lane of its own: float copies once
+         * the vertices are floats, else double copies (pass 0). */
         size_t nfast = 0, ndbl = 0;
-        for (size_t q = 0; q < a4->nrecs; q++) {
-            nfast += (a4->recs[q].flags & RT_REC_FAST) != 0;
-            ndbl += (a4->recs[q].flags & RT_REC_DBL) != 0;
+        for (size_t q = 0; q < a4->npks; q++) {
+            for (int i = 0; i < RT_PK; i++) {
+                nfast += (a4->pks[q].ref[i] & RT_REF_LANE) == RT_REF_FAST;
+                ndbl += (a4->pks[q].ref[i] & RT_REF_LANE) == RT_REF_DBL;
+            }
         }
         assert_int_equal(nfast + ndbl, s->ntris);
-        assert_int_equal(ndbl, a4->ndverts);
+        assert_int_equal(a4->nprims, rt_prim_total(s));
+        assert_int_equal(a4->ndverts, ndbl ? a4->npks * RT_PK : 0);
         if (pass >= 1)
             assert_int_equal(nfast, s->ntris);
         else
@@ -506,6 +513,114 @@ static void bvh_occluded_matches_walk(void **state)
     }
 }
 
+/* ---- the packets' float test (rt_kernel.h rt__pk_cand) ---- */
+
+/* A double in [-1, 1). */
+static double rand_sym(rr_rng *rng) { return 2 * rr_rng_uniform(rng) - 1; }
+
+/* The float test never drops a lane the exact test hits (for any t: tmin
+ * -inf, tmax +inf), and its SSE and scalar versions give the same lanes, on
+ * packets of triangles at scales from 1e-6 to 1e15 and offsets up to 1e6 of
+ * their size, with rays aimed exactly at vertices and at points of edges,
+ * a hair inside or outside them, and at random; triangles with vertices
+ * that are floats (FAST) and not (DBL: the float test sees them rounded,
+ * the exact test the doubles). It must also reject most clear misses (else
+ * it would be a test that cannot fail: a mask of every lane passes the
+ * first check). Lanes of other primitives (NaN vertices) are always kept,
+ * unused lanes (ref 0) never. */
+static void pk_float_test_conservative(void **state)
+{
+    (void)state;
+    rr_rng rng = rr_rng_make(2026, 12);
+    const double scales[] = {1e-6, 1e-3, 1.0, 1e3, 1e6, 1e15};
+    long kept_hits = 0, misses = 0, rejected = 0;
+    for (int trial = 0; trial < 60000; trial++) {
+        double sc = scales[trial % 6];
+        double off = rr_rng_uniform(&rng) < 0.5 ? 0.0 : sc * 1e3 * rand_sym(&rng);
+        int fast = trial % 2;
+        rr_vec3 ctr = rr_v3(off, -0.5 * off, 0.25 * off);
+        rt_pk k;
+        memset(&k, 0, sizeof k);
+        double dv[RT_PK][9];
+        double vm = 0.0;
+        for (int i = 0; i < RT_PK; i++) {
+            for (int r = 0; r < 9; r++) {
+                double x = (&ctr.x)[r % 3] + sc * rand_sym(&rng);
+                if (fast)
+                    x = (double)(float)x;
+                dv[i][r] = x;
+                k.v[r][i] = (float)x;
+                vm = fabs(x) > vm ? fabs(x) : vm;
+            }
+            k.ref[i] = (uint32_t)i << RT_REF_SHIFT | (fast ? RT_REF_FAST : RT_REF_DBL);
+        }
+        float vmax = rt__f_up(vm * (1.0 + 1e-6));
+        /* The ray: from a point some distance away towards a target. */
+        int lane = (int)(RT_PK * rr_rng_uniform(&rng));
+        const double *t = dv[lane];
+        rr_vec3 A = rr_v3(t[0], t[1], t[2]), B = rr_v3(t[3], t[4], t[5]), C = rr_v3(t[6], t[7], t[8]);
+        rr_vec3 target;
+        int kind = trial % 5;
+        double w = rr_rng_uniform(&rng);
+        if (kind == 0)
+            target = (trial / 5) % 2 ? A : B; /* a vertex */
+        else if (kind == 1)
+            target = rr_v3_add(A, rr_v3_scale(rr_v3_sub(B, A), w)); /* on edge AB (rounded) */
+        else if (kind == 2)                                         /* beside edge BC by a relative hair */
+            target = rr_v3_add(rr_v3_add(B, rr_v3_scale(rr_v3_sub(C, B), w)),
+                               rr_v3_scale(rr_v3(rand_sym(&rng), rand_sym(&rng), rand_sym(&rng)), sc * 1e-7));
+        else
+            target = rr_v3_add(ctr, rr_v3(sc * rand_sym(&rng), sc * rand_sym(&rng), sc * rand_sym(&rng)));
+        double dist = sc * (rr_rng_uniform(&rng) < 0.3 ? 1e-3 : 10.0) + fabs(off) * rr_rng_uniform(&rng);
+        rr_vec3 dir = rr_v3_norm(rr_v3(rand_sym(&rng), rand_sym(&rng), rand_sym(&rng)));
+        if (trial % 7 == 0) /* an axis-aligned direction (zero components) */
+            dir = rr_v3(0.0, 0.0, trial % 2 ? 1.0 : -1.0);
+        rr_ray ray = {rr_v3_sub(target, rr_v3_scale(dir, dist)), dir};
+        rt_ray_pre p;
+        rt__ray_prepare(ray, &p);
+        rt_pkray pr;
+        rt__pkray_init(&p, vmax, &pr);
+        unsigned m = rt__pk_cand(&k, &pr);
+#if RT_PK_SIMD
+        /* The SSE lanes are the scalar version's. */
+        float o[3] = {(float)p.ok[0], (float)p.ok[1], (float)p.ok[2]};
+        assert_int_equal(m, rt__pk_cand_scalar(&k, o, (float)p.Sx, (float)p.Sy, _mm_cvtss_f32(pr.e1),
+                                               _mm_cvtss_f32(pr.e2), p.kx, p.ky, p.kz));
+#endif
+        for (int i = 0; i < RT_PK; i++) {
+            double tt;
+            int front;
+            int hit = rt__tri_hit_drec(&p, dv[i], 0, -INFINITY, INFINITY, 0, &tt, &front);
+            if (hit) {
+                if (!((m >> i) & 1))
+                    fail_msg("trial %d lane %d: the float test dropped a hit (scale %g, "
+                             "offset %g)",
+                             trial, i, sc, off);
+                kept_hits++;
+            } else if (kind >= 3 && sc < 1e15) {
+                misses++;
+                rejected += !((m >> i) & 1);
+            }
+        }
+    }
+    assert_true(kept_hits > 10000); /* the aimed rays hit */
+    /* Random rays miss most triangles by far more than the bound. */
+    assert_true(rejected > 0.9 * (double)misses);
+
+    /* NaN lanes are kept, unused lanes never. */
+    rt_pk k;
+    memset(&k, 0, sizeof k);
+    for (int r = 0; r < 9; r++)
+        k.v[r][1] = NAN;
+    k.ref[1] = 5u << RT_REF_SHIFT | RT_REF_PRIM;
+    rr_ray ray = {rr_v3(0, 0, -1), rr_v3(0, 0, 1)};
+    rt_ray_pre p;
+    rt__ray_prepare(ray, &p);
+    rt_pkray pr;
+    rt__pkray_init(&p, 1.0f, &pr);
+    assert_int_equal(rt__pk_cand(&k, &pr), 1u << 1);
+}
+
 /* rt__f_up / rt__f_down (branch-free) against nextafterf. */
 static void f_round_matches_nextafter(void **state)
 {
@@ -534,6 +649,26 @@ static void f_round_matches_nextafter(void **state)
         assert_true((double)u >= x && (double)d <= x);
     }
     assert_true(rt__f_up(NAN) != rt__f_up(NAN) && rt__f_down(NAN) != rt__f_down(NAN));
+    /* The ray set-up rounds the origin three coordinates at once (SSE2):
+     * the same floats, bit for bit. */
+    for (int i = 0; i < 3 * (ns + 20000); i++) {
+        double x[3];
+        for (int k = 0; k < 3; k++) {
+            int j = i + k * 7;
+            x[k] = j % 3 == 0 && j / 3 < ns
+                       ? special[j / 3]
+                       : ldexp(rr_rng_uniform(&rng) * 2.0 - 1.0, (int)rr_rng_below(&rng, 300) - 150);
+        }
+        rr_ray r = {rr_v3(x[0], x[1], x[2]), rr_v3(i % 2 ? 1.0 : -1.0, i % 3 ? 0.5 : -0.5, i % 5 ? -0.25 : 0.25)};
+        rt_ray_pre p;
+        rt__ray_prepare(r, &p);
+        for (int k = 0; k < 3; k++) {
+            float u = rt__f_up(x[k]), d = rt__f_down(x[k]);
+            float nr = p.neg[k] ? d : u, fr = p.neg[k] ? u : d;
+            assert_memory_equal(&p.org_near[k], &nr, sizeof nr);
+            assert_memory_equal(&p.org_far[k], &fr, sizeof fr);
+        }
+    }
 }
 
 int main(void)
@@ -547,6 +682,7 @@ int main(void)
         cmocka_unit_test(bvh_widths_agree),
         cmocka_unit_test(bvh_occluded_matches_walk),
         cmocka_unit_test(f_round_matches_nextafter),
+        cmocka_unit_test(pk_float_test_conservative),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
