@@ -163,8 +163,8 @@ static void run_scene(bench_scene *b, const options *o, const char *tmpdir)
         }
         t_build[ti] = median(tb, BENCH_BUILD_REPS);
     }
-    /* Memory of the BVH: wide nodes and one leaf record per primitive (no
-     * analytic spheres or solids in these scenes). */
+    /* Memory of the BVH: wide nodes and the leaf packets (no analytic
+     * spheres or solids in these scenes). */
     rt_accel_stats ast = rt_accel_stats_of(a);
     size_t nodes = ast.nodes;
     double bpt = (double)ast.bytes / (double)s->ntris;

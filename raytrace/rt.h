@@ -196,9 +196,10 @@ typedef struct rt_accel_stats {
     int width;            /* children per node: 4, 8 or 16 */
     size_t nodes;         /* wide nodes of the scene BVH */
     size_t node_bytes;    /* bytes per wide node (128, 256 or 448) */
-    size_t records;       /* leaf records (one per primitive) */
-    size_t record_bytes;  /* bytes per record (48: a triangle's float copy of its vertices included) */
-    size_t bytes;         /* nodes + records + double copies (72 per non-float triangle) + solids' BVHs */
+    size_t records;       /* leaf packets (up to 4 primitives each) */
+    size_t record_bytes;  /* bytes per packet (160: the triangles' float copies of their vertices included) */
+    size_t bytes;         /* nodes + packets + double copies (72 per packet lane when a triangle is not
+                             float) + solids' BVHs */
 } rt_accel_stats;
 rt_accel_stats rt_accel_stats_of(const rt_accel *a);
 size_t rt_accel_node_count(const rt_accel *a); /* rt_accel_stats_of(a).nodes */

@@ -1,7 +1,8 @@
 /* rt_kernel.h - private to raytrace/: what every ray query shares whatever
  * the node width: the watertight triangle kernel (Woop, Benthin, Wald 2013)
- * on the per-ray set-up of rt__ray_prepare, the leaf records' triangle test
- * and hit fill, and the float rounding helpers of the slab tests
+ * on the per-ray set-up of rt__ray_prepare, the leaf packets' float test
+ * (rt__pk_cand) and exact triangle test and hit fill, and the float rounding
+ * helpers of the slab tests
  * (RT_BOX_GROW; the slab tests themselves are in rt_wide.h).
  *
  * It is the same source in every translation unit that includes it
