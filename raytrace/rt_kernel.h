@@ -217,15 +217,15 @@ typedef struct rt_pkray {
 
 static inline void rt__pkray_init(const rt_ray_pre *p, float vmax, rt_pkray *r)
 {
-    float o[3];
-    double om = 0.0;
-    for (int k = 0; k < 3; k++) {
-        o[k] = (float)p->ok[k];
-        om = fabs((double)o[k]) > om ? fabs((double)o[k]) : om;
-    }
-    double ep = 9.0 * 0x1p-24 * ((double)vmax + om);
-    float e1 = 4.0f * rt__f_up(ep), e2 = rt__f_up(2.0 * ep * ep + 1e-37);
-    if (p->box_double || !((double)vmax + om < 1e18)) {
+    float o[3] = {(float)p->ok[0], (float)p->ok[1], (float)p->ok[2]};
+    float om = fmaxf(fmaxf(fabsf(o[0]), fabsf(o[1])), fabsf(o[2]));
+    /* Ep = 9u (vmax + O) and e1 = 4 Ep, e2 = 2 Ep^2 + 1e-37 in float: each
+     * operation rounds by at most u = 6e-8 relative, and the factor
+     * 1 + 2^-20 (1e-6) more than makes up for the five of them. */
+    const float grow = 1.0f + 0x1p-20f;
+    float ep = (vmax + om) * (9.0f * RT_PK_U * grow);
+    float e1 = 4.0f * ep, e2 = (2.0f * grow) * (ep * ep) + 1e-37f;
+    if (p->box_double || !(vmax + om < 1e18f)) {
         e1 = INFINITY;
         e2 = INFINITY;
     }
