@@ -195,8 +195,10 @@ static inline void rt__tri_fill(const rt_accel *a, const rt_pk *k, int i, int fr
  * then +inf or NaN, and no lane is rejected. NaN vertices (lanes of other
  * primitives) give NaN edge values, which no comparison rejects.
  *
- * In a packet of 4 it is about 60 SSE instructions; the exact test it saves
- * is about 40 scalar double operations and branches per triangle. */
+ * In a packet of 4 it is about 60 SSE instructions. The exact test it saves
+ * costs about 30 for a miss (it leaves at the sign test), so the packets pay
+ * through the larger leaves they make affordable, not per test
+ * (notes/performance.md, "Leaf packets"). */
 #if defined(RT_SIMD) && RT_SIMD >= 1
 #define RT_PK_SIMD 1
 #include <emmintrin.h>

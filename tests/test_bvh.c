@@ -1,6 +1,6 @@
 /* test_bvh.c - white-box tests of the wide BVH (raytrace/rt_wide.h, the
  * private header): SIMD, scalar and exact box tests agree and never cull a
- * box the ray touches; the fast triangle records against the reference; both
+ * box the ray touches; the leaf packets' triangles against the reference; both
  * node widths give the same hits; the any-hit walk against the ordered one;
  * the float rounding helpers. (The BVH against the lecture's reference and
  * its watertightness: test_raytrace.c.) */
@@ -191,14 +191,14 @@ static void bvh_negative_zero_direction(void **state)
 }
 
 /* The same scene with every vertex rounded to float, so the BVH takes its fast
- * path (triangles copied into the leaf records, rt_internal.h); the scene's
+ * path (triangles copied into the leaf packets, rt_internal.h); the scene's
  * other data are not touched (only verts are read by the tests below). */
 static void verts_to_float(scene *s)
 {
     /* Through volatile: GCC 12.2 at -O2 (SLP vectorizer) compiles the plain
      * s->verts[i] = rr_v3((float)x, (float)y, (float)z) loop to round z
      * alone, so these tests ran on double vertices (the slow path) unnoticed;
-     * bvh_widths_agree now checks that the records are fast. */
+     * bvh_widths_agree now checks that the lanes are fast. */
     for (size_t i = 0; i < s->nverts; i++) {
         volatile float x = (float)s->verts[i].x, y = (float)s->verts[i].y, z = (float)s->verts[i].z;
         s->verts[i] = rr_v3(x, y, z);
@@ -254,7 +254,7 @@ static void bvh_fast_path_matches_reference_random(void **state)
 /* bvh_matches_reference_large and bvh_watertight_million_rays on float
  * vertices (the fast path). */
 /* The build runs subtrees of >= 65536 items as OpenMP tasks (rt_bvh.c): 1, 2
- * and 3 threads must give the same nodes and records, bytes included. A
+ * and 3 threads must give the same nodes and packets, bytes included. A
  * sphere of 300 x 400 (about 240k triangles, 4 levels of tasks), with double
  * vertices (RT_REF_DBL lanes) and after rounding them to floats. */
 static void bvh_build_threads_same_tree(void **state)
