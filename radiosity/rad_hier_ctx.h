@@ -140,6 +140,13 @@ int rad__hier_point_buried(const hctx *c, const hel *e, rr_vec3 x);
  * burial (hel.bur) and its open share (hel.open). */
 void rad__hier_probe_new(hctx *c);
 
+/* ---- element links (rad_hier_link.c) ---- */
+
+/* Element l->r <- element l->s: the factor (l->g, l->ga), visibility
+ * (l->vis, l->partial) and the factor's spread over r (l->dF), drawing the
+ * shadow rays' ends from rng. */
+void rad__hier_eval_ee(const hctx *c, hlink *l, rr_rng *rng);
+
 /* ---- clusters (rad_hier_cluster.c) ---- */
 
 /* The bounding-volume hierarchy of clusters over the roots (c->el[0 ..
