@@ -100,10 +100,15 @@ static void set_bounds(rt_node *n, box3 box)
 }
 
 /* Bins of one SAH step: per axis, the count and bounds of the items whose
- * centroid falls in each of RT_BINS slices of the centroids' box. */
+ * centroid falls in each of RT_BINS slices of the centroids' box. Only the
+ * bins in `used` (bit k: bin k holds an item) are set: a node of a few items
+ * touches a few bins, and most of the build's nodes are such nodes (the
+ * tree goes down to leaves of 1-2 items), so neither the set-up nor the
+ * sweep walks the empty ones. */
 typedef struct bins3 {
     box3 box[3][RT_BINS];
     size_t cnt[3][RT_BINS];
+    unsigned used[3];
 } bins3;
 
 static int bin_of(const build_item *it, int axis, double lo, double scale)
@@ -112,25 +117,29 @@ static int bin_of(const build_item *it, int axis, double lo, double scale)
     return k < 0 ? 0 : (k >= RT_BINS ? RT_BINS - 1 : k);
 }
 
+static void bin_put(bins3 *b, int axis, int k, const box3 *box, size_t n)
+{
+    if (b->used[axis] >> k & 1u) {
+        b->cnt[axis][k] += n;
+        b->box[axis][k] = box_union(b->box[axis][k], *box);
+    } else {
+        b->used[axis] |= 1u << k;
+        b->cnt[axis][k] = n;
+        b->box[axis][k] = *box;
+    }
+}
+
 /* items[0, count) into the bins of the three axes, in one pass over them. */
 static void bin_items(const build_item *items, size_t count, const double lo[3], const double scale[3], bins3 *b)
 {
-    for (int axis = 0; axis < 3; axis++)
-        for (int k = 0; k < RT_BINS; k++) {
-            b->box[axis][k] = box_empty();
-            b->cnt[axis][k] = 0;
-        }
+    b->used[0] = b->used[1] = b->used[2] = 0;
     /* An axis with scale 0 (a flat slab) puts everything in bin 0 and is
      * not used. */
     for (size_t i = 0; i < count; i++) {
         const build_item *it = &items[i];
-        int kx = bin_of(it, 0, lo[0], scale[0]), ky = bin_of(it, 1, lo[1], scale[1]), kz = bin_of(it, 2, lo[2], scale[2]);
-        b->cnt[0][kx]++;
-        b->cnt[1][ky]++;
-        b->cnt[2][kz]++;
-        b->box[0][kx] = box_union(b->box[0][kx], it->box);
-        b->box[1][ky] = box_union(b->box[1][ky], it->box);
-        b->box[2][kz] = box_union(b->box[2][kz], it->box);
+        bin_put(b, 0, bin_of(it, 0, lo[0], scale[0]), &it->box, 1);
+        bin_put(b, 1, bin_of(it, 1, lo[1], scale[1]), &it->box, 1);
+        bin_put(b, 2, bin_of(it, 2, lo[2], scale[2]), &it->box, 1);
     }
 }
 
@@ -161,10 +170,9 @@ static void bin_all(const build_item *items, size_t count, const double lo[3], c
     *out = part[0];
     for (size_t c = 1; c < nch; c++)
         for (int axis = 0; axis < 3; axis++)
-            for (int k = 0; k < RT_BINS; k++) {
-                out->cnt[axis][k] += part[c].cnt[axis][k];
-                out->box[axis][k] = box_union(out->box[axis][k], part[c].box[axis][k]);
-            }
+            for (int k = 0; k < RT_BINS; k++)
+                if (part[c].used[axis] >> k & 1u)
+                    bin_put(out, axis, k, &part[c].box[axis][k], part[c].cnt[axis][k]);
     free(part);
 }
 
@@ -208,34 +216,38 @@ static size_t sah_partition(build_item *all, const span *sp, int *axis_out, span
     bin_all(items, count, blo, scale, &bins);
     double best_cost = (double)count; /* cost of a leaf, in intersection units */
     int best_axis = -1, best_split = 0;
+    double inv_area = 1.0 / fmax(box_area(box), DBL_MIN);
     for (int axis = 0; axis < 3; axis++) {
         if (!(scale[axis] > 0.0))
             continue;
-        /* Sweep from the right, then from the left. */
+        /* Sweep the used bins from the right, then from the left. A split
+         * after an empty bin has the cost of the split before it, which
+         * wins ties, so only splits right after a used bin are tried: the
+         * same choice as a sweep over every bin. */
+        int k_used[RT_BINS], m = 0;
+        for (unsigned u = bins.used[axis]; u; u &= u - 1)
+            k_used[m++] = __builtin_ctz(u);
         double right_area[RT_BINS];
         size_t right_cnt[RT_BINS];
         box3 acc = box_empty();
         size_t n = 0;
-        for (int k = RT_BINS - 1; k > 0; k--) {
-            acc = box_union(acc, bins.box[axis][k]);
-            n += bins.cnt[axis][k];
-            right_area[k] = box_area(acc);
-            right_cnt[k] = n;
+        for (int j = m - 1; j > 0; j--) {
+            acc = box_union(acc, bins.box[axis][k_used[j]]);
+            n += bins.cnt[axis][k_used[j]];
+            right_area[j] = box_area(acc);
+            right_cnt[j] = n;
         }
         acc = box_empty();
         n = 0;
-        double inv_area = 1.0 / fmax(box_area(box), DBL_MIN);
-        for (int k = 1; k < RT_BINS; k++) {
-            acc = box_union(acc, bins.box[axis][k - 1]);
-            n += bins.cnt[axis][k - 1];
-            if (n == 0 || right_cnt[k] == 0)
-                continue;
+        for (int j = 0; j + 1 < m; j++) {
+            acc = box_union(acc, bins.box[axis][k_used[j]]);
+            n += bins.cnt[axis][k_used[j]];
             /* Traversal cost 1 relative to one primitive test. */
-            double cost = 1.0 + (box_area(acc) * (double)n + right_area[k] * (double)right_cnt[k]) * inv_area;
+            double cost = 1.0 + (box_area(acc) * (double)n + right_area[j + 1] * (double)right_cnt[j + 1]) * inv_area;
             if (cost < best_cost) {
                 best_cost = cost;
                 best_axis = axis;
-                best_split = k;
+                best_split = k_used[j] + 1;
             }
         }
     }
