@@ -3,11 +3,12 @@
  *
  * Build, in two steps:
  * 1. A binary tree by binned surface area heuristic (rt_bvh_binary.c: 16
- *    bins over the centroid bounds, as in Wald 2007, "On fast construction of
- *    SAH-based BVHs"), leaves of at most 8 primitives, nodes in one flat
- *    array in depth-first order (left child next, right child at `index`),
- *    bounds as floats rounded outward so a node still contains its
- *    primitives exactly.
+ *    bins over the bounds of the box centres, as in Wald 2007, "On fast
+ *    construction of SAH-based BVHs"), built on float references (rt_bref:
+ *    each primitive's box rounded outward and its number), leaves of at
+ *    most 8 primitives, nodes in one flat array in depth-first order (left
+ *    child next, right child at `index`), bounds that still contain their
+ *    primitives exactly. The primitives are then put in leaf order.
  * 2. Collapsed into the wide tree the queries walk (W = 4, 8 or 16 children in
  *    SoA float boxes, rt_wnode4 / 8 / 16 in rt_internal.h; W chosen per
  *    build, rt__bvh_width_default) by the surface area heuristic over every
@@ -42,8 +43,6 @@
 #include <string.h>
 
 #include "rt_kernel.h"
-
-typedef rt_build_item build_item;
 
 /* ---- collapse into the wide tree ---- */
 
@@ -386,11 +385,11 @@ static double fill_lane(const scene *s, rt_prim pr, rt_pk *k, int i, int *dbl)
     return vm;
 }
 
-/* The leaf packets (rt_internal.h) from the items in leaf order and the
+/* The leaf packets (rt_internal.h) from the primitives in leaf order and the
  * leaves collapse found (lcnt, lpk), the double copies of the triangles whose
  * vertices are not all floats, and rt_accel.vmax. 0, or -1 when out of
  * memory. */
-static int fill_packets(const scene *s, const build_item *items, size_t n, const uint32_t *lcnt, const uint32_t *lpk,
+static int fill_packets(const scene *s, const rt_prim *prims, size_t n, const uint32_t *lcnt, const uint32_t *lpk,
                         size_t npk, int threads, rt_accel *a)
 {
     size_t bytes = (npk * sizeof(rt_pk) + 63) / 64 * 64;
@@ -410,7 +409,7 @@ static int fill_packets(const scene *s, const build_item *items, size_t n, const
             continue;
         rt_pk *k = a->pks + lpk[j];
         for (uint32_t q = 0; q < lcnt[j]; q++) {
-            double vm = fill_lane(s, items[j + q].prim, k + q / RT_PK, (int)(q % RT_PK), &dbl);
+            double vm = fill_lane(s, prims[j + q], k + q / RT_PK, (int)(q % RT_PK), &dbl);
             vmax = vm > vmax ? vm : vmax;
         }
         k[(lcnt[j] - 1) / RT_PK].ref[0] |= RT_REF_LAST;
@@ -492,28 +491,38 @@ rr_status rt__accel_build_width(const scene *s, int width, rt_accel **out, rr_er
     /* The scene's render.threads (0: OpenMP's default, all cores). */
     int threads = s->settings.threads > 0 ? s->settings.threads : omp_get_max_threads();
     rt_accel *a = calloc(1, sizeof *a);
+    /* The binary tree over the primitives (refs: their boxes; list: the
+     * primitives, in leaf order after the build), freed after the collapse. */
     struct {
-        build_item *items;
+        rt_bref *refs;
+        rt_prim *list;
         rt_node *nodes;
         size_t nnodes;
-    } b = {NULL, NULL, 0}; /* the binary tree over the primitives, freed after the collapse */
-    b.items = n ? malloc(n * sizeof *b.items) : NULL;
-    rt_prim *list = n ? malloc(n * sizeof *list) : NULL;
-    if (!a || (n && (!b.items || !list))) {
-        free(list);
+    } b = {NULL, NULL, NULL, 0};
+    b.refs = n ? malloc(n * sizeof *b.refs) : NULL;
+    b.list = n ? malloc(n * sizeof *b.list) : NULL;
+    if (!a || (n && (!b.refs || !b.list)))
         goto nomem;
-    }
-    rt__prim_list(s, list);
-    for (size_t i = 0; i < n; i++)
-        b.items[i].prim = list[i];
-    free(list);
+    rt__prim_list(s, b.list);
 #pragma omp parallel for schedule(static) num_threads(threads) if (n >= RT_BUILD_TASK_MIN)
     for (size_t i = 0; i < n; i++) {
-        rt__prim_bounds(s, b.items[i].prim, &b.items[i].box.lo, &b.items[i].box.hi);
-        b.items[i].centroid = rr_v3_scale(rr_v3_add(b.items[i].box.lo, b.items[i].box.hi), 0.5);
+        rr_vec3 lo, hi;
+        rt__prim_bounds(s, b.list[i], &lo, &hi);
+        rt__bref_set(&b.refs[i], lo, hi, (uint32_t)i);
     }
-    if (n && rt__bvh_build_binary(b.items, n, threads, &b.nodes, &b.nnodes))
+    if (n && rt__bvh_build_binary(b.refs, n, threads, &b.nodes, &b.nnodes))
         goto nomem;
+    if (n) { /* the primitives in leaf order */
+        rt_prim *order = malloc(n * sizeof *order);
+        if (!order)
+            goto nomem;
+        for (size_t i = 0; i < n; i++)
+            order[i] = b.list[rt__bref_item(&b.refs[i])];
+        free(b.list);
+        free(b.refs);
+        b.list = order;
+        b.refs = NULL;
+    }
     a->scene = s;
     a->width = width;
     if (n) {
@@ -522,15 +531,15 @@ rr_status rt__accel_build_width(const scene *s, int width, rt_accel **out, rr_er
         if (!lcnt)
             goto nomem;
         if (collapse(b.nodes, b.nnodes, n, lcnt, lpk, width, threads, &a->wnodes, &a->nwnodes, &npk) ||
-            fill_packets(s, b.items, n, lcnt, lpk, npk, threads, a)) {
+            fill_packets(s, b.list, n, lcnt, lpk, npk, threads, a)) {
             free(lcnt);
             goto nomem;
         }
         free(lcnt);
     }
-    free(b.items);
+    free(b.list);
     free(b.nodes);
-    b.items = NULL;
+    b.list = NULL;
     b.nodes = NULL;
     rr_status st = rt__solids_build(s, &a->solids, err);
     if (st != RR_OK) {
@@ -540,7 +549,8 @@ rr_status rt__accel_build_width(const scene *s, int width, rt_accel **out, rr_er
     *out = a;
     return RR_OK;
 nomem:
-    free(b.items);
+    free(b.refs);
+    free(b.list);
     free(b.nodes);
     if (a) {
         free(a->pks);

@@ -1,76 +1,132 @@
 /* rt_bvh_binary.c - the binary BVH builder (rt__bvh_build_binary,
- * rt_internal.h): binned surface area heuristic (16 bins over the centroid
+ * rt_internal.h): binned surface area heuristic (16 bins over the box-centre
  * bounds per axis, Wald 2007, "On fast construction of SAH-based BVHs"),
  * leaves of at most 8 items, nodes in one array in depth-first order (left
- * child next, right child at `index`), bounds as floats rounded outward so a
- * node still contains its items exactly. The scene BVH collapses the tree
- * into wide nodes (rt_bvh.c); the solids' mesh leaves walk it as it is
+ * child next, right child at `index`). The scene BVH collapses the tree into
+ * wide nodes (rt_bvh.c); the solids' mesh leaves walk it as it is
  * (rt_solid_mesh.c). Large subtrees are built as OpenMP tasks
  * (RT_BUILD_TASK_MIN), written where the serial build puts them: the same
- * nodes for any thread count. */
+ * nodes for any thread count.
+ *
+ * The build reads 32-byte references (rt_bref: the item's box as floats
+ * rounded outward, and its number), 4 floats per corner so that a box union
+ * is two SIMD operations; items are binned by the centre of that box (lo +
+ * hi, unhalved). A node's bounds are the union of its references' boxes,
+ * which is the outward rounding of the union of the exact boxes (rounding
+ * is monotonic): the nodes still contain their items exactly, as the
+ * traversal's slab test requires. The split only has to be good, not
+ * exact: the areas and bins in float change which split SAH picks in rare
+ * near-ties, never what a ray hits (the walks' tie rules do not depend on
+ * the order they meet the primitives in). */
 #include <float.h>
 #include <math.h>
 #include <omp.h>
 #include <stdlib.h>
 #include <string.h>
 
-#include "rt_internal.h"
+#include "rt_kernel.h"
 
 #define RT_BINS 16
 #define RT_LEAF_MAX 8
 #define RT_STACK RT_BVH_STACK
 
-static float round_down(double x)
+/* ---- four floats: SSE2, or a scalar twin with the same IEEE results ---- */
+#if defined(RT_SIMD) && RT_SIMD >= 1
+#include <emmintrin.h>
+typedef __m128 v4;
+static inline v4 v4_load(const float *p) { return _mm_loadu_ps(p); }
+static inline void v4_store(float *p, v4 a) { _mm_storeu_ps(p, a); }
+static inline v4 v4_set1(float x) { return _mm_set1_ps(x); }
+static inline v4 v4_set(float x, float y, float z, float w) { return _mm_setr_ps(x, y, z, w); }
+static inline v4 v4_min(v4 a, v4 b) { return _mm_min_ps(a, b); }
+static inline v4 v4_max(v4 a, v4 b) { return _mm_max_ps(a, b); }
+static inline v4 v4_add(v4 a, v4 b) { return _mm_add_ps(a, b); }
+static inline v4 v4_sub(v4 a, v4 b) { return _mm_sub_ps(a, b); }
+static inline v4 v4_mul(v4 a, v4 b) { return _mm_mul_ps(a, b); }
+/* The w lane of a reference's hi corner holds its number: zeroed before
+ * arithmetic (its bits may be a denormal). */
+static inline v4 v4_xyz(v4 a) { return _mm_and_ps(a, _mm_castsi128_ps(_mm_setr_epi32(-1, -1, -1, 0))); }
+/* Truncation of lanes already clamped to [0, RT_BINS - 1]. */
+static inline void v4_trunc(v4 a, int k[4]) { _mm_storeu_si128((__m128i *)k, _mm_cvttps_epi32(a)); }
+#else
+typedef struct v4 {
+    float f[4];
+} v4;
+static inline v4 v4_load(const float *p)
 {
-    float f = (float)x;
-    return (double)f > x ? nextafterf(f, -INFINITY) : f;
+    v4 r;
+    memcpy(r.f, p, sizeof r.f);
+    return r;
 }
-static float round_up(double x)
+static inline void v4_store(float *p, v4 a) { memcpy(p, a.f, sizeof a.f); }
+static inline v4 v4_set(float x, float y, float z, float w) { return (v4){{x, y, z, w}}; }
+static inline v4 v4_set1(float x) { return v4_set(x, x, x, x); }
+#define RT_V4_OP(name, expr)                                                                                           \
+    static inline v4 name(v4 a, v4 b)                                                                                  \
+    {                                                                                                                  \
+        v4 r;                                                                                                          \
+        for (int i = 0; i < 4; i++) {                                                                                  \
+            float x = a.f[i], y = b.f[i];                                                                              \
+            r.f[i] = (expr);                                                                                           \
+        }                                                                                                              \
+        return r;                                                                                                      \
+    }
+RT_V4_OP(v4_min, x < y ? x : y) /* minps: the second operand unless x < y */
+RT_V4_OP(v4_max, x > y ? x : y)
+RT_V4_OP(v4_add, x + y)
+RT_V4_OP(v4_sub, x - y)
+RT_V4_OP(v4_mul, x * y)
+#undef RT_V4_OP
+static inline v4 v4_xyz(v4 a)
 {
-    float f = (float)x;
-    return (double)f < x ? nextafterf(f, INFINITY) : f;
+    a.f[3] = 0.0f;
+    return a;
 }
-
-typedef rt_box box3;
-
-static box3 box_empty(void)
+static inline void v4_trunc(v4 a, int k[4])
 {
-    box3 b = {rr_v3(INFINITY, INFINITY, INFINITY), rr_v3(-INFINITY, -INFINITY, -INFINITY)};
+    for (int i = 0; i < 4; i++)
+        k[i] = (int)a.f[i];
+}
+#endif
+
+/* A box of floats in two corners (w lanes unused). */
+typedef struct fbox {
+    v4 lo, hi;
+} fbox;
+
+static fbox fbox_empty(void)
+{
+    fbox b = {v4_set1(INFINITY), v4_set1(-INFINITY)};
     return b;
 }
-/* Plain comparisons, not rr_v3_min/max: fmin/fmax are library calls (kept
- * for their NaN rule) and were a third of the build time; primitive bounds
- * are never NaN (the scene loader rejects non-finite input). */
-static rr_vec3 v3_min(rr_vec3 a, rr_vec3 b)
+static fbox fbox_union(fbox a, fbox b)
 {
-    return rr_v3(a.x < b.x ? a.x : b.x, a.y < b.y ? a.y : b.y, a.z < b.z ? a.z : b.z);
-}
-static rr_vec3 v3_max(rr_vec3 a, rr_vec3 b)
-{
-    return rr_v3(a.x > b.x ? a.x : b.x, a.y > b.y ? a.y : b.y, a.z > b.z ? a.z : b.z);
-}
-static box3 box_union(box3 a, box3 b)
-{
-    box3 r = {v3_min(a.lo, b.lo), v3_max(a.hi, b.hi)};
+    fbox r = {v4_min(a.lo, b.lo), v4_max(a.hi, b.hi)};
     return r;
 }
-static box3 box_add(box3 a, rr_vec3 p)
+/* Surface area, in double from the float corners (a float product of a
+ * large scene's extents could overflow). 0 for an empty box. */
+static double fbox_area(fbox b)
 {
-    box3 r = {v3_min(a.lo, p), v3_max(a.hi, p)};
-    return r;
-}
-static double box_area(box3 b)
-{
-    rr_vec3 d = rr_v3_sub(b.hi, b.lo);
-    if (d.x < 0 || d.y < 0 || d.z < 0)
+    float lo[4], hi[4];
+    v4_store(lo, b.lo);
+    v4_store(hi, b.hi);
+    double dx = (double)hi[0] - lo[0], dy = (double)hi[1] - lo[1], dz = (double)hi[2] - lo[2];
+    if (dx < 0 || dy < 0 || dz < 0)
         return 0.0;
-    return 2.0 * (d.x * d.y + d.y * d.z + d.z * d.x);
+    return 2.0 * (dx * dy + dy * dz + dz * dx);
 }
 
-typedef rt_build_item build_item;
+static inline fbox ref_box(const rt_bref *r)
+{
+    fbox b = {v4_load(r->lo), v4_load(r->hi)};
+    return b;
+}
+/* lo + hi: twice the box's centre, the point an item is binned by. */
+static inline v4 ref_c2(fbox b) { return v4_add(v4_xyz(b.lo), v4_xyz(b.hi)); }
 
 typedef struct builder {
-    build_item *items;
+    rt_bref *refs;
     rt_node *nodes;
     size_t nnodes, cap;
 } builder;
@@ -89,82 +145,104 @@ static int push_node(builder *b, size_t *idx)
     return 0;
 }
 
-static void set_bounds(rt_node *n, box3 box)
+/* The bin grid of one SAH step: bin k of axis a holds the items whose
+ * (c2[a] - lo[a]) * scale[a] truncates to k (clamped to the grid). An axis
+ * whose centroids all coincide has scale 0 (everything in bin 0) and is not
+ * split on. */
+typedef struct grid {
+    v4 lo, scale;
+    float scale_a[4];
+} grid;
+
+static inline void grid_bins(const grid *g, v4 c2, int k[4])
 {
-    n->lo[0] = round_down(box.lo.x);
-    n->lo[1] = round_down(box.lo.y);
-    n->lo[2] = round_down(box.lo.z);
-    n->hi[0] = round_up(box.hi.x);
-    n->hi[1] = round_up(box.hi.y);
-    n->hi[2] = round_up(box.hi.z);
+    v4 t = v4_mul(v4_sub(c2, g->lo), g->scale);
+    v4_trunc(v4_min(v4_max(t, v4_set1(0.0f)), v4_set1((float)(RT_BINS - 1))), k);
 }
 
-/* Bins of one SAH step: per axis, the count and bounds of the items whose
- * centroid falls in each of RT_BINS slices of the centroids' box. Only the
- * bins in `used` (bit k: bin k holds an item) are set: a node of a few items
- * touches a few bins, and most of the build's nodes are such nodes (the
- * tree goes down to leaves of 1-2 items), so neither the set-up nor the
- * sweep walks the empty ones. */
+/* Bins of one SAH step: per axis, the count and bounds of the items in each
+ * bin. Only the bins in `used` (bit k: bin k holds an item) are set: a node
+ * of a few items touches a few bins, and most of the build's nodes are such
+ * nodes (the tree goes down to leaves of 1-2 items), so neither the set-up
+ * nor the sweep walks the empty ones. */
 typedef struct bins3 {
-    box3 box[3][RT_BINS];
-    size_t cnt[3][RT_BINS];
+    fbox box[3][RT_BINS];
+    uint32_t cnt[3][RT_BINS];
     unsigned used[3];
 } bins3;
 
-static int bin_of(const build_item *it, int axis, double lo, double scale)
-{
-    int k = (int)((rr_v3_get(it->centroid, axis) - lo) * scale);
-    return k < 0 ? 0 : (k >= RT_BINS ? RT_BINS - 1 : k);
-}
-
-static void bin_put(bins3 *b, int axis, int k, const box3 *box, size_t n)
+static void bin_put(bins3 *b, int axis, int k, fbox box, uint32_t n)
 {
     if (b->used[axis] >> k & 1u) {
         b->cnt[axis][k] += n;
-        b->box[axis][k] = box_union(b->box[axis][k], *box);
+        b->box[axis][k] = fbox_union(b->box[axis][k], box);
     } else {
         b->used[axis] |= 1u << k;
         b->cnt[axis][k] = n;
-        b->box[axis][k] = *box;
+        b->box[axis][k] = box;
     }
 }
 
-/* items[0, count) into the bins of the three axes, in one pass over them. */
-static void bin_items(const build_item *items, size_t count, const double lo[3], const double scale[3], bins3 *b)
+/* Below this many items a node sets its bins as it meets them; from it on,
+ * all bins are set empty first and the loop has no branch. */
+#define RT_BIN_DENSE 48
+
+/* refs[0, count) into the bins of the three axes, in one pass over them. */
+static void bin_items(const rt_bref *refs, size_t count, const grid *g, bins3 *b)
 {
+    int k[4];
     b->used[0] = b->used[1] = b->used[2] = 0;
-    /* An axis with scale 0 (a flat slab) puts everything in bin 0 and is
-     * not used. */
-    for (size_t i = 0; i < count; i++) {
-        const build_item *it = &items[i];
-        bin_put(b, 0, bin_of(it, 0, lo[0], scale[0]), &it->box, 1);
-        bin_put(b, 1, bin_of(it, 1, lo[1], scale[1]), &it->box, 1);
-        bin_put(b, 2, bin_of(it, 2, lo[2], scale[2]), &it->box, 1);
+    if (count < RT_BIN_DENSE) {
+        for (size_t i = 0; i < count; i++) {
+            fbox box = ref_box(&refs[i]);
+            grid_bins(g, ref_c2(box), k);
+            for (int a = 0; a < 3; a++)
+                bin_put(b, a, k[a], box, 1);
+        }
+        return;
     }
+    for (int a = 0; a < 3; a++)
+        for (int j = 0; j < RT_BINS; j++) {
+            b->box[a][j] = fbox_empty();
+            b->cnt[a][j] = 0;
+        }
+    for (size_t i = 0; i < count; i++) {
+        fbox box = ref_box(&refs[i]);
+        grid_bins(g, ref_c2(box), k);
+        for (int a = 0; a < 3; a++) {
+            fbox *d = &b->box[a][k[a]];
+            d->lo = v4_min(d->lo, box.lo);
+            d->hi = v4_max(d->hi, box.hi);
+            b->cnt[a][k[a]]++;
+        }
+    }
+    for (int a = 0; a < 3; a++)
+        for (int j = 0; j < RT_BINS; j++)
+            b->used[a] |= (b->cnt[a][j] != 0) << j;
 }
 
 /* Chunks of items binned as tasks when the build runs in parallel (counts
  * add and boxes unite exactly: the same bins in any order). */
 #define RT_BIN_CHUNK 32768
 #define RT_BIN_CHUNKS_MAX 64
-static void bin_all(const build_item *items, size_t count, const double lo[3], const double scale[3], bins3 *out)
+static void bin_all(const rt_bref *refs, size_t count, const grid *g, bins3 *out)
 {
     size_t nch = count / RT_BIN_CHUNK;
     if (nch < 2 || !omp_in_parallel()) {
-        bin_items(items, count, lo, scale, out);
+        bin_items(refs, count, g, out);
         return;
     }
     if (nch > RT_BIN_CHUNKS_MAX)
         nch = RT_BIN_CHUNKS_MAX;
     bins3 *part = malloc(nch * sizeof *part);
     if (!part) { /* fall back to one pass */
-        bin_items(items, count, lo, scale, out);
+        bin_items(refs, count, g, out);
         return;
     }
     for (size_t c = 0; c < nch; c++) {
         size_t a = count * c / nch, e = count * (c + 1) / nch;
 #pragma omp task firstprivate(a, e, c) shared(part)
-        bin_items(items + a, e - a, lo, scale, &part[c]);
+        bin_items(refs + a, e - a, g, &part[c]);
     }
 #pragma omp taskwait
     *out = part[0];
@@ -172,53 +250,67 @@ static void bin_all(const build_item *items, size_t count, const double lo[3], c
         for (int axis = 0; axis < 3; axis++)
             for (int k = 0; k < RT_BINS; k++)
                 if (part[c].used[axis] >> k & 1u)
-                    bin_put(out, axis, k, &part[c].box[axis][k], part[c].cnt[axis][k]);
+                    bin_put(out, axis, k, part[c].box[axis][k], part[c].cnt[axis][k]);
     free(part);
 }
 
-/* Items [first, first + count) of the build, the union of their boxes and
- * the bounds of their centroids. A node's span comes from its parent's
+/* References [first, first + count) of the build, the union of their boxes
+ * and the bounds of their c2 points. A node's span comes from its parent's
  * partition pass (or, at the root, one pass), so each node reads its items
  * twice: to bin them and to partition them. */
 typedef struct span {
     size_t first, count;
-    box3 box, cb;
+    fbox box, cb;
 } span;
 
-/* The spans of items[a, e) (one pass). */
-static void span_of(const build_item *items, size_t a, size_t e, span *out)
+static void span_of(const rt_bref *refs, size_t a, size_t e, span *out)
 {
     out->first = a;
     out->count = e - a;
-    out->box = box_empty();
-    out->cb = box_empty();
+    out->box = fbox_empty();
+    out->cb = fbox_empty();
     for (size_t i = a; i < e; i++) {
-        out->box = box_union(out->box, items[i].box);
-        out->cb = box_add(out->cb, items[i].centroid);
+        fbox b = ref_box(&refs[i]);
+        v4 c = ref_c2(b);
+        out->box = fbox_union(out->box, b);
+        out->cb.lo = v4_min(out->cb.lo, c);
+        out->cb.hi = v4_max(out->cb.hi, c);
     }
+}
+
+static void grid_of(const span *sp, grid *g)
+{
+    float lo[4], hi[4];
+    v4_store(lo, sp->cb.lo);
+    v4_store(hi, sp->cb.hi);
+    for (int a = 0; a < 3; a++) {
+        float ext = hi[a] - lo[a];
+        /* Finite and above 0, or the axis is not split on. */
+        g->scale_a[a] = ext > 0.0f && ext <= FLT_MAX ? (float)RT_BINS / ext : 0.0f;
+        if (!(g->scale_a[a] <= FLT_MAX))
+            g->scale_a[a] = 0.0f;
+    }
+    g->scale_a[3] = 0.0f;
+    g->lo = v4_set(lo[0], lo[1], lo[2], 0.0f);
+    g->scale = v4_load(g->scale_a);
 }
 
 /* Chooses a split of the items of sp by binned SAH and partitions them;
  * returns the number put on the left (0 = make a leaf) with the two sides'
  * spans in *l and *r. */
-static size_t sah_partition(build_item *all, const span *sp, int *axis_out, span *l, span *r)
+static size_t sah_partition(rt_bref *all, const span *sp, int *axis_out, span *l, span *r)
 {
-    build_item *items = all + sp->first;
+    rt_bref *refs = all + sp->first;
     size_t count = sp->count;
-    box3 box = sp->box, cb = sp->cb;
-    double blo[3], scale[3];
-    for (int axis = 0; axis < 3; axis++) {
-        double lo = rr_v3_get(cb.lo, axis), hi = rr_v3_get(cb.hi, axis);
-        blo[axis] = lo;
-        scale[axis] = hi > lo ? RT_BINS / (hi - lo) : 0.0;
-    }
+    grid g;
+    grid_of(sp, &g);
     bins3 bins;
-    bin_all(items, count, blo, scale, &bins);
+    bin_all(refs, count, &g, &bins);
     double best_cost = (double)count; /* cost of a leaf, in intersection units */
     int best_axis = -1, best_split = 0;
-    double inv_area = 1.0 / fmax(box_area(box), DBL_MIN);
+    double inv_area = 1.0 / fmax(fbox_area(sp->box), DBL_MIN);
     for (int axis = 0; axis < 3; axis++) {
-        if (!(scale[axis] > 0.0))
+        if (!(g.scale_a[axis] > 0.0f))
             continue;
         /* Sweep the used bins from the right, then from the left. A split
          * after an empty bin has the cost of the split before it, which
@@ -228,22 +320,22 @@ static size_t sah_partition(build_item *all, const span *sp, int *axis_out, span
         for (unsigned u = bins.used[axis]; u; u &= u - 1)
             k_used[m++] = __builtin_ctz(u);
         double right_area[RT_BINS];
-        size_t right_cnt[RT_BINS];
-        box3 acc = box_empty();
-        size_t n = 0;
+        uint32_t right_cnt[RT_BINS];
+        fbox acc = fbox_empty();
+        uint32_t n = 0;
         for (int j = m - 1; j > 0; j--) {
-            acc = box_union(acc, bins.box[axis][k_used[j]]);
+            acc = fbox_union(acc, bins.box[axis][k_used[j]]);
             n += bins.cnt[axis][k_used[j]];
-            right_area[j] = box_area(acc);
+            right_area[j] = fbox_area(acc);
             right_cnt[j] = n;
         }
-        acc = box_empty();
+        acc = fbox_empty();
         n = 0;
         for (int j = 0; j + 1 < m; j++) {
-            acc = box_union(acc, bins.box[axis][k_used[j]]);
+            acc = fbox_union(acc, bins.box[axis][k_used[j]]);
             n += bins.cnt[axis][k_used[j]];
             /* Traversal cost 1 relative to one primitive test. */
-            double cost = 1.0 + (box_area(acc) * (double)n + right_area[j + 1] * (double)right_cnt[j + 1]) * inv_area;
+            double cost = 1.0 + (fbox_area(acc) * (double)n + right_area[j + 1] * (double)right_cnt[j + 1]) * inv_area;
             if (cost < best_cost) {
                 best_cost = cost;
                 best_axis = axis;
@@ -260,24 +352,66 @@ static size_t sah_partition(build_item *all, const span *sp, int *axis_out, span
         span_of(all, sp->first + count / 2, sp->first + count, r);
         return count / 2;
     }
-    size_t left = 0;
-    box3 lb = box_empty(), lc = box_empty(), rb = box_empty(), rc = box_empty();
-    for (size_t i = 0; i < count; i++) {
-        if (bin_of(&items[i], best_axis, blo[best_axis], scale[best_axis]) < best_split) {
-            lb = box_union(lb, items[i].box);
-            lc = box_add(lc, items[i].centroid);
-            build_item t = items[i];
-            items[i] = items[left];
-            items[left++] = t;
-        } else {
-            rb = box_union(rb, items[i].box);
-            rc = box_add(rc, items[i].centroid);
+    /* Partition from both ends (Hoare): an item already on its side is not
+     * moved; the two sides' bounds are gathered on the way. */
+    fbox lb = fbox_empty(), lc = fbox_empty(), rb = fbox_empty(), rc = fbox_empty();
+    size_t i = 0, j = count;
+    int k[4];
+    for (;;) {
+        fbox b;
+        v4 c;
+        for (; i < j; i++) {
+            b = ref_box(&refs[i]);
+            c = ref_c2(b);
+            grid_bins(&g, c, k);
+            if (k[best_axis] >= best_split)
+                break;
+            lb = fbox_union(lb, b);
+            lc.lo = v4_min(lc.lo, c);
+            lc.hi = v4_max(lc.hi, c);
         }
+        for (; i < j; j--) {
+            b = ref_box(&refs[j - 1]);
+            c = ref_c2(b);
+            grid_bins(&g, c, k);
+            if (k[best_axis] < best_split)
+                break;
+            rb = fbox_union(rb, b);
+            rc.lo = v4_min(rc.lo, c);
+            rc.hi = v4_max(rc.hi, c);
+        }
+        if (i >= j)
+            break;
+        /* refs[i] belongs right, refs[j - 1] left: swap and take both. */
+        rt_bref t = refs[i];
+        refs[i] = refs[j - 1];
+        refs[j - 1] = t;
+        b = ref_box(&refs[i]);
+        c = ref_c2(b);
+        lb = fbox_union(lb, b);
+        lc.lo = v4_min(lc.lo, c);
+        lc.hi = v4_max(lc.hi, c);
+        b = ref_box(&refs[j - 1]);
+        c = ref_c2(b);
+        rb = fbox_union(rb, b);
+        rc.lo = v4_min(rc.lo, c);
+        rc.hi = v4_max(rc.hi, c);
+        i++;
+        j--;
     }
-    *l = (span){sp->first, left, lb, lc};
-    *r = (span){sp->first + left, count - left, rb, rc};
+    *l = (span){sp->first, i, lb, lc};
+    *r = (span){sp->first + i, count - i, rb, rc};
     *axis_out = best_axis;
-    return left;
+    return i;
+}
+
+static void set_bounds(rt_node *n, fbox box)
+{
+    float lo[4], hi[4];
+    v4_store(lo, box.lo);
+    v4_store(hi, box.hi);
+    memcpy(n->lo, lo, sizeof n->lo);
+    memcpy(n->hi, hi, sizeof n->hi);
 }
 
 /* Node *idx for the items of sp: a leaf (l->count = 0), or an inner node
@@ -288,7 +422,7 @@ static int make_node(builder *b, const span *sp, int depth, size_t *idx, span *l
     if (push_node(b, idx))
         return -1;
     int axis = 0;
-    l->count = depth >= RT_STACK - 2 ? 0 : sah_partition(b->items, sp, &axis, l, r);
+    l->count = depth >= RT_STACK - 2 ? 0 : sah_partition(b->refs, sp, &axis, l, r);
     rt_node *n = &b->nodes[*idx];
     set_bounds(n, sp->box);
     if (l->count == 0 || l->count == sp->count) {
@@ -352,7 +486,7 @@ static int build_par(builder *b, const span *sp, int depth)
         return -1;
     if (l.count == 0)
         return 0;
-    builder L = {b->items, NULL, 0, 0}, R = {b->items, NULL, 0, 0};
+    builder L = {b->refs, NULL, 0, 0}, R = {b->refs, NULL, 0, 0};
     int fl = 0, fr = 0;
 #pragma omp task shared(L, fl, l) if (omp_in_parallel())
     fl = build_par(&L, &l, depth + 1);
@@ -368,14 +502,33 @@ static int build_par(builder *b, const span *sp, int depth)
     return failed ? -1 : 0;
 }
 
-int rt__bvh_build_binary(rt_build_item *items, size_t n, int threads, rt_node **nodes, size_t *nnodes)
+void rt__bref_set(rt_bref *r, rr_vec3 lo, rr_vec3 hi, uint32_t item)
 {
-    builder b = {items, NULL, 0, 0};
+    r->lo[0] = rt__f_down(lo.x);
+    r->lo[1] = rt__f_down(lo.y);
+    r->lo[2] = rt__f_down(lo.z);
+    r->lo[3] = 0.0f;
+    r->hi[0] = rt__f_up(hi.x);
+    r->hi[1] = rt__f_up(hi.y);
+    r->hi[2] = rt__f_up(hi.z);
+    memcpy(&r->hi[3], &item, sizeof item);
+}
+
+uint32_t rt__bref_item(const rt_bref *r)
+{
+    uint32_t item;
+    memcpy(&item, &r->hi[3], sizeof item);
+    return item;
+}
+
+int rt__bvh_build_binary(rt_bref *refs, size_t n, int threads, rt_node **nodes, size_t *nnodes)
+{
+    builder b = {refs, NULL, 0, 0};
     int failed = 0;
     if (threads <= 0)
         threads = omp_get_max_threads();
     span root;
-    span_of(items, 0, n, &root);
+    span_of(refs, 0, n, &root);
     if (n < RT_BUILD_TASK_MIN || threads == 1) {
         failed = build_rec(&b, &root, 0);
     } else {

@@ -16,21 +16,20 @@ typedef struct rt_prim {
     uint32_t index;
 } rt_prim;
 
-/* An item of the binary builder: its box, the point it is binned by, and
- * what it stands for (a primitive of the scene BVH, or a mesh-leaf triangle:
- * prim.index into scene->csg_tris). */
-typedef struct rt_box {
-    rr_vec3 lo, hi;
-} rt_box;
-typedef struct rt_build_item {
-    rt_box box;
-    rr_vec3 centroid;
-    rt_prim prim;
-} rt_build_item;
+/* 32 bytes: what the binary builder reads of an item (a primitive of the
+ * scene BVH, or a mesh-leaf triangle): its box as floats rounded outward,
+ * lo[3] = 0 and hi[3] = the item's number (bits of a uint32_t; set and read
+ * with rt__bref_set / rt__bref_item). Four floats per corner: a box union is
+ * two SIMD operations. */
+typedef struct rt_bref {
+    float lo[4], hi[4];
+} rt_bref;
+void rt__bref_set(rt_bref *r, rr_vec3 lo, rr_vec3 hi, uint32_t item);
+uint32_t rt__bref_item(const rt_bref *r);
 
 /* 32 bytes: a node of the binary build tree (rt_bvh.c builds it, then collapses
  * it into rt_wnode; it is not kept). Inner node (count == 0): left child is the
- * next node, right child is nodes[index]; leaf: items[index .. index + count). */
+ * next node, right child is nodes[index]; leaf: refs[index .. index + count). */
 typedef struct rt_node {
     float lo[3], hi[3];
     uint32_t index;
@@ -198,15 +197,16 @@ int rt__tri_hit(const rt_ray_pre *p, rr_vec3 A, rr_vec3 B, rr_vec3 C, int cull, 
                 int *front);
 
 /* ---- the one BVH builder (rt_bvh_binary.c) ----
- * A binary tree over items[0..n) (n >= 1) by binned SAH, leaves of at most
+ * A binary tree over refs[0..n) (n >= 1) by binned SAH, leaves of at most
  * 8 items (deeper than RT_BVH_STACK - 2: a leaf), in one array in
  * depth-first order (left child next, right child at index), float bounds
- * rounded outward; items are reordered into leaf order. The scene BVH
- * collapses it into wide nodes; the solids' mesh leaves walk it as it is
+ * that contain the refs' boxes; refs are reordered into leaf order (the
+ * caller maps rt__bref_item back to its items). The scene BVH collapses it
+ * into wide nodes; the solids' mesh leaves walk it as it is
  * (rt_solid_mesh.c). *nodes is malloc'd. 0, or -1 when out of memory.
  * Subtrees of >= 65536 items are built by `threads` threads (0: OpenMP's
  * default) as tasks: the same nodes for any count, bytes included. */
-int rt__bvh_build_binary(rt_build_item *items, size_t n, int threads, rt_node **nodes, size_t *nnodes);
+int rt__bvh_build_binary(rt_bref *refs, size_t n, int threads, rt_node **nodes, size_t *nnodes);
 /* Subtrees of at least this many items are built as OpenMP tasks, each into
  * a node array of its own, appended to its parent's afterwards in the order
  * of the serial build (node, left subtree, right subtree): the same splits,

@@ -298,21 +298,17 @@ void rt__solids_destroy(struct rt_solid_accel *sa)
  * touches at a vertex lying on the box. Returns its root, or NO_ROOT when out
  * of memory. */
 static uint32_t build_leaf_tree(const scene *s, const scene_csg_node *n, struct rt_solid_accel *sa, size_t first,
-                                rt_build_item *items)
+                                rt_bref *refs)
 {
     double ext = 0.0, big = 0.0;
     rr_vec3 lo = rr_v3(INFINITY, INFINITY, INFINITY), hi = rr_v3(-INFINITY, -INFINITY, -INFINITY);
     for (size_t j = 0; j < n->tri_count; j++) {
-        size_t t = n->tri_first + j;
-        const uint32_t *v = s->csg_tris[t];
+        const uint32_t *v = s->csg_tris[n->tri_first + j];
         rr_vec3 A = s->csg_verts[v[0]], B = s->csg_verts[v[1]], C = s->csg_verts[v[2]];
-        items[j].box.lo = rr_v3_min(A, rr_v3_min(B, C));
-        items[j].box.hi = rr_v3_max(A, rr_v3_max(B, C));
-        items[j].centroid = rr_v3_scale(rr_v3_add(A, rr_v3_add(B, C)), 1.0 / 3.0);
-        items[j].prim.kind = RT_PRIM_TRIANGLE;
-        items[j].prim.index = (uint32_t)t;
-        lo = rr_v3_min(lo, items[j].box.lo);
-        hi = rr_v3_max(hi, items[j].box.hi);
+        rr_vec3 tlo = rr_v3_min(A, rr_v3_min(B, C)), thi = rr_v3_max(A, rr_v3_max(B, C));
+        rt__bref_set(&refs[j], tlo, thi, (uint32_t)j);
+        lo = rr_v3_min(lo, tlo);
+        hi = rr_v3_max(hi, thi);
     }
     for (int k = 0; k < 3; k++) {
         ext = fmax(ext, rr_v3_get(hi, k) - rr_v3_get(lo, k));
@@ -321,7 +317,7 @@ static uint32_t build_leaf_tree(const scene *s, const scene_csg_node *n, struct 
     double pad = 1e-9 * ext + 1e-12 * big;
     rt_node *nodes = NULL;
     size_t nn = 0;
-    if (rt__bvh_build_binary(items, n->tri_count, 0, &nodes, &nn))
+    if (rt__bvh_build_binary(refs, n->tri_count, 0, &nodes, &nn))
         return NO_ROOT;
     uint32_t base = (uint32_t)sa->nnodes;
     for (size_t k = 0; k < nn; k++) {
@@ -335,7 +331,7 @@ static uint32_t build_leaf_tree(const scene *s, const scene_csg_node *n, struct 
     }
     free(nodes);
     for (size_t j = 0; j < n->tri_count; j++)
-        sa->tris[first + j] = items[j].prim.index;
+        sa->tris[first + j] = (uint32_t)n->tri_first + rt__bref_item(&refs[j]);
     return base;
 }
 
@@ -354,8 +350,8 @@ rr_status rt__solids_build(const scene *s, struct rt_solid_accel **out, rr_error
         return rr_error_set(err, RR_ERR_LIMIT, "%s: %zu mesh-leaf triangles in solids exceed the limit", s->path,
                             total);
     struct rt_solid_accel *sa = calloc(1, sizeof *sa);
-    rt_build_item *items = malloc(most * sizeof *items);
-    if (!sa || !items)
+    rt_bref *refs = malloc(most * sizeof *refs);
+    if (!sa || !refs)
         goto nomem;
     sa->ncsg = s->ncsg;
     sa->root = malloc(s->ncsg * sizeof *sa->root);
@@ -369,15 +365,15 @@ rr_status rt__solids_build(const scene *s, struct rt_solid_accel **out, rr_error
         sa->root[i] = NO_ROOT;
         if (n->op != SCENE_CSG_LEAF || n->solid != SCENE_SOLID_MESH || n->tri_count == 0)
             continue;
-        if ((sa->root[i] = build_leaf_tree(s, n, sa, first, items)) == NO_ROOT)
+        if ((sa->root[i] = build_leaf_tree(s, n, sa, first, refs)) == NO_ROOT)
             goto nomem;
         first += n->tri_count;
     }
-    free(items);
+    free(refs);
     *out = sa;
     return RR_OK;
 nomem:
-    free(items);
+    free(refs);
     rt__solids_destroy(sa);
     return rr_error_set(err, RR_ERR_NOMEM, "%s: out of memory building the BVHs of %zu mesh-leaf triangles",
                         s->path, total);
