@@ -69,13 +69,19 @@
 #define RT_COST_NODE 3.0f
 #define RT_COST_PK 1.0f
 
-/* The cost table, W entries per binary node i at i W: cost[i W + j - 1] =
- * C(i, j); how[i W + j - 1] = the choice: for j = 1, 0 leaf, 1 wide node; for
- * j >= 2, 0 = as with j - 1 slots, else the slots k given to the left child;
- * node_k[i] (inner nodes): the slots split(i, W) gives the left child. */
+/* The cost table. A subtree with L binary leaves cannot use more than L
+ * slots: C(n, j) = C(n, L) for j >= L (split(n, j) can give neither child
+ * more slots than it has leaves, and the costs do not rise with j). So
+ * node i keeps cap[i] = min(L, W) entries, from off[i]: cost[off[i] + j -
+ * 1] = C(i, j) and how[off[i] + j - 1] its choice (j = 1: 0 leaf, 1 wide
+ * node; j >= 2: the slots k given to the left child, 0 = as with j - 1
+ * slots), j > cap[i] reads as j = cap[i]. node_k[i] (inner nodes): the
+ * slots split(i, W) gives the left child. Most nodes are near the leaves:
+ * mesh-1m's 1.08M binary nodes keep about 2.6 entries each, not W = 16. */
 typedef struct collapse_table {
     float *cost;
-    uint8_t *how, *node_k;
+    uint8_t *how, *node_k, *cap;
+    size_t *off;
 } collapse_table;
 
 static void table_free(collapse_table *t)
@@ -83,6 +89,8 @@ static void table_free(collapse_table *t)
     free(t->cost);
     free(t->how);
     free(t->node_k);
+    free(t->cap);
+    free(t->off);
 }
 
 typedef struct collapser {
@@ -131,56 +139,83 @@ static float node_area(const rt_node *n)
  * they keep depend on the triangles' areas, not on how they are grouped). */
 static float leaf_cost(uint32_t n) { return RT_COST_PK * (float)((n + RT_PK - 1) / RT_PK); }
 
-/* The cost table of every binary node (see above), W = width. */
-static void collapse_costs(const rt_node *bin, size_t nbin, const uint32_t *cnt, int width, collapse_table *t)
+/* The costs and choices of binary node i (see above), its children's
+ * already set, W = width, cap and off set for all. split(n, j) tries
+ * k <= cap(left) only: a k beyond it costs no less than k = cap(left), and
+ * the first of equal costs is kept, so the choices are those of the full
+ * table. */
+static void node_costs(const rt_node *bin, size_t i, const uint32_t *cnt, int width, collapse_table *t)
 {
-    for (size_t i = nbin; i-- > 0;) {
-        float *cost = t->cost + i * (size_t)width;
-        uint8_t *how = t->how + i * (size_t)width;
-        float area = node_area(&bin[i]);
-        if (bin[i].count) {
-            cost[0] = area * leaf_cost(cnt[i]);
-            how[0] = 0;
-            t->node_k[i] = 0;
-            for (int j = 1; j < width; j++) {
-                cost[j] = cost[0];
-                how[j] = 0;
+    float *cost = t->cost + t->off[i];
+    uint8_t *how = t->how + t->off[i];
+    float area = node_area(&bin[i]);
+    if (bin[i].count) {
+        cost[0] = area * leaf_cost(cnt[i]);
+        how[0] = 0;
+        t->node_k[i] = 0;
+        return;
+    }
+    size_t li = i + 1, ri = bin[i].index;
+    const float *l = t->cost + t->off[li], *r = t->cost + t->off[ri];
+    int cl = t->cap[li], cr = t->cap[ri], cn = t->cap[i];
+    float split[RT_WIDE_MAX];
+    uint8_t split_k[RT_WIDE_MAX];
+    for (int j = 2; j <= width; j++) {
+        if (j > cn && j < width)
+            continue; /* not needed: beyond cn only split(n, W), for node_k */
+        split[j - 1] = INFINITY;
+        split_k[j - 1] = 1;
+        int kmax = j - 1 < cl ? j - 1 : cl;
+        for (int k = 1; k <= kmax; k++) {
+            int kr = j - k < cr ? j - k : cr;
+            float v = l[k - 1] + r[kr - 1];
+            if (v < split[j - 1]) {
+                split[j - 1] = v;
+                split_k[j - 1] = (uint8_t)k;
             }
-            continue;
         }
-        const float *l = t->cost + (i + 1) * (size_t)width, *r = t->cost + (size_t)bin[i].index * (size_t)width;
-        float split[RT_WIDE_MAX];
-        uint8_t split_k[RT_WIDE_MAX];
-        for (int j = 2; j <= width; j++) {
-            split[j - 1] = INFINITY;
-            split_k[j - 1] = 1;
-            for (int k = 1; k < j; k++) {
-                float v = l[k - 1] + r[j - k - 1];
-                if (v < split[j - 1]) {
-                    split[j - 1] = v;
-                    split_k[j - 1] = (uint8_t)k;
-                }
-            }
-        }
-        t->node_k[i] = split_k[width - 1];
-        float as_node = area * RT_COST_NODE + split[width - 1];
-        float as_leaf = cnt[i] <= RT_WIDE_LEAF_MAX ? area * leaf_cost(cnt[i]) : INFINITY;
-        cost[0] = as_leaf <= as_node ? as_leaf : as_node;
-        how[0] = as_leaf <= as_node ? 0 : 1;
-        for (int j = 2; j <= width; j++) {
-            if (split[j - 1] < cost[j - 2]) {
-                cost[j - 1] = split[j - 1];
-                how[j - 1] = split_k[j - 1];
-            } else {
-                cost[j - 1] = cost[j - 2];
-                how[j - 1] = 0;
-            }
+    }
+    t->node_k[i] = split_k[width - 1];
+    float as_node = area * RT_COST_NODE + split[width - 1];
+    float as_leaf = cnt[i] <= RT_WIDE_LEAF_MAX ? area * leaf_cost(cnt[i]) : INFINITY;
+    cost[0] = as_leaf <= as_node ? as_leaf : as_node;
+    how[0] = as_leaf <= as_node ? 0 : 1;
+    for (int j = 2; j <= cn; j++) {
+        if (split[j - 1] < cost[j - 2]) {
+            cost[j - 1] = split[j - 1];
+            how[j - 1] = split_k[j - 1];
+        } else {
+            cost[j - 1] = cost[j - 2];
+            how[j - 1] = 0;
         }
     }
 }
 
+/* The costs of the subtree of binary node i, nodes [i, end): backwards
+ * (children after parents), the two subtrees of a large node as tasks. */
+static void collapse_costs(const rt_node *bin, size_t i, size_t end, const uint32_t *cnt, int width,
+                           collapse_table *t)
+{
+    if (bin[i].count || cnt[i] < RT_BUILD_TASK_MIN || !omp_in_parallel()) {
+        for (size_t k = end; k-- > i;)
+            node_costs(bin, k, cnt, width, t);
+        return;
+    }
+    size_t r = bin[i].index;
+#pragma omp task
+    collapse_costs(bin, i + 1, r, cnt, width, t);
+#pragma omp task
+    collapse_costs(bin, r, end, cnt, width, t);
+#pragma omp taskwait
+    node_costs(bin, i, cnt, width, t);
+}
+
 /* The choice for binary node i with j slots. */
-static int how_of(const collapser *c, uint32_t i, int j) { return c->t.how[(size_t)i * (size_t)c->width + (size_t)j - 1]; }
+static int how_of(const collapser *c, uint32_t i, int j)
+{
+    int cap = c->t.cap[i];
+    return c->t.how[c->t.off[i] + (size_t)(j < cap ? j : cap) - 1];
+}
 
 /* 1 when binary node i is a leaf of the wide tree (as one child). */
 static int is_leaf(const collapser *c, uint32_t i) { return how_of(c, i, 1) == 0; }
@@ -303,15 +338,34 @@ static int collapse(const rt_node *bin, size_t nbin, size_t n, uint32_t *lcnt, u
             first[i] = first[i + 1];
         }
     }
-    collapse_table t = {malloc(nbin * (size_t)width * sizeof *t.cost), malloc(nbin * (size_t)width), malloc(nbin)};
-    if (!t.cost || !t.how || !t.node_k) {
+    collapse_table t = {NULL, NULL, malloc(nbin), malloc(nbin), malloc(nbin * sizeof(size_t))};
+    if (!t.node_k || !t.cap || !t.off) {
         table_free(&t);
         free(cnt);
         return -1;
     }
-    collapse_costs(bin, nbin, cnt, width, &t);
+    size_t nent = 0;
+    for (size_t i = nbin; i-- > 0;) {
+        unsigned cn = bin[i].count ? 1u : (unsigned)t.cap[i + 1] + t.cap[bin[i].index];
+        t.cap[i] = (uint8_t)(cn < (unsigned)width ? cn : (unsigned)width);
+    }
+    for (size_t i = 0; i < nbin; i++) {
+        t.off[i] = nent;
+        nent += t.cap[i];
+    }
+    t.cost = malloc(nent * sizeof *t.cost);
+    t.how = malloc(nent);
+    if (!t.cost || !t.how) {
+        table_free(&t);
+        free(cnt);
+        return -1;
+    }
+    int par = threads > 1 && cnt[0] >= RT_BUILD_TASK_MIN;
+#pragma omp parallel num_threads(threads) if (par)
+#pragma omp single
+    collapse_costs(bin, 0, nbin, cnt, width, &t);
     collapser c = {bin, cnt, first, t, lcnt, lpk, width, rt__wnode_bytes(width), NULL, 0, 0};
-    int root_leaf = is_leaf(&c, 0), par = threads > 1 && cnt[0] >= RT_BUILD_TASK_MIN;
+    int root_leaf = is_leaf(&c, 0);
     size_t total = 1;
     if (!root_leaf) {
 #pragma omp parallel num_threads(threads) if (par)
