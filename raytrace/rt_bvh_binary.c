@@ -142,25 +142,20 @@ static inline fbox ref_box(const rt_bref *r)
 /* lo + hi: twice the box's centre, the point an item is binned by. */
 static inline v4 ref_c2(fbox b) { return v4_add(v4_xyz(b.lo), v4_xyz(b.hi)); }
 
+/* The nodes go into one array of 2 n - 1 (a binary tree whose leaves hold
+ * at least one item each has at most that many), allocated once: a subtree
+ * of c items owns the 2 c - 1 slots from its root, so the two subtrees of a
+ * task-built node are written in place side by side (the left one's from
+ * the node's slot + 1, the right one's from + 2 c_left), and only one
+ * compaction into depth-first order follows. The pages the slack never
+ * touches are never mapped. (Building each task's subtree into an array of
+ * its own and appending it to its parent's copied the nodes once per level
+ * of tasks, fresh pages each time: 4 copies of 35 MB for 1M triangles.) */
 typedef struct builder {
     rt_bref *refs;
     rt_node *nodes;
-    size_t nnodes, cap;
+    size_t next; /* the next free slot of this builder's subtree */
 } builder;
-
-static int push_node(builder *b, size_t *idx)
-{
-    if (b->nnodes == b->cap) {
-        size_t cap = b->cap ? 2 * b->cap : 256;
-        rt_node *n = realloc(b->nodes, cap * sizeof *n);
-        if (!n)
-            return -1;
-        b->nodes = n;
-        b->cap = cap;
-    }
-    *idx = b->nnodes++;
-    return 0;
-}
 
 /* The bin grid of one SAH step: bin k of axis a holds the items whose
  * (c2[a] - lo[a]) * scale[a] truncates to k (clamped to the grid). An axis
@@ -473,13 +468,12 @@ static void set_bounds(rt_node *n, fbox box)
     memcpy(n->hi, hi, sizeof n->hi);
 }
 
-/* Node *idx for the items of sp: a leaf (l->count = 0), or an inner node
- * whose children get the spans *l and *r (its right child's index is set by
- * the caller). 0, or -1 when out of memory. */
-static int make_node(builder *b, const span *sp, int depth, size_t *idx, span *l, span *r)
+/* Node *idx (the next slot) for the items of sp: a leaf (l->count = 0), or
+ * an inner node whose children get the spans *l and *r (its right child's
+ * index is set by the caller). */
+static void make_node(builder *b, const span *sp, int depth, size_t *idx, span *l, span *r)
 {
-    if (push_node(b, idx))
-        return -1;
+    *idx = b->next++;
     int axis = 0;
     l->count = depth >= RT_STACK - 2 ? 0 : sah_partition(b->refs, sp, &axis, l, r);
     rt_node *n = &b->nodes[*idx];
@@ -490,75 +484,74 @@ static int make_node(builder *b, const span *sp, int depth, size_t *idx, span *l
         n->count = (uint16_t)sp->count;
         n->axis = 0;
         l->count = 0;
-        return 0;
+        return;
     }
     n->count = 0;
     n->axis = (uint16_t)axis;
-    return 0;
 }
 
-static int build_rec(builder *b, const span *sp, int depth)
+static void build_rec(builder *b, const span *sp, int depth)
 {
     size_t idx;
     span l, r;
-    if (make_node(b, sp, depth, &idx, &l, &r))
-        return -1;
+    make_node(b, sp, depth, &idx, &l, &r);
     if (l.count == 0)
-        return 0;
-    if (build_rec(b, &l, depth + 1))
-        return -1;
-    b->nodes[idx].index = (uint32_t)b->nnodes; /* right child follows the whole left subtree */
-    return build_rec(b, &r, depth + 1);
+        return;
+    build_rec(b, &l, depth + 1);
+    b->nodes[idx].index = (uint32_t)b->next; /* right child follows the whole left subtree */
+    build_rec(b, &r, depth + 1);
 }
 
-/* Appends sub's nodes to b's (interior nodes' right-child indices moved by
- * the offset; a leaf's index is an item index and stays). */
-static int append_nodes(builder *b, const builder *sub)
+/* build_rec with the two subtrees of a large node built as tasks, each in
+ * its slots (see builder): the right child's index is its slot, until
+ * compact() moves it. */
+static void build_par(builder *b, const span *sp, int depth)
 {
-    size_t off = b->nnodes;
-    if (off + sub->nnodes > b->cap) {
-        size_t cap = b->cap ? b->cap : 256;
-        while (cap < off + sub->nnodes)
-            cap *= 2;
-        rt_node *n = realloc(b->nodes, cap * sizeof *n);
-        if (!n)
-            return -1;
-        b->nodes = n;
-        b->cap = cap;
+    if (sp->count < RT_BUILD_TASK_MIN) {
+        build_rec(b, sp, depth);
+        return;
     }
-    memcpy(b->nodes + off, sub->nodes, sub->nnodes * sizeof *sub->nodes);
-    for (size_t k = off; k < off + sub->nnodes; k++)
-        if (b->nodes[k].count == 0)
-            b->nodes[k].index += (uint32_t)off;
-    b->nnodes += sub->nnodes;
-    return 0;
-}
-
-/* build_rec with the two subtrees of a large node built as tasks. */
-static int build_par(builder *b, const span *sp, int depth)
-{
-    if (sp->count < RT_BUILD_TASK_MIN)
-        return build_rec(b, sp, depth);
     size_t idx;
     span l, r;
-    if (make_node(b, sp, depth, &idx, &l, &r))
-        return -1;
+    make_node(b, sp, depth, &idx, &l, &r);
     if (l.count == 0)
-        return 0;
-    builder L = {b->refs, NULL, 0, 0}, R = {b->refs, NULL, 0, 0};
-    int fl = 0, fr = 0;
-#pragma omp task shared(L, fl, l) if (omp_in_parallel())
-    fl = build_par(&L, &l, depth + 1);
-#pragma omp task shared(R, fr, r) if (omp_in_parallel())
-    fr = build_par(&R, &r, depth + 1);
+        return;
+    builder L = {b->refs, b->nodes, idx + 1}, R = {b->refs, b->nodes, idx + 2 * l.count};
+    b->nodes[idx].index = (uint32_t)R.next;
+#pragma omp task shared(L, l) if (omp_in_parallel())
+    build_par(&L, &l, depth + 1);
+#pragma omp task shared(R, r) if (omp_in_parallel())
+    build_par(&R, &r, depth + 1);
 #pragma omp taskwait
-    int failed = fl || fr || append_nodes(b, &L);
-    if (!failed)
-        b->nodes[idx].index = (uint32_t)b->nnodes; /* right child follows the whole left subtree */
-    failed = failed || append_nodes(b, &R);
-    free(L.nodes);
-    free(R.nodes);
-    return failed ? -1 : 0;
+    b->next = R.next;
+}
+
+/* The tree build_par left with gaps, moved down into depth-first order in
+ * place: the walk meets the nodes in rising slot order and puts each at the
+ * next free place, never above its slot, so nothing unread is overwritten.
+ * Returns the node count. */
+static size_t compact(rt_node *nodes)
+{
+    size_t pending[2 * RT_STACK]; /* per open inner node: its place, then its right child's slot */
+    int sp = 0;
+    size_t at = 0, out = 0;
+    for (;;) {
+        rt_node nd = nodes[at];
+        nodes[out] = nd;
+        if (nd.count == 0) {
+            RR_CHECK(sp + 2 <= 2 * RT_STACK);
+            pending[sp++] = out;
+            pending[sp++] = nd.index;
+            at++;
+            out++;
+            continue;
+        }
+        out++;
+        if (sp == 0)
+            return out;
+        at = pending[--sp];
+        nodes[pending[--sp]].index = (uint32_t)out;
+    }
 }
 
 void rt__bref_set(rt_bref *r, rr_vec3 lo, rr_vec3 hi, uint32_t item)
@@ -582,24 +575,25 @@ uint32_t rt__bref_item(const rt_bref *r)
 
 int rt__bvh_build_binary(rt_bref *refs, size_t n, int threads, rt_node **nodes, size_t *nnodes)
 {
-    builder b = {refs, NULL, 0, 0};
-    int failed = 0;
+    builder b = {refs, malloc((2 * n - 1) * sizeof *b.nodes), 0};
+    if (!b.nodes)
+        return -1;
     if (threads <= 0)
         threads = omp_get_max_threads();
     span root;
     span_of(refs, 0, n, &root);
+    size_t count;
     if (n < RT_BUILD_TASK_MIN || threads == 1) {
-        failed = build_rec(&b, &root, 0);
+        build_rec(&b, &root, 0);
+        count = b.next;
     } else {
 #pragma omp parallel num_threads(threads)
 #pragma omp single
-        failed = build_par(&b, &root, 0);
+        build_par(&b, &root, 0);
+        count = compact(b.nodes);
     }
-    if (failed) {
-        free(b.nodes);
-        return -1;
-    }
-    *nodes = b.nodes;
-    *nnodes = b.nnodes;
+    rt_node *shrunk = realloc(b.nodes, count * sizeof *b.nodes);
+    *nodes = shrunk ? shrunk : b.nodes;
+    *nnodes = count;
     return 0;
 }

@@ -207,11 +207,11 @@ int rt__tri_hit(const rt_ray_pre *p, rr_vec3 A, rr_vec3 B, rr_vec3 C, int cull, 
  * Subtrees of >= 65536 items are built by `threads` threads (0: OpenMP's
  * default) as tasks: the same nodes for any count, bytes included. */
 int rt__bvh_build_binary(rt_bref *refs, size_t n, int threads, rt_node **nodes, size_t *nnodes);
-/* Subtrees of at least this many items are built as OpenMP tasks, each into
- * a node array of its own, appended to its parent's afterwards in the order
- * of the serial build (node, left subtree, right subtree): the same splits,
- * the same node array, bytes included, for any thread count. Below it one
- * thread builds the subtree (a task's cost would not pay). */
+/* Subtrees of at least this many items are built as OpenMP tasks, each in
+ * slots of its own in the one node array, which is then compacted into the
+ * order of the serial build (node, left subtree, right subtree): the same
+ * splits, the same node array, bytes included, for any thread count. Below
+ * it one thread builds the subtree (a task's cost would not pay). */
 #define RT_BUILD_TASK_MIN 65536
 
 /* ---- the BVH by width (rt_bvh.c, rt_traverse.c, rt_bvh_avx2.c) ---- */
