@@ -163,7 +163,7 @@ typedef struct builder {
  * split on. */
 typedef struct grid {
     v4 lo, scale;
-    float scale_a[4];
+    float lo_a[4], scale_a[4];
 } grid;
 
 static inline void grid_bins(const grid *g, v4 c2, int k[4])
@@ -213,24 +213,49 @@ static void bin_items(const rt_bref *refs, size_t count, const grid *g, bins3 *b
         }
         return;
     }
+    /* Even items into one set of bins, odd ones into a second, united at
+     * the end (exactly: the same bins): neighbours in the array tend to
+     * fall into the same bin, and one set would make each item's update
+     * wait for the previous one's through memory. */
+    fbox box2[3][RT_BINS];
+    uint32_t cnt2[3][RT_BINS];
     for (int a = 0; a < 3; a++)
         for (int j = 0; j < RT_BINS; j++) {
-            b->box[a][j] = fbox_empty();
-            b->cnt[a][j] = 0;
+            b->box[a][j] = box2[a][j] = fbox_empty();
+            b->cnt[a][j] = cnt2[a][j] = 0;
         }
-    for (size_t i = 0; i < count; i++) {
-        fbox box = ref_box(&refs[i]);
-        grid_bins(g, ref_c2(box), k);
+    size_t i = 0;
+    for (; i + 1 < count; i += 2) {
+        fbox x = ref_box(&refs[i]), y = ref_box(&refs[i + 1]);
+        int ky[4];
+        grid_bins(g, ref_c2(x), k);
+        grid_bins(g, ref_c2(y), ky);
+        for (int a = 0; a < 3; a++) {
+            fbox *d = &b->box[a][k[a]], *e = &box2[a][ky[a]];
+            d->lo = v4_min(d->lo, x.lo);
+            d->hi = v4_max(d->hi, x.hi);
+            e->lo = v4_min(e->lo, y.lo);
+            e->hi = v4_max(e->hi, y.hi);
+            b->cnt[a][k[a]]++;
+            cnt2[a][ky[a]]++;
+        }
+    }
+    if (i < count) {
+        fbox x = ref_box(&refs[i]);
+        grid_bins(g, ref_c2(x), k);
         for (int a = 0; a < 3; a++) {
             fbox *d = &b->box[a][k[a]];
-            d->lo = v4_min(d->lo, box.lo);
-            d->hi = v4_max(d->hi, box.hi);
+            d->lo = v4_min(d->lo, x.lo);
+            d->hi = v4_max(d->hi, x.hi);
             b->cnt[a][k[a]]++;
         }
     }
     for (int a = 0; a < 3; a++)
-        for (int j = 0; j < RT_BINS; j++)
+        for (int j = 0; j < RT_BINS; j++) {
+            b->box[a][j] = fbox_union(b->box[a][j], box2[a][j]);
+            b->cnt[a][j] += cnt2[a][j];
             b->used[a] |= (b->cnt[a][j] != 0) << j;
+        }
 }
 
 /* Chunks of items binned as tasks when the build runs in parallel (counts
@@ -304,6 +329,8 @@ static void grid_of(const span *sp, grid *g)
     }
     g->scale_a[3] = 0.0f;
     g->lo = v4_set(lo[0], lo[1], lo[2], 0.0f);
+    memcpy(g->lo_a, lo, sizeof lo);
+    g->lo_a[3] = 0.0f;
     g->scale = v4_load(g->scale_a);
 }
 
@@ -410,26 +437,29 @@ static size_t sah_partition(rt_bref *all, const span *sp, int *axis_out, span *l
      * moved; the two sides' bounds are gathered on the way. */
     fbox lb = fbox_empty(), lc = fbox_empty(), rb = fbox_empty(), rc = fbox_empty();
     size_t i = 0, j = count;
-    int k[4];
+    /* Right of the split: bin >= best_split, which for a split in
+     * [1, RT_BINS - 1] is t >= best_split for grid_bins' t (the clamps
+     * and the truncation do not move t across an integer above 0), the
+     * same float operations on one lane. */
+    float glo = g.lo_a[best_axis], gscale = g.scale_a[best_axis], gsplit = (float)best_split;
+#define RT_RIGHT(ref) (((ref)->lo[best_axis] + (ref)->hi[best_axis] - glo) * gscale >= gsplit)
     for (;;) {
         fbox b;
         v4 c;
         for (; i < j; i++) {
+            if (RT_RIGHT(&refs[i]))
+                break;
             b = ref_box(&refs[i]);
             c = ref_c2(b);
-            grid_bins(&g, c, k);
-            if (k[best_axis] >= best_split)
-                break;
             lb = fbox_union(lb, b);
             lc.lo = v4_min(lc.lo, c);
             lc.hi = v4_max(lc.hi, c);
         }
         for (; i < j; j--) {
+            if (!RT_RIGHT(&refs[j - 1]))
+                break;
             b = ref_box(&refs[j - 1]);
             c = ref_c2(b);
-            grid_bins(&g, c, k);
-            if (k[best_axis] < best_split)
-                break;
             rb = fbox_union(rb, b);
             rc.lo = v4_min(rc.lo, c);
             rc.hi = v4_max(rc.hi, c);
@@ -453,6 +483,7 @@ static size_t sah_partition(rt_bref *all, const span *sp, int *axis_out, span *l
         i++;
         j--;
     }
+#undef RT_RIGHT
     *l = (span){sp->first, i, lb, lc};
     *r = (span){sp->first + i, count - i, rb, rc};
     *axis_out = best_axis;
