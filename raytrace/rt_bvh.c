@@ -427,7 +427,9 @@ static double fill_lane(const scene *s, rt_prim pr, rt_pk *k, int i, int *dbl)
     for (int c = 0; c < 3; c++) {
         rr_vec3 v = s->verts[t->v[c]];
         exact = exact && (double)(float)v.x == v.x && (double)(float)v.y == v.y && (double)(float)v.z == v.z;
-        double m = fmax(fabs(v.x), fmax(fabs(v.y), fabs(v.z)));
+        double ax = fabs(v.x), ay = fabs(v.y), az = fabs(v.z); /* not fmax: a libm call per use */
+        double m = ax > ay ? ax : ay;
+        m = az > m ? az : m;
         vm = m > vm ? m : vm;
         k->v[3 * c][i] = (float)v.x;
         k->v[3 * c + 1][i] = (float)v.y;

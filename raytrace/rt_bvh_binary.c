@@ -134,6 +134,9 @@ static double fbox_area(fbox b)
 }
 #endif
 
+/* fmax(a, DBL_MIN) for an area (never NaN), without the libm call. */
+static inline double area_floor(double a) { return a > DBL_MIN ? a : DBL_MIN; }
+
 static inline fbox ref_box(const rt_bref *r)
 {
     fbox b = {v4_load(r->lo), v4_load(r->hi)};
@@ -354,7 +357,7 @@ static size_t sah_pair(rt_bref *all, const span *sp, int *axis_out, span *l, spa
     v4_store(ca, ref_c2(a));
     v4_store(cb, ref_c2(b));
     int swap = ca[axis] > cb[axis];
-    double inv_area = 1.0 / fmax(fbox_area(sp->box), DBL_MIN);
+    double inv_area = 1.0 / area_floor(fbox_area(sp->box));
     double cost = 1.0 + (fbox_area(swap ? b : a) * 1.0 + fbox_area(swap ? a : b) * 1.0) * inv_area;
     if (!(cost < 2.0))
         return 0;
@@ -389,7 +392,7 @@ static size_t sah_partition(rt_bref *all, const span *sp, int *axis_out, span *l
     bin_all(refs, count, &g, &bins);
     double best_cost = (double)count; /* cost of a leaf, in intersection units */
     int best_axis = -1, best_split = 0;
-    double inv_area = 1.0 / fmax(fbox_area(sp->box), DBL_MIN);
+    double inv_area = 1.0 / area_floor(fbox_area(sp->box));
     for (int axis = 0; axis < 3; axis++) {
         if (!(g.scale_a[axis] > 0.0f))
             continue;
