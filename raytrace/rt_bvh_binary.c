@@ -318,18 +318,21 @@ static void span_of(const rt_bref *refs, size_t a, size_t e, span *out)
     }
 }
 
+/* The bins per unit of an axis whose c2 extent is ext: finite and above 0,
+ * or 0 (the axis is not split on). */
+static inline float axis_scale(float ext)
+{
+    float sc = ext > 0.0f && ext <= FLT_MAX ? (float)RT_BINS / ext : 0.0f;
+    return sc <= FLT_MAX ? sc : 0.0f;
+}
+
 static void grid_of(const span *sp, grid *g)
 {
     float lo[4], hi[4];
     v4_store(lo, sp->cb.lo);
     v4_store(hi, sp->cb.hi);
-    for (int a = 0; a < 3; a++) {
-        float ext = hi[a] - lo[a];
-        /* Finite and above 0, or the axis is not split on. */
-        g->scale_a[a] = ext > 0.0f && ext <= FLT_MAX ? (float)RT_BINS / ext : 0.0f;
-        if (!(g->scale_a[a] <= FLT_MAX))
-            g->scale_a[a] = 0.0f;
-    }
+    for (int a = 0; a < 3; a++)
+        g->scale_a[a] = axis_scale(hi[a] - lo[a]);
     g->scale_a[3] = 0.0f;
     g->lo = v4_set(lo[0], lo[1], lo[2], 0.0f);
     memcpy(g->lo_a, lo, sizeof lo);
@@ -344,10 +347,11 @@ static void grid_of(const span *sp, grid *g)
  * nodes of a large build are nodes of two items. */
 static size_t sah_pair(rt_bref *all, const span *sp, int *axis_out, span *l, span *r)
 {
-    grid g;
-    grid_of(sp, &g);
+    float lo[4], hi[4];
+    v4_store(lo, sp->cb.lo);
+    v4_store(hi, sp->cb.hi);
     int axis = 0;
-    while (axis < 3 && !(g.scale_a[axis] > 0.0f))
+    while (axis < 3 && !(axis_scale(hi[axis] - lo[axis]) > 0.0f))
         axis++;
     if (axis == 3)
         return 0;
