@@ -163,17 +163,20 @@ static void node_costs(const rt_node *bin, size_t i, const uint32_t *cnt, int wi
     for (int j = 2; j <= width; j++) {
         if (j > cn && j < width)
             continue; /* not needed: beyond cn only split(n, W), for node_k */
-        split[j - 1] = INFINITY;
-        split_k[j - 1] = 1;
-        int kmax = j - 1 < cl ? j - 1 : cl;
+        /* The first k of the least cost, written as selects: the
+         * comparison goes either way at random, and a branch on it was
+         * mispredicted most of the time. */
+        float best = INFINITY;
+        int best_k = 1, kmax = j - 1 < cl ? j - 1 : cl;
         for (int k = 1; k <= kmax; k++) {
             int kr = j - k < cr ? j - k : cr;
             float v = l[k - 1] + r[kr - 1];
-            if (v < split[j - 1]) {
-                split[j - 1] = v;
-                split_k[j - 1] = (uint8_t)k;
-            }
+            int lower = v < best;
+            best_k = lower ? k : best_k;
+            best = lower ? v : best;
         }
+        split[j - 1] = best;
+        split_k[j - 1] = (uint8_t)best_k;
     }
     t->node_k[i] = split_k[width - 1];
     float as_node = area * RT_COST_NODE + split[width - 1];
