@@ -208,11 +208,29 @@ static void bin_items(const rt_bref *refs, size_t count, const grid *g, bins3 *b
     int k[4];
     b->used[0] = b->used[1] = b->used[2] = 0;
     if (count < RT_BIN_DENSE) {
+        /* The items' bins first, then only the bins they use set empty, then
+         * the unions: no branch on whether a bin is in use yet (it went
+         * either way at random). */
+        int kk[RT_BIN_DENSE][4];
+        for (size_t i = 0; i < count; i++) {
+            grid_bins(g, ref_c2(ref_box(&refs[i])), kk[i]);
+            for (int a = 0; a < 3; a++)
+                b->used[a] |= 1u << kk[i][a];
+        }
+        for (int a = 0; a < 3; a++)
+            for (unsigned u = b->used[a]; u; u &= u - 1) {
+                int j = __builtin_ctz(u);
+                b->box[a][j] = fbox_empty();
+                b->cnt[a][j] = 0;
+            }
         for (size_t i = 0; i < count; i++) {
             fbox box = ref_box(&refs[i]);
-            grid_bins(g, ref_c2(box), k);
-            for (int a = 0; a < 3; a++)
-                bin_put(b, a, k[a], box, 1);
+            for (int a = 0; a < 3; a++) {
+                fbox *d = &b->box[a][kk[i][a]];
+                d->lo = v4_min(d->lo, box.lo);
+                d->hi = v4_max(d->hi, box.hi);
+                b->cnt[a][kk[i][a]]++;
+            }
         }
         return;
     }
