@@ -453,6 +453,15 @@ static double fill_lane(const scene *s, rt_prim pr, rt_pk *k, int i, int *dbl)
 #define RT_PF_FAR 24
 #define RT_PF_MID 16
 #define RT_PF_NEAR 8
+/* The vertices of primitive pr, if it is a triangle (its scene_tri read). */
+static inline void prefetch_verts(const scene *s, rt_prim pr)
+{
+    if (pr.kind != RT_PRIM_TRIANGLE)
+        return;
+    const scene_tri *t = &s->tris[pr.index];
+    for (int c = 0; c < 3; c++)
+        __builtin_prefetch(&s->verts[t->v[c]]);
+}
 static inline void prefetch_lane(const scene *s, const rt_bref *refs, const rt_prim *prims, size_t p, size_t n)
 {
     if (p + RT_PF_FAR < n)
@@ -462,14 +471,8 @@ static inline void prefetch_lane(const scene *s, const rt_bref *refs, const rt_p
         if (pr.kind == RT_PRIM_TRIANGLE)
             __builtin_prefetch(&s->tris[pr.index]);
     }
-    if (p + RT_PF_NEAR < n) {
-        rt_prim pr = prims[rt__bref_item(&refs[p + RT_PF_NEAR])];
-        if (pr.kind == RT_PRIM_TRIANGLE) {
-            const scene_tri *t = &s->tris[pr.index];
-            for (int c = 0; c < 3; c++)
-                __builtin_prefetch(&s->verts[t->v[c]]);
-        }
-    }
+    if (p + RT_PF_NEAR < n)
+        prefetch_verts(s, prims[rt__bref_item(&refs[p + RT_PF_NEAR])]);
 }
 
 /* The leaf packets (rt_internal.h) from the primitives in leaf order
@@ -600,12 +603,8 @@ rr_status rt__accel_build_width(const scene *s, int width, rt_accel **out, rr_er
 #pragma omp parallel for schedule(static) num_threads(threads) if (n >= RT_BUILD_TASK_MIN)
     for (size_t i = 0; i < n; i++) {
         rr_vec3 lo, hi;
-        if (i + RT_PF_NEAR < n && b.list[i + RT_PF_NEAR].kind == RT_PRIM_TRIANGLE) {
-            /* The vertices of a triangle further on (the triangles are read in order, their vertices are not). */
-            const scene_tri *t = &s->tris[b.list[i + RT_PF_NEAR].index];
-            for (int c = 0; c < 3; c++)
-                __builtin_prefetch(&s->verts[t->v[c]]);
-        }
+        if (i + RT_PF_NEAR < n) /* the triangles are read in order, their vertices are not */
+            prefetch_verts(s, b.list[i + RT_PF_NEAR]);
         rt__prim_bounds(s, b.list[i], &lo, &hi);
         rt__bref_set(&b.refs[i], lo, hi, (uint32_t)i);
     }
