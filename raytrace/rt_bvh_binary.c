@@ -153,7 +153,7 @@ static inline v4 ref_c2(fbox b) { return v4_add(v4_xyz(b.lo), v4_xyz(b.hi)); }
  * compaction into depth-first order follows. The pages the slack never
  * touches are never mapped. (Building each task's subtree into an array of
  * its own and appending it to its parent's copied the nodes once per level
- * of tasks, fresh pages each time: 4 copies of 35 MB for 1M triangles.) */
+ * of tasks, fresh pages each time: about 4 copies of 35 MB for 1M triangles.) */
 typedef struct builder {
     rt_bref *refs;
     rt_node *nodes;
@@ -198,9 +198,17 @@ static void bin_put(bins3 *b, int axis, int k, fbox box, uint32_t n)
     }
 }
 
-/* Below this many items a node sets its bins as it meets them; from it on,
- * all bins are set empty first and the loop has no branch. */
+/* Below this many items a node sets empty only the bins its items use;
+ * from it on, all of them (and bins twice, see bin_items). */
 #define RT_BIN_DENSE 48
+
+/* One item's box into a bin. */
+static inline void bin_add(fbox *d, uint32_t *cnt, fbox box)
+{
+    d->lo = v4_min(d->lo, box.lo);
+    d->hi = v4_max(d->hi, box.hi);
+    (*cnt)++;
+}
 
 /* refs[0, count) into the bins of the three axes, in one pass over them. */
 static void bin_items(const rt_bref *refs, size_t count, const grid *g, bins3 *b)
@@ -225,12 +233,8 @@ static void bin_items(const rt_bref *refs, size_t count, const grid *g, bins3 *b
             }
         for (size_t i = 0; i < count; i++) {
             fbox box = ref_box(&refs[i]);
-            for (int a = 0; a < 3; a++) {
-                fbox *d = &b->box[a][kk[i][a]];
-                d->lo = v4_min(d->lo, box.lo);
-                d->hi = v4_max(d->hi, box.hi);
-                b->cnt[a][kk[i][a]]++;
-            }
+            for (int a = 0; a < 3; a++)
+                bin_add(&b->box[a][kk[i][a]], &b->cnt[a][kk[i][a]], box);
         }
         return;
     }
@@ -252,24 +256,15 @@ static void bin_items(const rt_bref *refs, size_t count, const grid *g, bins3 *b
         grid_bins(g, ref_c2(x), k);
         grid_bins(g, ref_c2(y), ky);
         for (int a = 0; a < 3; a++) {
-            fbox *d = &b->box[a][k[a]], *e = &box2[a][ky[a]];
-            d->lo = v4_min(d->lo, x.lo);
-            d->hi = v4_max(d->hi, x.hi);
-            e->lo = v4_min(e->lo, y.lo);
-            e->hi = v4_max(e->hi, y.hi);
-            b->cnt[a][k[a]]++;
-            cnt2[a][ky[a]]++;
+            bin_add(&b->box[a][k[a]], &b->cnt[a][k[a]], x);
+            bin_add(&box2[a][ky[a]], &cnt2[a][ky[a]], y);
         }
     }
     if (i < count) {
         fbox x = ref_box(&refs[i]);
         grid_bins(g, ref_c2(x), k);
-        for (int a = 0; a < 3; a++) {
-            fbox *d = &b->box[a][k[a]];
-            d->lo = v4_min(d->lo, x.lo);
-            d->hi = v4_max(d->hi, x.hi);
-            b->cnt[a][k[a]]++;
-        }
+        for (int a = 0; a < 3; a++)
+            bin_add(&b->box[a][k[a]], &b->cnt[a][k[a]], x);
     }
     for (int a = 0; a < 3; a++)
         for (int j = 0; j < RT_BINS; j++) {
@@ -321,19 +316,24 @@ typedef struct span {
     fbox box, cb;
 } span;
 
+/* Reference r into the bounds of a span's boxes and of its c2 points. */
+static inline void span_add(fbox *box, fbox *cb, const rt_bref *r)
+{
+    fbox b = ref_box(r);
+    v4 c = ref_c2(b);
+    *box = fbox_union(*box, b);
+    cb->lo = v4_min(cb->lo, c);
+    cb->hi = v4_max(cb->hi, c);
+}
+
 static void span_of(const rt_bref *refs, size_t a, size_t e, span *out)
 {
     out->first = a;
     out->count = e - a;
     out->box = fbox_empty();
     out->cb = fbox_empty();
-    for (size_t i = a; i < e; i++) {
-        fbox b = ref_box(&refs[i]);
-        v4 c = ref_c2(b);
-        out->box = fbox_union(out->box, b);
-        out->cb.lo = v4_min(out->cb.lo, c);
-        out->cb.hi = v4_max(out->cb.hi, c);
-    }
+    for (size_t i = a; i < e; i++)
+        span_add(&out->box, &out->cb, &refs[i]);
 }
 
 /* The bins per unit of an axis whose c2 extent is ext: finite and above 0,
@@ -469,42 +469,18 @@ static size_t sah_partition(rt_bref *all, const span *sp, int *axis_out, span *l
     float glo = g.lo_a[best_axis], gscale = g.scale_a[best_axis], gsplit = (float)best_split;
 #define RT_RIGHT(ref) (((ref)->lo[best_axis] + (ref)->hi[best_axis] - glo) * gscale >= gsplit)
     for (;;) {
-        fbox b;
-        v4 c;
-        for (; i < j; i++) {
-            if (RT_RIGHT(&refs[i]))
-                break;
-            b = ref_box(&refs[i]);
-            c = ref_c2(b);
-            lb = fbox_union(lb, b);
-            lc.lo = v4_min(lc.lo, c);
-            lc.hi = v4_max(lc.hi, c);
-        }
-        for (; i < j; j--) {
-            if (!RT_RIGHT(&refs[j - 1]))
-                break;
-            b = ref_box(&refs[j - 1]);
-            c = ref_c2(b);
-            rb = fbox_union(rb, b);
-            rc.lo = v4_min(rc.lo, c);
-            rc.hi = v4_max(rc.hi, c);
-        }
+        for (; i < j && !RT_RIGHT(&refs[i]); i++)
+            span_add(&lb, &lc, &refs[i]);
+        for (; i < j && RT_RIGHT(&refs[j - 1]); j--)
+            span_add(&rb, &rc, &refs[j - 1]);
         if (i >= j)
             break;
         /* refs[i] belongs right, refs[j - 1] left: swap and take both. */
         rt_bref t = refs[i];
         refs[i] = refs[j - 1];
         refs[j - 1] = t;
-        b = ref_box(&refs[i]);
-        c = ref_c2(b);
-        lb = fbox_union(lb, b);
-        lc.lo = v4_min(lc.lo, c);
-        lc.hi = v4_max(lc.hi, c);
-        b = ref_box(&refs[j - 1]);
-        c = ref_c2(b);
-        rb = fbox_union(rb, b);
-        rc.lo = v4_min(rc.lo, c);
-        rc.hi = v4_max(rc.hi, c);
+        span_add(&lb, &lc, &refs[i]);
+        span_add(&rb, &rc, &refs[j - 1]);
         i++;
         j--;
     }
