@@ -14,7 +14,9 @@
 #define RT_W 16
 #define RT_WALK rt__walk16
 #define RT_OCCL rt__occl16
+#define RT_BOXTEST rt__box16_test
 #include "rt_wide.h"
+
 #else
 typedef int rt__bvh_avx512_unused; /* ISO C wants a declaration in every file */
 #endif

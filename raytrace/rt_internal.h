@@ -238,10 +238,12 @@ int rt__occl4(const rt_accel *a, rr_ray ray, double tmin, double tmax);
 #if RT_HAVE_W8
 int rt__walk8(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_hit *hit, int mode);
 int rt__occl8(const rt_accel *a, rr_ray ray, double tmin, double tmax);
+unsigned rt__box8_test(const void *node, rr_ray ray, double tmin, double tmax, float *dist, int *fast);
 #endif
 #if RT_HAVE_W16
 int rt__walk16(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_hit *hit, int mode);
 int rt__occl16(const rt_accel *a, rr_ray ray, double tmin, double tmax);
+unsigned rt__box16_test(const void *node, rr_ray ray, double tmin, double tmax, float *dist, int *fast);
 #endif
 
 /* ---- rt_solid.c: acceleration for the solids' mesh leaves ---- */

@@ -165,13 +165,17 @@ static inline void rt__tri_fill(const rt_accel *a, const rt_pk *k, int i, int fr
  *
  * rt__pk_cand returns the lanes of a packet that the exact test must see:
  * every used lane but the triangles that the exact test would certainly
- * reject because their edge functions have opposite signs. It evaluates
+ * reject because their edge functions have opposite signs, or because all
+ * three are negative (a back face) and the lane's object culls back faces
+ * in this query (ref & rt_ray_pre.cull_mask). It evaluates
  * the watertight test's sheared coordinates and edge functions in float, on
  * the origin and the shear rounded to nearest, and rejects a lane only when
- * one of U, V, W is below -E and another above +E, E bounding the float
+ * one of U, V, W is below -E and another above +E, or (culling) all three
+ * below -E, E bounding the float
  * values' distance from the exact ones (and so from the double ones, whose
  * own error is 2^29 times smaller and inside the bound's slack). Every
- * rejection is one the double test makes too, and the long-double
+ * rejection is one the double test makes too (all three negative: the
+ * sign test passes, det = U + V + W < 0, the face is culled), and the long-double
  * recomputation at exact zeros cannot happen for it (|U| > E > 0): the hits
  * are the double test's, bit for bit.
  *
@@ -211,8 +215,10 @@ static inline void rt__tri_fill(const rt_accel *a, const rt_pk *k, int i, int fr
 typedef struct rt_pkray {
 #if RT_PK_SIMD
     __m128 o[3], sx, sy, e1, e2; /* e1 = 4 Ep, e2 = 2 Ep^2 + 1e-37 */
+    __m128i cull;                /* rt_ray_pre.cull_mask in every lane */
 #else
     float o[3], sx, sy, e1, e2;
+    uint32_t cull;
 #endif
     int kx, ky, kz;
 } rt_pkray;
@@ -220,7 +226,11 @@ typedef struct rt_pkray {
 static inline void rt__pkray_init(const rt_ray_pre *p, float vmax, rt_pkray *r)
 {
     float o[3] = {(float)p->ok[0], (float)p->ok[1], (float)p->ok[2]};
-    float om = fmaxf(fmaxf(fabsf(o[0]), fabsf(o[1])), fabsf(o[2]));
+    /* The largest |o| by comparisons (fmaxf is a libm call here); a NaN
+     * origin makes vmax + om NaN below either way. */
+    float om = fabsf(o[0]), o1 = fabsf(o[1]), o2 = fabsf(o[2]);
+    om = o1 > om ? o1 : om;
+    om = o2 > om ? o2 : om;
     /* Ep = 9u (vmax + O) and e1 = 4 Ep, e2 = 2 Ep^2 + 1e-37 in float: each
      * operation rounds by at most u = 6e-8 relative, and the factor
      * 1 + 2^-20 (1e-6) more than makes up for the five of them. */
@@ -239,6 +249,7 @@ static inline void rt__pkray_init(const rt_ray_pre *p, float vmax, rt_pkray *r)
     r->sy = _mm_set1_ps(sy);
     r->e1 = _mm_set1_ps(e1);
     r->e2 = _mm_set1_ps(e2);
+    r->cull = _mm_set1_epi32((int)p->cull_mask);
 #else
     for (int k = 0; k < 3; k++)
         r->o[k] = o[k];
@@ -246,6 +257,7 @@ static inline void rt__pkray_init(const rt_ray_pre *p, float vmax, rt_pkray *r)
     r->sy = sy;
     r->e1 = e1;
     r->e2 = e2;
+    r->cull = p->cull_mask;
 #endif
     r->kx = p->kx;
     r->ky = p->ky;
@@ -254,8 +266,8 @@ static inline void rt__pkray_init(const rt_ray_pre *p, float vmax, rt_pkray *r)
 
 /* The float test in plain C, lane by lane (RADRAY_SIMD=OFF, and the
  * reference of the SSE version: the same operations). */
-static inline unsigned rt__pk_cand_scalar(const rt_pk *k, float o[3], float sx, float sy, float e1, float e2, int kx,
-                                          int ky, int kz)
+static inline unsigned rt__pk_cand_scalar(const rt_pk *k, float o[3], float sx, float sy, float e1, float e2,
+                                          uint32_t cull, int kx, int ky, int kz)
 {
     unsigned m = 0;
     for (int i = 0; i < RT_PK; i++) {
@@ -267,7 +279,8 @@ static inline unsigned rt__pk_cand_scalar(const rt_pk *k, float o[3], float sx, 
         float M = fmaxf(fmaxf(fmaxf(fabsf(ax), fabsf(ay)), fmaxf(fabsf(bx), fabsf(by))), fmaxf(fabsf(cx), fabsf(cy)));
         float E = M * (e1 + M * (5.0f * RT_PK_U)) + e2;
         int neg = (U < -E) | (V < -E) | (W < -E), pos = (U > E) | (V > E) | (W > E);
-        m |= (unsigned)((k->ref[i] != 0) & !(neg & pos)) << i;
+        int back = (U < -E) & (V < -E) & (W < -E) & ((k->ref[i] & cull) != 0);
+        m |= (unsigned)((k->ref[i] != 0) & !(neg & pos) & !back) << i;
     }
     return m;
 }
@@ -298,12 +311,17 @@ static inline unsigned rt__pk_cand(const rt_pk *k, const rt_pkray *r)
      * one is NaN; U, V, W are NaN all three or none, since finite vertices
      * within V + O < 1e18 give finite values, so a NaN lane stays NaN.) */
     __m128 lo = _mm_min_ps(_mm_min_ps(U, V), W), hi = _mm_max_ps(_mm_max_ps(U, V), W);
-    __m128 miss = _mm_and_ps(_mm_cmplt_ps(lo, _mm_xor_ps(E, _mm_set1_ps(-0.0f))), _mm_cmpgt_ps(hi, E));
-    __m128i unused = _mm_cmpeq_epi32(_mm_load_si128((const __m128i *)k->ref), _mm_setzero_si128());
-    return (unsigned)_mm_movemask_ps(_mm_or_ps(miss, _mm_castsi128_ps(unused))) ^ 0xfu;
+    __m128 nE = _mm_xor_ps(E, _mm_set1_ps(-0.0f));
+    __m128 miss = _mm_and_ps(_mm_cmplt_ps(lo, nE), _mm_cmpgt_ps(hi, E));
+    /* A back face (all three below -E) of a lane whose object culls them. */
+    __m128i ref = _mm_load_si128((const __m128i *)k->ref);
+    __m128i keep = _mm_cmpeq_epi32(_mm_and_si128(ref, r->cull), _mm_setzero_si128());
+    __m128 back = _mm_andnot_ps(_mm_castsi128_ps(keep), _mm_cmplt_ps(hi, nE));
+    __m128i unused = _mm_cmpeq_epi32(ref, _mm_setzero_si128());
+    return (unsigned)_mm_movemask_ps(_mm_or_ps(_mm_or_ps(miss, back), _mm_castsi128_ps(unused))) ^ 0xfu;
 #else
     float o[3] = {r->o[0], r->o[1], r->o[2]};
-    return rt__pk_cand_scalar(k, o, r->sx, r->sy, r->e1, r->e2, kx, ky, kz);
+    return rt__pk_cand_scalar(k, o, r->sx, r->sy, r->e1, r->e2, r->cull, kx, ky, kz);
 #endif
 }
 

@@ -38,6 +38,17 @@
  * (1 + g3)/(1 - g3) < 1 + RT_BOX_GROW therefore keeps every box whose exact
  * entry <= exit. tmin is rounded down and tmax up (callers pass them so).
  *
+ * The 16-wide version computes plane * inv - c in one fused multiply-add
+ * per plane instead of (plane - origin) * inv, with c = o inv_f rounded
+ * outward per side (rt__boxray_init: cn >= o inv_f >= cf exactly). Then
+ * plane inv_f - cn <= (plane - o) inv_f <= plane inv_f - cf before the one
+ * rounding of the FMA, and (plane - o) inv_f is the exact distance times
+ * (1 + delta), |delta| <= u: an entry comes out at most (1 + u)^2 too large,
+ * an exit at most (1 - u)^2 too small, inside the same RT_BOX_GROW. It needs
+ * a finite inv_f and |c| < 1e37: rays with a zero direction component take
+ * rt__box4_double in that walk. (On 8-wide AVX2 nodes the fused form was
+ * measured 2-8 % slower, notes/performance.md: not used there.)
+ *
  * Zero direction components: 1/+-0 = +-inf, and (plane - origin) * inf is
  * +-inf, or NaN when the origin lies on the plane. MINPS/MAXPS return their
  * second operand when either is NaN, so with the running bound as the second
@@ -106,7 +117,7 @@ static inline unsigned rt__box4_scalar(const rt_wn *n, const rt_ray_pre *p, floa
  * walk, instead of once per node). */
 typedef struct rt_boxray {
 #if RT_BOX_SIMD == 3
-    __m512 on[3], of[3], inv[3];
+    __m512 cn[3], cf[3], inv[3]; /* o inv rounded up (near) and down (far), inv */
     int row[3];
 #elif RT_BOX_SIMD == 2
     __m256 on[3], of[3], inv[3];
@@ -119,15 +130,26 @@ typedef struct rt_boxray {
 #endif
 } rt_boxray;
 
-static inline void rt__boxray_init(const rt_ray_pre *p, rt_boxray *br)
+/* Returns 0 when the float test cannot take the ray (the walk then uses
+ * rt__box4_double): for the fused form, a zero direction component or
+ * |o / d| >= 1e37. */
+static inline int rt__boxray_init(const rt_ray_pre *p, rt_boxray *br)
 {
 #if RT_BOX_SIMD == 3
+    /* c = o inv_f in double, padded by 2^-50 |c| + 1e-300 (more than its
+     * rounding error, and more than an underflow's), then rounded outward
+     * to float: cn >= o inv_f >= cf exactly. */
+    const double o[3] = {p->ray.o.x, p->ray.o.y, p->ray.o.z};
+    int ok = 1;
     for (int k = 0; k < 3; k++) {
-        br->on[k] = _mm512_set1_ps(p->org_near[k]);
-        br->of[k] = _mm512_set1_ps(p->org_far[k]);
+        double c = o[k] * (double)p->inv_f[k], pad = fabs(c) * 0x1p-50 + 1e-300;
+        ok &= fabs(c) < 1e37; /* false for NaN, and for inv_f = +-inf (d = 0) */
+        br->cn[k] = _mm512_set1_ps(rt__f_up(c + pad));
+        br->cf[k] = _mm512_set1_ps(rt__f_down(c - pad));
         br->inv[k] = _mm512_set1_ps(p->inv_f[k]);
         br->row[k] = p->near_row[k];
     }
+    return ok;
 #elif RT_BOX_SIMD == 2
     for (int k = 0; k < 3; k++) {
         br->on[k] = _mm256_set1_ps(p->org_near[k]);
@@ -135,6 +157,7 @@ static inline void rt__boxray_init(const rt_ray_pre *p, rt_boxray *br)
         br->inv[k] = _mm256_set1_ps(p->inv_f[k]);
         br->row[k] = p->near_row[k];
     }
+    return 1;
 #elif RT_BOX_SIMD == 1
     for (int k = 0; k < 3; k++) {
         br->on[k] = _mm_set1_ps(p->org_near[k]);
@@ -142,8 +165,10 @@ static inline void rt__boxray_init(const rt_ray_pre *p, rt_boxray *br)
         br->inv[k] = _mm_set1_ps(p->inv_f[k]);
         br->row[k] = p->near_row[k];
     }
+    return 1;
 #else
     br->p = p;
+    return 1;
 #endif
 }
 
@@ -155,16 +180,16 @@ static inline unsigned rt__box4_fast(const rt_wn *n, const rt_boxray *br, float 
                                      float dist[RT_W])
 {
 #if RT_BOX_SIMD == 3
+    /* plane inv - c in one fused multiply-add per plane (rt__boxray_init). */
     const int nx = br->row[0], ny = br->row[1], nz = br->row[2];
-    __m512 tx0 = _mm512_mul_ps(_mm512_sub_ps(_mm512_load_ps(n->b[nx]), br->on[0]), br->inv[0]);
-    __m512 ty0 = _mm512_mul_ps(_mm512_sub_ps(_mm512_load_ps(n->b[ny]), br->on[1]), br->inv[1]);
-    __m512 tz0 = _mm512_mul_ps(_mm512_sub_ps(_mm512_load_ps(n->b[nz]), br->on[2]), br->inv[2]);
-    __m512 tx1 = _mm512_mul_ps(_mm512_sub_ps(_mm512_load_ps(n->b[nx ^ 1]), br->of[0]), br->inv[0]);
-    __m512 ty1 = _mm512_mul_ps(_mm512_sub_ps(_mm512_load_ps(n->b[ny ^ 1]), br->of[1]), br->inv[1]);
-    __m512 tz1 = _mm512_mul_ps(_mm512_sub_ps(_mm512_load_ps(n->b[nz ^ 1]), br->of[2]), br->inv[2]);
-    /* VMAXPS/VMINPS on zmm registers have the NaN rule of MAXPS/MINPS. */
-    __m512 t0 = _mm512_max_ps(tz0, _mm512_max_ps(ty0, _mm512_max_ps(tx0, _mm512_set1_ps(tmin))));
-    __m512 t1 = _mm512_min_ps(tz1, _mm512_min_ps(ty1, _mm512_min_ps(tx1, _mm512_set1_ps(INFINITY))));
+    __m512 tx0 = _mm512_fmsub_ps(_mm512_load_ps(n->b[nx]), br->inv[0], br->cn[0]);
+    __m512 ty0 = _mm512_fmsub_ps(_mm512_load_ps(n->b[ny]), br->inv[1], br->cn[1]);
+    __m512 tz0 = _mm512_fmsub_ps(_mm512_load_ps(n->b[nz]), br->inv[2], br->cn[2]);
+    __m512 tx1 = _mm512_fmsub_ps(_mm512_load_ps(n->b[nx ^ 1]), br->inv[0], br->cf[0]);
+    __m512 ty1 = _mm512_fmsub_ps(_mm512_load_ps(n->b[ny ^ 1]), br->inv[1], br->cf[1]);
+    __m512 tz1 = _mm512_fmsub_ps(_mm512_load_ps(n->b[nz ^ 1]), br->inv[2], br->cf[2]);
+    __m512 t0 = _mm512_max_ps(_mm512_max_ps(tx0, ty0), _mm512_max_ps(tz0, _mm512_set1_ps(tmin)));
+    __m512 t1 = _mm512_min_ps(_mm512_min_ps(tx1, ty1), tz1);
     t1 = _mm512_min_ps(_mm512_set1_ps(tmax), _mm512_mul_ps(t1, _mm512_set1_ps(1.0f + RT_BOX_GROW)));
     _mm512_storeu_ps(dist, t0);
     return (unsigned)_mm512_cmp_ps_mask(t0, t1, _CMP_LE_OQ);
@@ -228,6 +253,22 @@ static inline unsigned rt__box4_double(const rt_wn *n, const rt_ray_pre *p, doub
     return mask;
 }
 
+#ifdef RT_BOXTEST
+/* The walk's box test on one node of this width (an rt_wn), for tests
+ * (rt_internal.h): the float test (*fast = 1) or, for the rays it cannot
+ * take, the double one (*fast = 0), as the walk chooses. */
+unsigned RT_BOXTEST(const void *node, rr_ray ray, double tmin, double tmax, float *dist, int *fast)
+{
+    const rt_wn *n = node;
+    rt_ray_pre p;
+    rt__ray_prepare(ray, &p);
+    rt_boxray br;
+    *fast = rt__boxray_init(&p, &br) && !p.box_double && tmin >= 0.0;
+    return *fast ? rt__box4_fast(n, &br, rt__f_down(tmin), rt__f_up(tmax), dist)
+                 : rt__box4_double(n, &p, tmin, tmax, dist);
+}
+#endif
+
 #ifdef RT_WALK
 /* ---- the walk ----
  *
@@ -257,10 +298,11 @@ int RT_WALK(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_hit *hit
         p.box_double = 1;
     if (mode & RT_WALK_TWO_SIDED)
         p.cull_mask = 0;
-    rt_boxray br;
-    rt__boxray_init(&p, &br);
     rt_pkray pr;
     rt__pkray_init(&p, a->vmax, &pr);
+    rt_boxray br;
+    if (!rt__boxray_init(&p, &br))
+        p.box_double = 1;
     const float grow = 1.0f + RT_BOX_GROW;
     const float tmin_f = rt__f_down(tmin);
     rt_stack_entry stack[RT_STACK_SIZE];
@@ -475,10 +517,11 @@ int RT_OCCL(const rt_accel *a, rr_ray ray, double tmin, double tmax)
     rt__ray_prepare(ray, &p);
     if (!(tmin >= 0.0))
         p.box_double = 1;
-    rt_boxray br;
-    rt__boxray_init(&p, &br);
     rt_pkray pr;
     rt__pkray_init(&p, a->vmax, &pr);
+    rt_boxray br;
+    if (!rt__boxray_init(&p, &br))
+        p.box_double = 1;
     const float tmin_f = rt__f_down(tmin);
     const float cull = rt__f_up(tmax) * (1.0f + RT_BOX_GROW);
     const double tmax_d = tmax + fabs(tmax) * 1e-15;

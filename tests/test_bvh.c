@@ -58,55 +58,90 @@ static float rand_coord(rr_rng *rng)
     return rr_rng_uniform(rng) < 0.2 ? (float)(int)(8 * rr_rng_uniform(rng) - 4) : (float)(8 * rr_rng_uniform(rng) - 4);
 }
 
+/* A random node of `width` boxes (b[2k][i], b[2k+1][i]: box i's slab k; 10 %
+ * empty) and a ray: aimed exactly at a corner, an edge point or a face point
+ * of box *lane (kind 0, 1, 2) or random (kind 3), and one time in five
+ * parallel to an axis with a +0 or -0 component, its origin sometimes on that
+ * axis's plane of the box. Returns 0 for a zero direction (skip it). */
+static int random_box_case(rr_rng *rng, int width, float b[6][16], rr_ray *ray, int *lane_out, int *kind_out,
+                           double *tmax)
+{
+    for (int i = 0; i < width; i++) {
+        int empty = rr_rng_uniform(rng) < 0.1;
+        for (int k = 0; k < 3; k++) {
+            float a = rand_coord(rng), c = rr_rng_uniform(rng) < 0.1 ? a : rand_coord(rng);
+            b[2 * k][i] = empty ? INFINITY : fminf(a, c);
+            b[2 * k + 1][i] = empty ? -INFINITY : fmaxf(a, c);
+        }
+    }
+    rr_ray r;
+    r.o = rr_v3(rand_coord(rng), rand_coord(rng), rand_coord(rng));
+    int lane = (int)rr_rng_below(rng, (uint32_t)width), kind = (int)rr_rng_below(rng, 4);
+    if (kind < 3 && b[0][lane] <= b[1][lane]) {
+        double t[3];
+        for (int k = 0; k < 3; k++) {
+            int side = (int)rr_rng_below(rng, 2);
+            double u = k < kind ? rr_rng_uniform(rng) : (double)side;
+            t[k] = b[2 * k][lane] + u * ((double)b[2 * k + 1][lane] - b[2 * k][lane]);
+        }
+        r.d = rr_v3_sub(rr_v3(t[0], t[1], t[2]), r.o);
+    } else {
+        r.d = rr_v3(2 * rr_rng_uniform(rng) - 1, 2 * rr_rng_uniform(rng) - 1, 2 * rr_rng_uniform(rng) - 1);
+    }
+    if (rr_rng_uniform(rng) < 0.2) { /* parallel to an axis, with +0 or -0 */
+        int k = (int)rr_rng_below(rng, 3);
+        double z = rr_rng_uniform(rng) < 0.5 ? 0.0 : -0.0;
+        r.d = k == 0 ? rr_v3(z, r.d.y, r.d.z) : (k == 1 ? rr_v3(r.d.x, z, r.d.z) : rr_v3(r.d.x, r.d.y, z));
+        if (rr_rng_uniform(rng) < 0.5 && b[0][lane] <= b[1][lane]) /* origin on that axis's plane of a box */
+            r.o = k == 0 ? rr_v3(b[0][lane], r.o.y, r.o.z)
+                         : (k == 1 ? rr_v3(r.o.x, b[3][lane], r.o.z) : rr_v3(r.o.x, r.o.y, b[4][lane]));
+    }
+    *ray = r;
+    *lane_out = lane;
+    *kind_out = kind;
+    *tmax = rr_rng_uniform(rng) < 0.5 ? INFINITY : 0.5 + 3 * rr_rng_uniform(rng);
+    return rr_v3_len2(r.d) > 0.0;
+}
+
+/* Checks box i of b against the exact slab test: a box the ray meets in
+ * [tmin, tmax] is in the mask, with dist within the contract's factor of its
+ * entry. Returns whether the box is met (exactly). */
+static int box_lane_conservative(const float b[6][16], int i, rr_ray r, double tmin, double tmax, unsigned mask,
+                                 const float *dist)
+{
+    float lo[3] = {b[0][i], b[2][i], b[4][i]}, hi[3] = {b[1][i], b[3][i], b[5][i]};
+    long double entry;
+    if (!slab_exact(lo, hi, r, tmin, tmax, &entry))
+        return 0;
+    assert_true(mask >> i & 1); /* never culled */
+    assert_true((long double)dist[i] <= entry * (1 + (long double)RT_BOX_GROW) + 1e-30L);
+    return 1;
+}
+
 /* The scalar, SSE and double versions (4 wide; the 8-wide AVX2 test is
- * checked through whole queries, bvh_widths_agree) agree on random nodes and
- * rays, and none culls a box the ray touches (rays aimed exactly at box
- * corners, edges and faces, directions with +0 and -0 components, origins on
- * box planes). */
+ * checked through whole queries, bvh_widths_agree, the 16-wide one below)
+ * agree on random nodes and rays, and none culls a box the ray touches (rays
+ * aimed exactly at box corners, edges and faces, directions with +0 and -0
+ * components, origins on box planes). */
 static void wide_box_tests_agree_and_conservative(void **state)
 {
     (void)state;
     rr_rng rng = rr_rng_make(2024, 8);
     int touched = 0, checked = 0;
     for (int it = 0; it < 200000; it++) {
+        float b[6][16];
+        rr_ray r;
+        int lane, kind;
+        double tmin = 0.0, tmax;
+        if (!random_box_case(&rng, RT_W, b, &r, &lane, &kind, &tmax))
+            continue;
         rt_wn n;
         memset(&n, 0, sizeof n);
         for (int i = 0; i < RT_W; i++) {
-            int empty = rr_rng_uniform(&rng) < 0.1;
-            for (int k = 0; k < 3; k++) {
-                float a = rand_coord(&rng), b = rr_rng_uniform(&rng) < 0.1 ? a : rand_coord(&rng);
-                n.b[2 * k][i] = empty ? INFINITY : fminf(a, b);
-                n.b[2 * k + 1][i] = empty ? -INFINITY : fmaxf(a, b);
-            }
+            for (int k = 0; k < 6; k++)
+                n.b[k][i] = b[k][i];
             n.child[i] = (uint32_t)i;
         }
-        rr_ray r;
-        r.o = rr_v3(rand_coord(&rng), rand_coord(&rng), rand_coord(&rng));
-        int lane = (int)rr_rng_below(&rng, RT_W), kind = (int)rr_rng_below(&rng, 4);
-        if (kind < 3 && n.b[0][lane] <= n.b[1][lane]) {
-            /* Aim at a corner (kind 0), an edge point (1) or a face point (2) of one
-             * box. */
-            double t[3];
-            for (int k = 0; k < 3; k++) {
-                int side = (int)rr_rng_below(&rng, 2);
-                double u = k < kind ? rr_rng_uniform(&rng) : (double)side;
-                t[k] = n.b[2 * k][lane] + u * ((double)n.b[2 * k + 1][lane] - n.b[2 * k][lane]);
-            }
-            r.d = rr_v3_sub(rr_v3(t[0], t[1], t[2]), r.o);
-        } else {
-            r.d = rr_v3(2 * rr_rng_uniform(&rng) - 1, 2 * rr_rng_uniform(&rng) - 1, 2 * rr_rng_uniform(&rng) - 1);
-        }
-        if (rr_rng_uniform(&rng) < 0.2) { /* parallel to an axis, with +0 or -0 */
-            int k = (int)rr_rng_below(&rng, 3);
-            double z = rr_rng_uniform(&rng) < 0.5 ? 0.0 : -0.0;
-            r.d = k == 0 ? rr_v3(z, r.d.y, r.d.z) : (k == 1 ? rr_v3(r.d.x, z, r.d.z) : rr_v3(r.d.x, r.d.y, z));
-            if (rr_rng_uniform(&rng) < 0.5 && n.b[0][lane] <= n.b[1][lane]) /* origin on that axis's plane of a box */
-                r.o = k == 0 ? rr_v3(n.b[0][lane], r.o.y, r.o.z)
-                             : (k == 1 ? rr_v3(r.o.x, n.b[3][lane], r.o.z) : rr_v3(r.o.x, r.o.y, n.b[4][lane]));
-        }
-        if (!(rr_v3_len2(r.d) > 0.0))
-            continue;
-        double tmin = 0.0, tmax = rr_rng_uniform(&rng) < 0.5 ? INFINITY : 0.5 + 3 * rr_rng_uniform(&rng);
         rt_ray_pre p;
         rt__ray_prepare(r, &p);
         assert_false(p.box_double);
@@ -124,20 +159,98 @@ static void wide_box_tests_agree_and_conservative(void **state)
                 assert_memory_equal(&df[i], &ds[i], sizeof(float));
 #endif
         for (int i = 0; i < RT_W; i++) {
-            float lo[3] = {n.b[0][i], n.b[2][i], n.b[4][i]}, hi[3] = {n.b[1][i], n.b[3][i], n.b[5][i]};
-            long double entry;
-            if (!slab_exact(lo, hi, r, tmin, tmax, &entry))
-                continue;
-            checked++;
-            touched += i == lane && kind < 3;
-            assert_true(ms >> i & 1); /* never culled */
-            assert_true(md >> i & 1);
-            assert_true((long double)ds[i] <= entry * (1 + (long double)RT_BOX_GROW) + 1e-30L);
-            assert_true((long double)dd[i] <= entry * (1 + (long double)RT_BOX_GROW) + 1e-30L);
+            int met = box_lane_conservative(b, i, r, tmin, tmax, ms, ds);
+            box_lane_conservative(b, i, r, tmin, tmax, md, dd);
+            checked += met;
+            touched += met && i == lane && kind < 3;
         }
     }
     assert_true(touched > 50000);
     assert_true(checked > 150000);
+}
+
+/* The 8- and 16-wide walks' box tests (AVX2; AVX-512 with fused
+ * multiply-adds on o / d rounded outward, rt_wide.h rt__boxray_init) never
+ * cull a box the ray touches, keep its entry within the contract, and cull
+ * most of the boxes the ray misses (else a mask of all lanes would pass);
+ * in the 16-wide walk, rays with a zero direction component take the double
+ * test. Widths the CPU lacks are skipped (the 4-wide test is above). */
+static void wide_simd_box_tests_conservative(void **state)
+{
+    (void)state;
+    typedef unsigned (*box_test_fn)(const void *, rr_ray, double, double, float *, int *);
+    int widths[2] = {0, 0};
+    box_test_fn fns[2] = {NULL, NULL};
+#if RT_HAVE_W8
+    widths[0] = 8;
+    fns[0] = rt__box8_test;
+#endif
+#if RT_HAVE_W16
+    widths[1] = 16;
+    fns[1] = rt__box16_test;
+#endif
+    int tested = 0;
+    for (int w = 0; w < 2; w++) {
+        int width = widths[w];
+        if (!width || !rt__bvh_width_ok(width))
+            continue;
+        tested++;
+        rr_rng rng = rr_rng_make(2026, (uint64_t)width);
+        long touched = 0, checked = 0, missed = 0, culled = 0, fast_rays = 0, skipped = 0;
+        for (int it = 0; it < 100000; it++) {
+            float b[6][16];
+            rr_ray r;
+            int lane, kind;
+            double tmax;
+            if (!random_box_case(&rng, width, b, &r, &lane, &kind, &tmax)) {
+                skipped++;
+                continue;
+            }
+            union {
+#if RT_HAVE_W8
+                rt_wnode8 n8;
+#endif
+#if RT_HAVE_W16
+                rt_wnode16 n16;
+#endif
+                char any;
+            } node;
+            memset(&node, 0, sizeof node);
+            for (int k = 0; k < 6; k++)
+                for (int i = 0; i < width; i++) {
+#if RT_HAVE_W8
+                    if (width == 8)
+                        node.n8.b[k][i] = b[k][i];
+#endif
+#if RT_HAVE_W16
+                    if (width == 16)
+                        node.n16.b[k][i] = b[k][i];
+#endif
+                }
+            float dist[16];
+            int fast;
+            unsigned m = fns[w](&node, r, 0.0, tmax, dist, &fast);
+            int zero_d = r.d.x == 0.0 || r.d.y == 0.0 || r.d.z == 0.0;
+            assert_int_equal(fast, width == 16 ? !zero_d : 1);
+            fast_rays += fast;
+            for (int i = 0; i < width; i++) {
+                int met = box_lane_conservative(b, i, r, 0.0, tmax, m, dist);
+                checked += met;
+                touched += met && i == lane && kind < 3;
+                if (!met && fast && b[0][i] <= b[1][i]) {
+                    missed++;
+                    culled += !(m >> i & 1);
+                }
+            }
+        }
+        assert_true(touched > 25000);
+        assert_true(checked > 50000 * (long)width / 8);
+        assert_true(fast_rays > 70000);
+        assert_true(width == 16 || fast_rays == 100000 - skipped);
+        assert_true(culled > 0.99 * (double)missed);
+    }
+    if (!tested)
+        skip();
 }
 
 /* Regression: a ray parallel to two axes with direction components -0 (as
@@ -533,7 +646,7 @@ static void pk_float_test_conservative(void **state)
     (void)state;
     rr_rng rng = rr_rng_make(2026, 12);
     const double scales[] = {1e-6, 1e-3, 1.0, 1e3, 1e6, 1e15};
-    long kept_hits = 0, misses = 0, rejected = 0;
+    long kept_hits = 0, misses = 0, rejected = 0, back_dropped = 0;
     for (int trial = 0; trial < 60000; trial++) {
         double sc = scales[trial % 6];
         double off = rr_rng_uniform(&rng) < 0.5 ? 0.0 : sc * 1e3 * rand_sym(&rng);
@@ -553,6 +666,8 @@ static void pk_float_test_conservative(void **state)
                 vm = fabs(x) > vm ? fabs(x) : vm;
             }
             k.ref[i] = (uint32_t)i << RT_REF_SHIFT | (fast ? RT_REF_FAST : RT_REF_DBL);
+            if (rr_rng_uniform(&rng) < 0.5)
+                k.ref[i] |= RT_REF_CULL; /* its back face is culled */
         }
         float vmax = rt__f_up(vm * (1.0 + 1e-6));
         /* The ray: from a point some distance away towards a target. */
@@ -585,12 +700,16 @@ static void pk_float_test_conservative(void **state)
         /* The SSE lanes are the scalar version's. */
         float o[3] = {(float)p.ok[0], (float)p.ok[1], (float)p.ok[2]};
         assert_int_equal(m, rt__pk_cand_scalar(&k, o, (float)p.Sx, (float)p.Sy, _mm_cvtss_f32(pr.e1),
-                                               _mm_cvtss_f32(pr.e2), p.kx, p.ky, p.kz));
+                                               _mm_cvtss_f32(pr.e2), p.cull_mask, p.kx, p.ky, p.kz));
 #endif
         for (int i = 0; i < RT_PK; i++) {
             double tt;
             int front;
-            int hit = rt__tri_hit_drec(&p, dv[i], 0, -INFINITY, INFINITY, 0, &tt, &front);
+            int cull = (k.ref[i] & RT_REF_CULL) != 0;
+            int hit = rt__tri_hit_drec(&p, dv[i], cull, -INFINITY, INFINITY, 0, &tt, &front);
+            /* A culled back face the float test dropped (it may keep some). */
+            if (cull && !hit && rt__tri_hit_drec(&p, dv[i], 0, -INFINITY, INFINITY, 0, &tt, &front))
+                back_dropped += !((m >> i) & 1);
             if (hit) {
                 if (!((m >> i) & 1))
                     fail_msg("trial %d lane %d: the float test dropped a hit (scale %g, "
@@ -606,6 +725,8 @@ static void pk_float_test_conservative(void **state)
     assert_true(kept_hits > 10000); /* the aimed rays hit */
     /* Random rays miss most triangles by far more than the bound. */
     assert_true(rejected > 0.9 * (double)misses);
+    /* Culled back faces are dropped too (most are: the aimed ones). */
+    assert_true(back_dropped > 1000);
 
     /* NaN lanes are kept, unused lanes never. */
     rt_pk k;
@@ -675,6 +796,7 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(wide_box_tests_agree_and_conservative),
+        cmocka_unit_test(wide_simd_box_tests_conservative),
         cmocka_unit_test(bvh_negative_zero_direction),
         cmocka_unit_test(bvh_fast_path_matches_reference_random),
         cmocka_unit_test(bvh_fast_path_large_and_watertight),
