@@ -39,7 +39,7 @@
  * entry <= exit. tmin is rounded down and tmax up (callers pass them so).
  *
  * The 16-wide version computes plane * inv - c in one fused multiply-add
- * per plane instead of (plane - origin) * inv, with c = o inv_f rounded
+ * per plane instead of (plane - origin) * inv, with c = o inv_f padded
  * outward per side (rt__boxray_init: cn >= o inv_f >= cf exactly). Then
  * plane inv_f - cn <= (plane - o) inv_f <= plane inv_f - cf before the one
  * rounding of the FMA, and (plane - o) inv_f is the exact distance times
@@ -136,20 +136,25 @@ typedef struct rt_boxray {
 static inline int rt__boxray_init(const rt_ray_pre *p, rt_boxray *br)
 {
 #if RT_BOX_SIMD == 3
-    /* c = o inv_f in double, padded by 2^-50 |c| + 1e-300 (more than its
-     * rounding error, and more than an underflow's), then rounded outward
-     * to float: cn >= o inv_f >= cf exactly. */
-    const double o[3] = {p->ray.o.x, p->ray.o.y, p->ray.o.z};
-    int ok = 1;
+    /* c = o inv_f per axis in double (lane 3 unused), padded by 2^-22 |c| +
+     * 1e-44 and rounded to float: the pad is more than the rounding to
+     * nearest float can take back (2^-24 |c|, or half the smallest
+     * subnormal) and than the double product's error, so cn >= o inv_f >= cf
+     * exactly. Boxes grow by about 2^-22 |o / d| along the ray: nothing. */
+    __m256d c = _mm256_mul_pd(_mm256_loadu_pd(&p->ray.o.x), _mm256_cvtps_pd(_mm_loadu_ps(p->inv_f)));
+    __m256d ac = _mm256_andnot_pd(_mm256_set1_pd(-0.0), c);
+    __m256d pad = _mm256_add_pd(_mm256_mul_pd(ac, _mm256_set1_pd(0x1p-22)), _mm256_set1_pd(1e-44));
+    float cn[4], cf[4];
+    _mm_storeu_ps(cn, _mm256_cvtpd_ps(_mm256_add_pd(c, pad)));
+    _mm_storeu_ps(cf, _mm256_cvtpd_ps(_mm256_sub_pd(c, pad)));
     for (int k = 0; k < 3; k++) {
-        double c = o[k] * (double)p->inv_f[k], pad = fabs(c) * 0x1p-50 + 1e-300;
-        ok &= fabs(c) < 1e37; /* false for NaN, and for inv_f = +-inf (d = 0) */
-        br->cn[k] = _mm512_set1_ps(rt__f_up(c + pad));
-        br->cf[k] = _mm512_set1_ps(rt__f_down(c - pad));
+        br->cn[k] = _mm512_set1_ps(cn[k]);
+        br->cf[k] = _mm512_set1_ps(cf[k]);
         br->inv[k] = _mm512_set1_ps(p->inv_f[k]);
         br->row[k] = p->near_row[k];
     }
-    return ok;
+    /* |c| < 1e37 on the three axes: false for NaN, and for inv_f = +-inf (d = 0). */
+    return (_mm256_movemask_pd(_mm256_cmp_pd(ac, _mm256_set1_pd(1e37), _CMP_LT_OQ)) & 7) == 7;
 #elif RT_BOX_SIMD == 2
     for (int k = 0; k < 3; k++) {
         br->on[k] = _mm256_set1_ps(p->org_near[k]);
