@@ -49,6 +49,131 @@ static inline float rt__f_down(double x)
     return -rt__f_up(-x); /* rounding to nearest is symmetric */
 }
 
+/* ---- the per-ray set-up (rt__ray_prepare = rt__ray_prepare_box, then rt__ray_prepare_tri) ---- */
+
+#if defined(RT_SIMD) && RT_SIMD >= 1
+#include <emmintrin.h>
+#endif
+
+#if defined(RT_SIMD) && RT_SIMD >= 1
+/* The per-axis part of rt__ray_prepare_box in SSE2, three axes at once and
+ * without branches (for incoherent rays the selections by the direction's
+ * signs were mispredicted): the same values as the scalar loop below. The
+ * origin rounded up and down (rt__f_up, rt__f_down: the float nearest o,
+ * stepped one ulp by its bit pattern when the rounding went the wrong way),
+ * the near and far origins picked by the sign bits, 1/d in double and float,
+ * and whether the float slab test can take the ray. */
+static inline void rt__prepare_axes(const double d[3], const double o[3], rt_ray_pre *p, const int origins)
+{
+    __m128d d01 = _mm_loadu_pd(d), d2 = _mm_load_sd(d + 2);
+    __m128d o01 = _mm_loadu_pd(o), o2 = _mm_load_sd(o + 2);
+    const __m128d one = _mm_set1_pd(1.0);
+    __m128d inv01 = _mm_div_pd(one, d01), inv2 = _mm_div_sd(one, d2);
+    _mm_storeu_pd(p->inv, inv01);
+    _mm_store_sd(p->inv + 2, inv2);
+    _mm_storeu_ps(p->inv_f, _mm_movelh_ps(_mm_cvtpd_ps(inv01), _mm_cvtpd_ps(inv2)));
+    if (origins) {
+        __m128 f = _mm_movelh_ps(_mm_cvtpd_ps(o01), _mm_cvtpd_ps(o2));
+        __m128d f01 = _mm_cvtps_pd(f), f2 = _mm_cvtps_pd(_mm_movehl_ps(f, f));
+        /* f < o and f > o per axis, the 64-bit masks packed into 32-bit lanes. */
+        __m128i lt = _mm_castps_si128(_mm_shuffle_ps(_mm_castpd_ps(_mm_cmplt_pd(f01, o01)),
+                                                     _mm_castpd_ps(_mm_cmplt_pd(f2, o2)), _MM_SHUFFLE(2, 0, 2, 0)));
+        __m128i gt = _mm_castps_si128(_mm_shuffle_ps(_mm_castpd_ps(_mm_cmpgt_pd(f01, o01)),
+                                                     _mm_castpd_ps(_mm_cmpgt_pd(f2, o2)), _MM_SHUFFLE(2, 0, 2, 0)));
+        __m128i u = _mm_castps_si128(f);
+        /* +1 for a float with the sign bit clear, -1 with it set: one ulp up in
+         * value for lt, down for gt (rt__f_up's step). */
+        __m128i dir = _mm_or_si128(_mm_srai_epi32(u, 31), _mm_set1_epi32(1));
+        __m128i up = _mm_add_epi32(u, _mm_and_si128(lt, dir)), down = _mm_sub_epi32(u, _mm_and_si128(gt, dir));
+        /* The direction's sign bits (converting to float keeps them, -0 too). */
+        __m128i neg = _mm_srai_epi32(_mm_castps_si128(_mm_movelh_ps(_mm_cvtpd_ps(d01), _mm_cvtpd_ps(d2))), 31);
+        __m128i near = _mm_or_si128(_mm_and_si128(neg, down), _mm_andnot_si128(neg, up));
+        __m128i far = _mm_or_si128(_mm_and_si128(neg, up), _mm_andnot_si128(neg, down));
+        _mm_storeu_ps(p->org_near, _mm_castsi128_ps(near));
+        _mm_storeu_ps(p->org_far, _mm_castsi128_ps(far));
+    }
+    int nm = _mm_movemask_pd(d01) | _mm_movemask_pd(d2) << 2;
+    for (int i = 0; i < 3; i++) {
+        p->neg[i] = (nm >> i) & 1;
+        p->near_row[i] = 2 * i + p->neg[i];
+    }
+    /* In range: |o| < 1e30, and |d| = 0 or 1e-30 < |d| < 1e30. */
+    const __m128d absm = _mm_castsi128_pd(_mm_set1_epi64x(0x7fffffffffffffffLL));
+    const __m128d big = _mm_set1_pd(1e30), small = _mm_set1_pd(1e-30), zero = _mm_setzero_pd();
+    __m128d a01 = _mm_and_pd(d01, absm), a2 = _mm_and_pd(d2, absm);
+    __m128d ok01 = _mm_and_pd(_mm_cmplt_pd(_mm_and_pd(o01, absm), big),
+                              _mm_or_pd(_mm_cmpeq_pd(a01, zero),
+                                        _mm_and_pd(_mm_cmpgt_pd(a01, small), _mm_cmplt_pd(a01, big))));
+    __m128d ok2 = _mm_and_pd(_mm_cmplt_sd(_mm_and_pd(o2, absm), big),
+                             _mm_or_pd(_mm_cmpeq_sd(a2, zero), _mm_and_pd(_mm_cmpgt_sd(a2, small), _mm_cmplt_sd(a2, big))));
+    p->box_double = (_mm_movemask_pd(ok01) & 3) != 3 || (_mm_movemask_pd(ok2) & 1) != 1;
+}
+#else
+static inline void rt__prepare_axes(const double d[3], const double o[3], rt_ray_pre *p, const int origins)
+{
+    (void)origins;
+    int bad = 0;
+    for (int i = 0; i < 3; i++) {
+        p->inv[i] = 1.0 / d[i]; /* +-inf for a zero component: the slab tests handle it */
+        /* The sign bit, not d < 0: for d = -0, 1/d = -inf and the near plane is
+         * the upper one (with d < 0 a ray parallel to a slab with d = -0 missed
+         * every box whose slab it lies in). */
+        p->neg[i] = signbit(d[i]) ? 1 : 0;
+        p->near_row[i] = 2 * i + p->neg[i];
+        float up = rt__f_up(o[i]), down = rt__f_down(o[i]);
+        p->org_near[i] = p->neg[i] ? down : up;
+        p->org_far[i] = p->neg[i] ? up : down;
+        p->inv_f[i] = (float)p->inv[i];
+        double ad = fabs(d[i]);
+        int in_range = (fabs(o[i]) < 1e30) & ((ad == 0.0) | ((ad > 1e-30) & (ad < 1e30)));
+        bad |= !in_range;
+    }
+    p->box_double = bad;
+}
+#endif
+
+/* The slab tests' part of rt__ray_prepare: p->ray, 1/d, the sign rows,
+ * box_double, cull_mask; with origins != 0 also the origin rounded towards
+ * the near and far planes (org_near, org_far: the sub-and-multiply slab
+ * tests; the 16-wide fused one does not read them). */
+static inline void rt__ray_prepare_box(rr_ray ray, rt_ray_pre *p, const int origins)
+{
+    p->ray = ray;
+    double d[3] = {ray.d.x, ray.d.y, ray.d.z};
+    double o[3] = {ray.o.x, ray.o.y, ray.o.z};
+    p->cull_mask = RT_REF_CULL;
+    rt__prepare_axes(d, o, p, origins);
+}
+
+/* The triangle test's part of rt__ray_prepare (after rt__ray_prepare_box:
+ * it reads p->ray and p->inv): the walks call it at their first leaf, so a
+ * ray that meets no leaf skips it. */
+static inline void rt__ray_prepare_tri(rt_ray_pre *p)
+{
+    const double d[3] = {p->ray.d.x, p->ray.d.y, p->ray.d.z};
+    const double o[3] = {p->ray.o.x, p->ray.o.y, p->ray.o.z};
+    /* kz: the dimension where the direction is largest, so the shear is
+     * stable; kx, ky the next two, swapped when looking down -z to keep the
+     * winding. By table, not by branches: for incoherent rays the branches
+     * were mispredicted often enough to make this set-up a tenth of a
+     * diffuse ray's time. */
+    static const signed char kz_of[8] = {2, 1, 2, 1, 2, 2, 0, 0}; /* [x>y, x>z, y>z] */
+    static const signed char kxy_of[3][2][2] = {{{1, 2}, {2, 1}}, {{2, 0}, {0, 2}}, {{0, 1}, {1, 0}}};
+    double ax = fabs(d[0]), ay = fabs(d[1]), az = fabs(d[2]);
+    int kz = kz_of[(ax > ay) << 2 | (ax > az) << 1 | (ay > az)];
+    int down_z = d[kz] < 0.0;
+    int kx = kxy_of[kz][down_z][0], ky = kxy_of[kz][down_z][1];
+    p->kx = kx;
+    p->ky = ky;
+    p->kz = kz;
+    p->Sx = d[kx] / d[kz];
+    p->Sy = d[ky] / d[kz];
+    p->Sz = p->inv[kz]; /* 1 / d[kz], the same division */
+    p->ok[0] = o[kx];
+    p->ok[1] = o[ky];
+    p->ok[2] = o[kz];
+}
+
 /* ---- the triangle kernel of the walks (rt__tri_hit is the same function) ---- */
 
 static inline double rt__comp(rr_vec3 v, int k) { return k == 0 ? v.x : (k == 1 ? v.y : v.z); }
@@ -223,7 +348,9 @@ typedef struct rt_pkray {
     int kx, ky, kz;
 } rt_pkray;
 
-static inline void rt__pkray_init(const rt_ray_pre *p, float vmax, rt_pkray *r)
+/* exact_only: every lane goes to the exact test (for the rays whose slab
+ * test is the double one, rt_ray_pre.box_double). */
+static inline void rt__pkray_init(const rt_ray_pre *p, float vmax, int exact_only, rt_pkray *r)
 {
     float o[3] = {(float)p->ok[0], (float)p->ok[1], (float)p->ok[2]};
     /* The largest |o| by comparisons (fmaxf is a libm call here); a NaN
@@ -237,7 +364,7 @@ static inline void rt__pkray_init(const rt_ray_pre *p, float vmax, rt_pkray *r)
     const float grow = 1.0f + 0x1p-20f;
     float ep = (vmax + om) * (9.0f * RT_PK_U * grow);
     float e1 = 4.0f * ep, e2 = (2.0f * grow) * (ep * ep) + 1e-37f;
-    if (p->box_double || !(vmax + om < 1e18f)) {
+    if (exact_only || !(vmax + om < 1e18f)) {
         e1 = INFINITY;
         e2 = INFINITY;
     }

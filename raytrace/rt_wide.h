@@ -298,13 +298,17 @@ int RT_WALK(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_hit *hit
     RR_CHECK(a->width == RT_W);
     const rt_wn *wnodes = a->wnodes;
     rt_ray_pre p;
-    rt__ray_prepare(ray, &p);
+    rt__ray_prepare_box(ray, &p, RT_BOX_SIMD != 3);
     if (!(tmin >= 0.0))
         p.box_double = 1;
     if (mode & RT_WALK_TWO_SIDED)
         p.cull_mask = 0;
+    /* The triangles' set-up (rt__ray_prepare_tri, the packets' operands) is
+     * made at the first leaf: a ray that meets none skips it. */
+    const int exact_only = p.box_double;
+    int tri_ready = 0;
     rt_pkray pr;
-    rt__pkray_init(&p, a->vmax, &pr);
+    memset(&pr, 0, sizeof pr); /* set at the first leaf; this only quiets -Wmaybe-uninitialized */
     rt_boxray br;
     if (!rt__boxray_init(&p, &br))
         p.box_double = 1;
@@ -392,6 +396,11 @@ int RT_WALK(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_hit *hit
             }
         } else {
             const rt_pk *k = &a->pks[cur & ~RT_LEAF];
+            if (!tri_ready) {
+                rt__ray_prepare_tri(&p);
+                rt__pkray_init(&p, a->vmax, exact_only, &pr);
+                tri_ready = 1;
+            }
             for (;; k++) {
                 for (unsigned lanes = rt__pk_cand(k, &pr); lanes; lanes &= lanes - 1) {
                     int i = __builtin_ctz(lanes);
@@ -519,11 +528,13 @@ int RT_OCCL(const rt_accel *a, rr_ray ray, double tmin, double tmax)
     RR_CHECK(a->width == RT_W);
     const rt_wn *wnodes = a->wnodes;
     rt_ray_pre p;
-    rt__ray_prepare(ray, &p);
+    rt__ray_prepare_box(ray, &p, RT_BOX_SIMD != 3);
     if (!(tmin >= 0.0))
         p.box_double = 1;
+    const int exact_only = p.box_double; /* the triangles' set-up at the first leaf, as in RT_WALK */
+    int tri_ready = 0;
     rt_pkray pr;
-    rt__pkray_init(&p, a->vmax, &pr);
+    memset(&pr, 0, sizeof pr); /* set at the first leaf; this only quiets -Wmaybe-uninitialized */
     rt_boxray br;
     if (!rt__boxray_init(&p, &br))
         p.box_double = 1;
@@ -539,7 +550,13 @@ int RT_OCCL(const rt_accel *a, rr_ray ray, double tmin, double tmax)
         unsigned mask = p.box_double ? rt__box4_double(n, &p, tmin, tmax_d, dist)
                                      : rt__box4_fast(n, &br, tmin_f, cull, dist);
         unsigned lm = rt__leaf_mask(n);
-        for (unsigned leaves = mask & lm; leaves; leaves &= leaves - 1) {
+        unsigned leaves = mask & lm;
+        if (leaves && !tri_ready) {
+            rt__ray_prepare_tri(&p);
+            rt__pkray_init(&p, a->vmax, exact_only, &pr);
+            tri_ready = 1;
+        }
+        for (; leaves; leaves &= leaves - 1) {
             const rt_pk *k = &a->pks[n->child[__builtin_ctz(leaves)] & ~RT_LEAF];
             for (;; k++) {
                 for (unsigned lanes = rt__pk_cand(k, &pr); lanes; lanes &= lanes - 1) {

@@ -694,7 +694,7 @@ static void pk_float_test_conservative(void **state)
         rt_ray_pre p;
         rt__ray_prepare(ray, &p);
         rt_pkray pr;
-        rt__pkray_init(&p, vmax, &pr);
+        rt__pkray_init(&p, vmax, p.box_double, &pr);
         unsigned m = rt__pk_cand(&k, &pr);
 #if RT_PK_SIMD
         /* The SSE lanes are the scalar version's. */
@@ -738,7 +738,7 @@ static void pk_float_test_conservative(void **state)
     rt_ray_pre p;
     rt__ray_prepare(ray, &p);
     rt_pkray pr;
-    rt__pkray_init(&p, 1.0f, &pr);
+    rt__pkray_init(&p, 1.0f, p.box_double, &pr);
     assert_int_equal(rt__pk_cand(&k, &pr), 1u << 1);
 }
 
