@@ -47,7 +47,7 @@
  * an exit at most (1 - u)^2 too small, inside the same RT_BOX_GROW. It needs
  * a finite inv_f and |c| < 1e37: rays with a zero direction component take
  * rt__box4_double in that walk. (On 8-wide AVX2 nodes the fused form was
- * measured 2-8 % slower, notes/performance.md: not used there.)
+ * measured at 0.92-1.02x the speed, notes/performance.md: not used there.)
  *
  * Zero direction components: 1/+-0 = +-inf, and (plane - origin) * inf is
  * +-inf, or NaN when the origin lies on the plane. MINPS/MAXPS return their
@@ -117,7 +117,7 @@ static inline unsigned rt__box4_scalar(const rt_wn *n, const rt_ray_pre *p, floa
  * walk, instead of once per node). */
 typedef struct rt_boxray {
 #if RT_BOX_SIMD == 3
-    __m512 cn[3], cf[3], inv[3]; /* o inv rounded up (near) and down (far), inv */
+    __m512 cn[3], cf[3], inv[3]; /* o inv padded up (near) and down (far), inv */
     int row[3];
 #elif RT_BOX_SIMD == 2
     __m256 on[3], of[3], inv[3];
@@ -180,7 +180,8 @@ static inline int rt__boxray_init(const rt_ray_pre *p, rt_boxray *br)
 /* The float test of this SIMD width on prepared operands: AVX 8 lanes, SSE2
  * 4 lanes (VMINPS/VMAXPS and MINPS/MAXPS have the same NaN rule), or
  * rt__box4_scalar when there is no SIMD; the same results as rt__box4_scalar
- * bit for bit (tested). */
+ * bit for bit (tested), except the 16-wide fused form, which is tested for
+ * the contract itself (test_bvh wide_simd_box_tests_conservative). */
 static inline unsigned rt__box4_fast(const rt_wn *n, const rt_boxray *br, float tmin, float tmax,
                                      float dist[RT_W])
 {
