@@ -77,6 +77,35 @@ static trace_result trace_closest(const rt_accel *a, const ray_set *rs, int thre
     return r;
 }
 
+/* The primary set in packets: tiles of BENCH_TILE x BENCH_TILE pixels
+ * through rt_accel_closest_n (idx: bench_tile_order). The same hits as
+ * trace_closest, so the same checksum. */
+#define BENCH_TILE 8
+static trace_result trace_packets(const rt_accel *a, const ray_set *rs, const uint32_t *idx, int threads)
+{
+    size_t hits = 0;
+    uint64_t sum = 0;
+    const long n = (long)rs->n, per = BENCH_TILE * BENCH_TILE;
+    const rr_ray *rays = rs->rays;
+    const double tmax = rs->tmax;
+    double t0 = now_s();
+#pragma omp parallel for schedule(dynamic, 16) num_threads(threads) reduction(+ : hits, sum)
+    for (long j0 = 0; j0 < n; j0 += per) {
+        rr_ray r[BENCH_TILE * BENCH_TILE];
+        rt_hit h[BENCH_TILE * BENCH_TILE];
+        unsigned char f[BENCH_TILE * BENCH_TILE];
+        int m = n - j0 < per ? (int)(n - j0) : (int)per;
+        for (int k = 0; k < m; k++)
+            r[k] = rays[idx[j0 + k]];
+        hits += (size_t)rt_accel_closest_n(a, r, m, 0.0, tmax, h, f);
+        for (int k = 0; k < m; k++)
+            if (f[k])
+                sum += rr_hash64(((uint64_t)idx[j0 + k] << 32) ^ (uint64_t)h[k].tri);
+    }
+    trace_result r = {now_s() - t0, hits, sum};
+    return r;
+}
+
 static trace_result trace_occluded(const rt_accel *a, const ray_set *rs, int threads)
 {
     size_t hits = 0;
@@ -181,17 +210,22 @@ static void run_scene(bench_scene *b, const options *o, const char *tmpdir)
     ray_set prim, diff, shad;
     bench_make_rays(s, a, b, o->seed, &prim, &diff, &shad);
 
-    const char *wname[3] = {"primary", "diffuse", "shadow"};
-    const ray_set *wset[3] = {&prim, &diff, &shad};
+    /* "packets": the primary rays again, 8 x 8 pixel tiles through
+     * rt_accel_closest_n; the same hits, so primary's checksum. */
+    const char *wname[4] = {"primary", "diffuse", "shadow", "packets"};
+    const ray_set *wset[4] = {&prim, &diff, &shad, &prim};
+    uint32_t *tiles = bench_tile_order(&prim, BENCH_TILE);
     printf("%-8s %7s %9s %6s %9s %17s  %-16s\n", "workload", "threads", "rays", "hit%", "Mrays/s", "min-max Mrays/s",
            "checksum");
-    for (int w = 0; w < 3; w++) {
+    for (int w = 0; w < 4; w++) {
         for (int ti = 0; ti < o->nthreads; ti++) {
             int th = o->threads[ti];
             double mr[BENCH_TRACE_REPS];
             trace_result tr = {0, 0, 0};
             for (int r = 0; r < BENCH_TRACE_REPS; r++) {
-                trace_result x = w == 2 ? trace_occluded(a, wset[w], th) : trace_closest(a, wset[w], th);
+                trace_result x = w == 3   ? trace_packets(a, wset[w], tiles, th)
+                                 : w == 2 ? trace_occluded(a, wset[w], th)
+                                          : trace_closest(a, wset[w], th);
                 if (r > 0 && (x.hits != tr.hits || x.checksum != tr.checksum)) {
                     fprintf(stderr, "radray-bench: %s %s: results differ between repetitions\n", b->name, wname[w]);
                     exit(1);
@@ -212,6 +246,7 @@ static void run_scene(bench_scene *b, const options *o, const char *tmpdir)
             fflush(stdout);
         }
     }
+    free(tiles);
     free(prim.rays);
     free(diff.rays);
     free(shad.rays);

@@ -442,7 +442,7 @@ void bench_make_rays(const scene *s, const rt_accel *a, const bench_scene *b, ui
 {
     rr_view view = s->view;
     size_t n = (size_t)view.width * (size_t)view.height;
-    ray_set prim = {xmalloc(n * sizeof(rr_ray)), n, INFINITY};
+    ray_set prim = {xmalloc(n * sizeof(rr_ray)), n, INFINITY, view.width};
     for (size_t i = 0; i < n; i++)
         prim.rays[i] = rr_view_ray(&view, (int)(i % (size_t)view.width), (int)(i / (size_t)view.width), 0.0, 0.0);
     rr_vec3 *hp = xmalloc(n * sizeof *hp), *hn = xmalloc(n * sizeof *hn);
@@ -459,8 +459,8 @@ void bench_make_rays(const scene *s, const rt_accel *a, const bench_scene *b, ui
     }
     rr_vec3 ext = rr_v3_sub(s->bbox_max, s->bbox_min);
     double extent = fmax(ext.x, fmax(ext.y, ext.z));
-    ray_set diff = {xmalloc(n * sizeof(rr_ray)), 0, INFINITY};
-    ray_set shad = {xmalloc(n * sizeof(rr_ray)), 0, 1.0 - 1e-7};
+    ray_set diff = {xmalloc(n * sizeof(rr_ray)), 0, INFINITY, 0};
+    ray_set shad = {xmalloc(n * sizeof(rr_ray)), 0, 1.0 - 1e-7, 0};
     for (size_t i = 0; i < n; i++) {
         if (!hit[i])
             continue;
@@ -485,4 +485,20 @@ void bench_make_rays(const scene *s, const rt_accel *a, const bench_scene *b, ui
     *prim_out = prim;
     *diff_out = diff;
     *shad_out = shad;
+}
+
+uint32_t *bench_tile_order(const ray_set *rs, int tile)
+{
+    size_t w = (size_t)rs->width, h = w ? rs->n / w : 0, j = 0;
+    uint32_t *idx = xmalloc((rs->n ? rs->n : 1) * sizeof *idx);
+    for (size_t ty = 0; ty < h; ty += (size_t)tile)
+        for (size_t tx = 0; tx < w; tx += (size_t)tile)
+            for (size_t y = ty; y < ty + (size_t)tile && y < h; y++)
+                for (size_t x = tx; x < tx + (size_t)tile && x < w; x++)
+                    idx[j++] = (uint32_t)(y * w + x);
+    if (j != rs->n) {
+        fprintf(stderr, "%s: the primary set is not width x height rays\n", bench_prog);
+        exit(1);
+    }
+    return idx;
 }

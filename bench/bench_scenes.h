@@ -60,7 +60,14 @@ typedef struct ray_set {
     rr_ray *rays;
     size_t n;
     double tmax; /* the same for every ray of a set */
+    int width;   /* primary rays: the image width (rays in scanline order); else 0 */
 } ray_set;
+
+/* The rays of a primary set in the order of tile x tile pixel tiles (rows of
+ * tiles, scanline order within a tile; partial tiles at the right and bottom
+ * edges): idx[j] is the j-th ray's index in rs (n entries, malloc'd). The
+ * tiles are the packets of radray's packet walk (rt_accel_closest_n). */
+uint32_t *bench_tile_order(const ray_set *rs, int tile);
 
 rr_vec3 cosine_dir(rr_vec3 n, double u1, double u2);
 rr_vec3 offset_origin(rr_vec3 p, rr_vec3 n, rr_vec3 dir, double extent);

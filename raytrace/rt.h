@@ -213,6 +213,14 @@ int rt_accel_closest(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt
  * first is returned instead: where a box's face lies flush with another
  * surface, a ray leaving the box meets the box. */
 int rt_accel_closest_two_sided(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_hit *hit);
+/* rt_accel_closest for n rays at once (any n >= 0), walked together in
+ * packets of up to RT_PACKET_MAX: found[i] says whether rays[i] hit, and
+ * hits[i] is then what rt_accel_closest gives for it, bit for bit. Faster
+ * for coherent rays (the camera rays of a small tile, in tile order); no
+ * faster for incoherent ones. Returns the number of hits. */
+#define RT_PACKET_MAX 64
+int rt_accel_closest_n(const rt_accel *a, const rr_ray *rays, int n, double tmin, double tmax, rt_hit *hits,
+                       unsigned char *found);
 /* Any hit with t in (tmin, tmax): for shadow rays; stops at the first occluder. */
 int rt_accel_occluded(const rt_accel *a, rr_ray ray, double tmin, double tmax);
 /* Rays traced through rt_accel_closest (camera, mirror, bounce and BSDF

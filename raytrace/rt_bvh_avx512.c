@@ -14,6 +14,7 @@
 #define RT_W 16
 #define RT_WALK rt__walk16
 #define RT_OCCL rt__occl16
+#define RT_WALKN rt__walkn16
 #define RT_BOXTEST rt__box16_test
 #include "rt_wide.h"
 

@@ -234,17 +234,25 @@ rr_status rt__accel_build_width(const scene *s, int width, rt_accel **out, rr_er
  * a culling object still counts as first (flush faces, rt_wide.h). */
 #define RT_TIE_REL 1e-9
 int rt__walk4(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_hit *hit, int mode);
+/* The packet walks of one width (rt_accel_closest_n): nr <= RT_PACKET_MAX rays
+ * together, each with rt__walkN's answer (mode 0), bit for bit (rt_wide.h). */
+int rt__walkn4(const rt_accel *a, const rr_ray *rays, int nr, double tmin, double tmax, rt_hit *hits,
+               unsigned char *found);
 /* The any-hit walks of one width (rt_accel_occluded): the same answer as
  * rt__walkN with any != 0, without ordering the children (rt_wide.h). */
 int rt__occl4(const rt_accel *a, rr_ray ray, double tmin, double tmax);
 #if RT_HAVE_W8
 int rt__walk8(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_hit *hit, int mode);
 int rt__occl8(const rt_accel *a, rr_ray ray, double tmin, double tmax);
+int rt__walkn8(const rt_accel *a, const rr_ray *rays, int nr, double tmin, double tmax, rt_hit *hits,
+               unsigned char *found);
 unsigned rt__box8_test(const void *node, rr_ray ray, double tmin, double tmax, float *dist, int *fast);
 #endif
 #if RT_HAVE_W16
 int rt__walk16(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_hit *hit, int mode);
 int rt__occl16(const rt_accel *a, rr_ray ray, double tmin, double tmax);
+int rt__walkn16(const rt_accel *a, const rr_ray *rays, int nr, double tmin, double tmax, rt_hit *hits,
+                unsigned char *found);
 unsigned rt__box16_test(const void *node, rr_ray ray, double tmin, double tmax, float *dist, int *fast);
 #endif
 

@@ -11,6 +11,7 @@
 #define RT_W 4
 #define RT_WALK rt__walk4
 #define RT_OCCL rt__occl4
+#define RT_WALKN rt__walkn4
 #include "rt_wide.h"
 
 void rt__ray_prepare(rr_ray ray, rt_ray_pre *p)
@@ -56,6 +57,30 @@ int rt_accel_closest(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt
 {
     t_counts.closest++;
     return walk(a, ray, tmin, tmax, hit, 0);
+}
+
+int rt_accel_closest_n(const rt_accel *a, const rr_ray *rays, int n, double tmin, double tmax, rt_hit *hits,
+                       unsigned char *found)
+{
+    int nhit = 0;
+    for (int i = 0; i < n; i += RT_PACKET_MAX) {
+        int m = n - i < RT_PACKET_MAX ? n - i : RT_PACKET_MAX;
+        t_counts.closest += (uint64_t)m;
+#if RT_HAVE_W8
+#if RT_HAVE_W16
+        if (a->width == 16) {
+            nhit += rt__walkn16(a, rays + i, m, tmin, tmax, hits + i, found + i);
+            continue;
+        }
+#endif
+        if (a->width == 8) {
+            nhit += rt__walkn8(a, rays + i, m, tmin, tmax, hits + i, found + i);
+            continue;
+        }
+#endif
+        nhit += rt__walkn4(a, rays + i, m, tmin, tmax, hits + i, found + i);
+    }
+    return nhit;
 }
 
 int rt_accel_closest_two_sided(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_hit *hit)

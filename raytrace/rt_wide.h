@@ -130,11 +130,23 @@ typedef struct rt_boxray {
 #endif
 } rt_boxray;
 
+/* The same operands as floats, one broadcast away (a packet's rays keep
+ * theirs in this form: RT_WALKN): a, b are cn, cf (16-wide) or the origin
+ * rounded towards the near and far planes (org_near, org_far). */
+typedef struct rt_boxops {
+    float a[3], b[3], inv[3];
+    int row[3];
+} rt_boxops;
+
 /* Returns 0 when the float test cannot take the ray (the walk then uses
  * rt__box4_double): for the fused form, a zero direction component or
  * |o / d| >= 1e37. */
-static inline int rt__boxray_init(const rt_ray_pre *p, rt_boxray *br)
+static inline int rt__boxops_init(const rt_ray_pre *p, rt_boxops *o)
 {
+    for (int k = 0; k < 3; k++) {
+        o->inv[k] = p->inv_f[k];
+        o->row[k] = p->near_row[k];
+    }
 #if RT_BOX_SIMD == 3
     /* c = o inv_f per axis in double (lane 3 unused), padded by 2^-22 |c| +
      * 1e-44 and rounded to float: the pad is more than the rounding to
@@ -148,33 +160,58 @@ static inline int rt__boxray_init(const rt_ray_pre *p, rt_boxray *br)
     _mm_storeu_ps(cn, _mm256_cvtpd_ps(_mm256_add_pd(c, pad)));
     _mm_storeu_ps(cf, _mm256_cvtpd_ps(_mm256_sub_pd(c, pad)));
     for (int k = 0; k < 3; k++) {
-        br->cn[k] = _mm512_set1_ps(cn[k]);
-        br->cf[k] = _mm512_set1_ps(cf[k]);
-        br->inv[k] = _mm512_set1_ps(p->inv_f[k]);
-        br->row[k] = p->near_row[k];
+        o->a[k] = cn[k];
+        o->b[k] = cf[k];
     }
     /* |c| < 1e37 on the three axes: false for NaN, and for inv_f = +-inf (d = 0). */
     return (_mm256_movemask_pd(_mm256_cmp_pd(ac, _mm256_set1_pd(1e37), _CMP_LT_OQ)) & 7) == 7;
-#elif RT_BOX_SIMD == 2
-    for (int k = 0; k < 3; k++) {
-        br->on[k] = _mm256_set1_ps(p->org_near[k]);
-        br->of[k] = _mm256_set1_ps(p->org_far[k]);
-        br->inv[k] = _mm256_set1_ps(p->inv_f[k]);
-        br->row[k] = p->near_row[k];
-    }
-    return 1;
-#elif RT_BOX_SIMD == 1
-    for (int k = 0; k < 3; k++) {
-        br->on[k] = _mm_set1_ps(p->org_near[k]);
-        br->of[k] = _mm_set1_ps(p->org_far[k]);
-        br->inv[k] = _mm_set1_ps(p->inv_f[k]);
-        br->row[k] = p->near_row[k];
-    }
-    return 1;
 #else
-    br->p = p;
+    for (int k = 0; k < 3; k++) {
+        o->a[k] = p->org_near[k];
+        o->b[k] = p->org_far[k];
+    }
     return 1;
 #endif
+}
+
+static inline void rt__boxray_of(const rt_boxops *o, const rt_ray_pre *p, rt_boxray *br)
+{
+#if RT_BOX_SIMD == 3
+    for (int k = 0; k < 3; k++) {
+        br->cn[k] = _mm512_set1_ps(o->a[k]);
+        br->cf[k] = _mm512_set1_ps(o->b[k]);
+        br->inv[k] = _mm512_set1_ps(o->inv[k]);
+        br->row[k] = o->row[k];
+    }
+    (void)p;
+#elif RT_BOX_SIMD == 2
+    for (int k = 0; k < 3; k++) {
+        br->on[k] = _mm256_set1_ps(o->a[k]);
+        br->of[k] = _mm256_set1_ps(o->b[k]);
+        br->inv[k] = _mm256_set1_ps(o->inv[k]);
+        br->row[k] = o->row[k];
+    }
+    (void)p;
+#elif RT_BOX_SIMD == 1
+    for (int k = 0; k < 3; k++) {
+        br->on[k] = _mm_set1_ps(o->a[k]);
+        br->of[k] = _mm_set1_ps(o->b[k]);
+        br->inv[k] = _mm_set1_ps(o->inv[k]);
+        br->row[k] = o->row[k];
+    }
+    (void)p;
+#else
+    (void)o;
+    br->p = p;
+#endif
+}
+
+static inline int rt__boxray_init(const rt_ray_pre *p, rt_boxray *br)
+{
+    rt_boxops o;
+    int ok = rt__boxops_init(p, &o);
+    rt__boxray_of(&o, p, br);
+    return ok;
 }
 
 /* The float test of this SIMD width on prepared operands: AVX 8 lanes, SSE2
@@ -275,6 +312,24 @@ unsigned RT_BOXTEST(const void *node, rr_ray ray, double tmin, double tmax, floa
 }
 #endif
 
+/* Bit i set: child i is a leaf (RT_LEAF is the sign bit of the reference;
+ * empty lanes, RT_EMPTY, also read as leaves, but the ray never enters them). */
+static inline unsigned rt__leaf_mask(const rt_wn *n)
+{
+#if RT_BOX_SIMD == 3
+    return (unsigned)_mm512_cmplt_epi32_mask(_mm512_load_si512((const void *)n->child), _mm512_setzero_si512());
+#elif RT_BOX_SIMD == 2
+    return (unsigned)_mm256_movemask_ps(_mm256_castsi256_ps(_mm256_load_si256((const __m256i *)n->child)));
+#elif RT_BOX_SIMD == 1
+    return (unsigned)_mm_movemask_ps(_mm_castsi128_ps(_mm_load_si128((const __m128i *)n->child)));
+#else
+    unsigned m = 0;
+    for (int i = 0; i < RT_W; i++)
+        m |= (n->child[i] >> 31) << i;
+    return m;
+#endif
+}
+
 #ifdef RT_WALK
 /* ---- the walk ----
  *
@@ -288,6 +343,95 @@ typedef struct rt_stack_entry {
     uint32_t ref;
     float dist;
 } rt_stack_entry;
+
+/* The best hit of one ray so far (RT_WALK's, and each ray's of RT_WALKN). A
+ * triangle hit is filled in at the end (one normal instead of one per
+ * improving hit): tri != NULL says the best hit is the triangle of lane
+ * `lane` of that packet; a primitive's hit is filled as it is found. */
+typedef struct rt_best {
+    double t;         /* tmax until a hit is found */
+    float cull;       /* f_up(t) (1 + RT_BOX_GROW): a box entered beyond it holds no nearer hit */
+    const rt_pk *tri;
+    int lane, front, back_cull, found;
+} rt_best;
+
+static inline void rt__best_init(rt_best *b, double tmax)
+{
+    memset(b, 0, sizeof *b);
+    b->t = tmax;
+    b->cull = rt__f_up(tmax) * (1.0f + RT_BOX_GROW);
+}
+
+/* The primitives of the leaf whose first packet is k against one ray:
+ * improves *b (and fills *hit for a primitive); with any, returns 1 at the
+ * first hit. Inlined into both walks (a call cost primary rays 4 %). */
+static inline __attribute__((always_inline)) int rt__leaf_closest(const rt_accel *a, const rt_pk *k,
+                                                                   const rt_ray_pre *p, const rt_pkray *pr,
+                                                                   double tmin, int any, int two, rt_best *b,
+                                                                   rt_hit *hit)
+{
+    for (;; k++) {
+        for (unsigned lanes = rt__pk_cand(k, pr); lanes; lanes &= lanes - 1) {
+            int i = __builtin_ctz(lanes);
+            uint32_t fl = k->ref[i], lk = fl & RT_REF_LANE;
+            if (lk != RT_REF_PRIM) {
+                double t;
+                int front;
+                /* Exact ties (a ray through a shared edge or vertex) go to
+                 * the lowest triangle index, as in rt_ref_closest, so the hit
+                 * does not depend on the order the walk meets the triangles
+                 * in (the widths' trees differ, and RT_WALKN's order). */
+                int tie = b->tri && fl >> RT_REF_SHIFT < b->tri->ref[b->lane] >> RT_REF_SHIFT;
+                /* Two-sided: a back face of a culling object a hair beyond a
+                 * front face wins (RT_TIE_REL), so that a ray leaving a closed
+                 * box through a face that lies flush with another surface's
+                 * front (a board standing on the floor) meets the box first,
+                 * as the burial rule needs. */
+                double lim = two && b->tri && b->front ? b->t + fabs(b->t) * RT_TIE_REL : b->t;
+                /* Two inline calls, not one helper: gcc did not inline the
+                 * helper, and primary rays lost 4 % (mesh-1m). */
+                int got = lk == RT_REF_FAST ? rt__tri_hit_pk(p, k, i, tmin, lim, tie, &t, &front)
+                                            : rt__tri_hit_drec(p, rt__pk_dverts(a, k, i), (fl & p->cull_mask) != 0,
+                                                               tmin, lim, tie, &t, &front);
+                if (got && t >= b->t && !(t == b->t && tie))
+                    got = !front && (fl & RT_REF_CULL);
+                else if (got && two && b->back_cull && front && t > b->t - fabs(b->t) * RT_TIE_REL)
+                    got = 0; /* nor does a front face a hair before it */
+                if (got) {
+                    if (any)
+                        return 1;
+                    b->found = 1;
+                    b->t = t;
+                    b->tri = k;
+                    b->lane = i;
+                    b->front = front;
+                    b->back_cull = !front && (fl & RT_REF_CULL);
+                    b->cull = rt__f_up(t) * (1.0f + RT_BOX_GROW);
+                }
+            } else {
+                rt_prim pr_ = {rt_prim_kind_of(a->scene, fl >> RT_REF_SHIFT), fl >> RT_REF_SHIFT};
+                if (rt__prim_hit(a, pr_, p, tmin, &b->t, any ? NULL : hit)) {
+                    if (any)
+                        return 1;
+                    b->found = 1;
+                    b->tri = NULL;
+                    b->back_cull = 0;
+                    b->cull = rt__f_up(b->t) * (1.0f + RT_BOX_GROW);
+                }
+            }
+        }
+        if (k->ref[0] & RT_REF_LAST)
+            return 0;
+    }
+}
+
+/* The hit record of a ray's best hit (found). */
+static inline void rt__best_fill(const rt_accel *a, const rt_best *b, rr_ray ray, rt_hit *hit)
+{
+    if (b->tri)
+        rt__tri_fill(a, b->tri, b->lane, b->front, b->t, hit);
+    hit->point = rr_ray_at(ray, hit->t);
+}
 
 /* The walk of this width (rt_internal.h); mode: RT_WALK_ANY returns at the
  * first hit, RT_WALK_TWO_SIDED culls no back faces. */
@@ -313,30 +457,22 @@ int RT_WALK(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_hit *hit
     rt_boxray br;
     if (!rt__boxray_init(&p, &br))
         p.box_double = 1;
-    const float grow = 1.0f + RT_BOX_GROW;
     const float tmin_f = rt__f_down(tmin);
     rt_stack_entry stack[RT_STACK_SIZE];
     int sp = 0;
     uint32_t cur = 0; /* the root */
-    int found = 0;
-    /* A triangle hit is filled in at the end (one normal instead of one per
-     * improving hit); tri_best != NULL says the best hit is the triangle of
-     * lane tri_lane of that packet. */
-    const rt_pk *tri_best = NULL;
-    int tri_lane = 0, tri_front = 0, tri_back_cull = 0;
-    double best = tmax;
-    float best_f = rt__f_up(best);
-    float cull = best_f * grow;
+    rt_best b;
+    rt__best_init(&b, tmax);
     for (;;) {
         if (!(cur & RT_LEAF)) {
             const rt_wn *n = &wnodes[cur];
             float dist[RT_W];
             /* Boxes are tested up to a little beyond the best hit (cull, not
-             * best_f): a box entered exactly at the best t may hold a tie of
+             * f_up(t)): a box entered exactly at the best t may hold a tie of
              * lower index, and a computed entry can exceed the exact one by
              * the factor 1 + RT_BOX_GROW. */
-            unsigned mask = p.box_double ? rt__box4_double(n, &p, tmin, best + fabs(best) * 1e-15, dist)
-                                         : rt__box4_fast(n, &br, tmin_f, cull, dist);
+            unsigned mask = p.box_double ? rt__box4_double(n, &p, tmin, b.t + fabs(b.t) * 1e-15, dist)
+                                         : rt__box4_fast(n, &br, tmin_f, b.cull, dist);
             if (mask) {
                 /* One child entered (the common case deep in the tree): go there. */
                 int i = __builtin_ctz(mask);
@@ -396,90 +532,311 @@ int RT_WALK(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_hit *hit
                 continue;
             }
         } else {
-            const rt_pk *k = &a->pks[cur & ~RT_LEAF];
             if (!tri_ready) {
                 rt__ray_prepare_tri(&p);
                 rt__pkray_init(&p, a->vmax, exact_only, &pr);
                 tri_ready = 1;
             }
-            for (;; k++) {
-                for (unsigned lanes = rt__pk_cand(k, &pr); lanes; lanes &= lanes - 1) {
-                    int i = __builtin_ctz(lanes);
-                    uint32_t fl = k->ref[i], lk = fl & RT_REF_LANE;
-                    if (lk != RT_REF_PRIM) {
-                        double t;
-                        int front;
-                        /* Exact ties (a ray through a shared edge or vertex)
-                         * go to the lowest triangle index, as in
-                         * rt_ref_closest, so the hit does not depend on the
-                         * order the walk meets the triangles in (the widths'
-                         * trees differ). */
-                        int tie = tri_best && fl >> RT_REF_SHIFT < tri_best->ref[tri_lane] >> RT_REF_SHIFT;
-                        /* Two-sided: a back face of a culling object a hair
-                         * beyond a front face wins (RT_TIE_REL), so that a ray
-                         * leaving a closed box through a face that lies flush
-                         * with another surface's front (a board standing on
-                         * the floor) meets the box first, as the burial rule
-                         * needs. */
-                        double lim = two && tri_best && tri_front ? best + fabs(best) * RT_TIE_REL : best;
-                        /* Two inline calls, not one helper: gcc did not inline
-                         * the helper, and primary rays lost 4 % (mesh-1m). */
-                        int got = lk == RT_REF_FAST
-                                      ? rt__tri_hit_pk(&p, k, i, tmin, lim, tie, &t, &front)
-                                      : rt__tri_hit_drec(&p, rt__pk_dverts(a, k, i), (fl & p.cull_mask) != 0, tmin, lim,
-                                                         tie, &t, &front);
-                        if (got && t >= best && !(t == best && tie))
-                            got = !front && (fl & RT_REF_CULL);
-                        else if (got && two && tri_back_cull && front && t > best - fabs(best) * RT_TIE_REL)
-                            got = 0; /* nor does a front face a hair before it */
-                        if (got) {
-                            if (any)
-                                return 1;
-                            found = 1;
-                            best = t;
-                            tri_best = k;
-                            tri_lane = i;
-                            tri_front = front;
-                            tri_back_cull = !front && (fl & RT_REF_CULL);
-                            best_f = rt__f_up(best);
-                            cull = best_f * grow;
-                        }
-                    } else {
-                        rt_prim pr_ = {rt_prim_kind_of(a->scene, fl >> RT_REF_SHIFT), fl >> RT_REF_SHIFT};
-                        if (rt__prim_hit(a, pr_, &p, tmin, &best, any ? NULL : hit)) {
-                            if (any)
-                                return 1;
-                            found = 1;
-                            tri_best = NULL;
-                            tri_back_cull = 0;
-                            best_f = rt__f_up(best);
-                            cull = best_f * grow;
-                        }
-                    }
-                }
-                if (k->ref[0] & RT_REF_LAST)
-                    break;
-            }
+            if (rt__leaf_closest(a, &a->pks[cur & ~RT_LEAF], &p, &pr, tmin, any, two, &b, hit))
+                return 1;
         }
         /* Pop, dropping entries that now lie beyond the best hit. */
         for (;;) {
             if (sp == 0)
                 goto out;
             sp--;
-            if (!(stack[sp].dist > cull)) {
+            if (!(stack[sp].dist > b.cull)) {
                 cur = stack[sp].ref;
                 break;
             }
         }
     }
 out:
-    if (found && hit) {
-        if (tri_best)
-            rt__tri_fill(a, tri_best, tri_lane, tri_front, best, hit);
-        hit->point = rr_ray_at(ray, hit->t);
-    }
-    return found;
+    if (b.found && hit)
+        rt__best_fill(a, &b, ray, hit);
+    return b.found;
 }
+
+#ifdef RT_WALKN
+/* ---- the packet walk (rt_accel_closest_n) ----
+ *
+ * Up to RT_PACKET_MAX rays walk the tree together: each node is fetched once
+ * for the packet and tested against every ray still active in it (the
+ * per-ray test above, with that ray's own best hit), and a child goes on the
+ * stack with the mask of the rays that entered it and the least of their
+ * entry distances. Children are visited in the order of that least entry.
+ * Popping drops the rays whose best hit now lies before the entry (their
+ * own entry is no nearer than the least). A leaf is tested ray by ray with
+ * the single walk's leaf code (rt__leaf_closest).
+ *
+ * Each ray therefore meets every leaf whose boxes down from the root it
+ * enters within its best hit, as in RT_WALK, and keeps the best hit by the
+ * same tie rules, which do not depend on the order the leaves are met in:
+ * the same hit as RT_WALK for every ray, bit for bit (test_bvh checks it).
+ * What it saves: a node's box planes are loaded once per packet instead of
+ * once per ray, and the rays' tests are independent of each other, so the
+ * processor overlaps them (one ray's walk is a chain of dependent loads). It
+ * pays for coherent rays (camera rays of a tile); for incoherent ones the
+ * masks thin out and the per-ray work is the same. Closest hit, culling back
+ * faces as the object asks (rt_accel_closest's query), tmin >= 0. */
+typedef struct rt_pkt_ray {
+    rt_ray_pre p;
+    rt_pkray pr;
+    rt_best b;
+    int tri_ready, exact_only;
+} rt_pkt_ray;
+
+#if RT_BOX_SIMD == 3
+/* A shared-origin packet's frustum test (rays from one point, as a pinhole
+ * camera's): one slab test for the whole packet, with 1/d per axis as the
+ * interval [ilo, ihi] of the rays' inv_f. Requires every ray to have the
+ * same org_near, org_far and rows and the float box test (rt__boxray_init
+ * 1). It returns every child that some ray's sub-and-multiply test
+ * (RT_BOX_SIMD 2's form, conservative by the header's argument) enters:
+ * per axis that test computes fl(a inv) with a = fl(plane - org), the same
+ * a for every ray of the packet, and fl(a x) is monotonic in x, so its
+ * least entry and greatest exit over the rays are min and max of
+ * fl(a ilo), fl(a ihi); taking the packet's greatest cull as tmax, a child
+ * no ray can enter fails. No NaN: inv is finite and nonzero, the planes
+ * finite or (empty lanes) infinite. */
+typedef struct rt_frustum {
+    __m512 on[3], of[3], ilo[3], ihi[3];
+    int row[3];
+} rt_frustum;
+
+static inline unsigned rt__box_frustum(const rt_wn *n, const rt_frustum *f, float tmin, float tmax, float dist[RT_W])
+{
+    __m512 t0 = _mm512_set1_ps(tmin), t1 = _mm512_set1_ps(INFINITY);
+    for (int k = 0; k < 3; k++) {
+        __m512 a = _mm512_sub_ps(_mm512_load_ps(n->b[f->row[k]]), f->on[k]);
+        __m512 b = _mm512_sub_ps(_mm512_load_ps(n->b[f->row[k] ^ 1]), f->of[k]);
+        t0 = _mm512_max_ps(t0, _mm512_min_ps(_mm512_mul_ps(a, f->ilo[k]), _mm512_mul_ps(a, f->ihi[k])));
+        t1 = _mm512_min_ps(t1, _mm512_max_ps(_mm512_mul_ps(b, f->ilo[k]), _mm512_mul_ps(b, f->ihi[k])));
+    }
+    t1 = _mm512_min_ps(_mm512_set1_ps(tmax), _mm512_mul_ps(t1, _mm512_set1_ps(1.0f + RT_BOX_GROW)));
+    _mm512_storeu_ps(dist, t0);
+    return (unsigned)_mm512_cmp_ps_mask(t0, t1, _CMP_LE_OQ);
+}
+#endif
+
+typedef struct rt_pkt_entry {
+    uint64_t rays;
+    uint32_t ref;
+    float dist;
+} rt_pkt_entry;
+
+int RT_WALKN(const rt_accel *a, const rr_ray *rays, int nr, double tmin, double tmax, rt_hit *hits,
+             unsigned char *found)
+{
+    RR_CHECK(nr >= 1 && nr <= RT_PACKET_MAX && a->width == RT_W);
+    memset(found, 0, (size_t)nr);
+    if (a->nwnodes == 0)
+        return 0;
+    const rt_wn *wnodes = a->wnodes;
+    /* What the box tests read stays small (ops, cull: 52 bytes a ray); the
+     * triangles' operands are read at leaves only. */
+    rt_pkt_ray st[RT_PACKET_MAX];
+    rt_boxops ops[RT_PACKET_MAX];
+    float cull[RT_PACKET_MAX];                  /* st[r].b.cull */
+    uint64_t dbl = 0;                           /* the rays whose boxes take the double test */
+    for (int r = 0; r < nr; r++) {
+        rt_pkt_ray *s = &st[r];
+        rt__ray_prepare_box(rays[r], &s->p, 1);
+        if (!(tmin >= 0.0))
+            s->p.box_double = 1;
+        s->exact_only = s->p.box_double;
+        s->tri_ready = 0;
+        if (!rt__boxops_init(&s->p, &ops[r]))
+            s->p.box_double = 1;
+        dbl |= (uint64_t)s->p.box_double << r;
+        rt__best_init(&s->b, tmax);
+        cull[r] = s->b.cull;
+    }
+    const float tmin_f = rt__f_down(tmin);
+#if RT_BOX_SIMD == 3
+    /* The frustum, when the rays share their origin and rows. */
+    int fr = !dbl;
+    for (int r = 1; r < nr && fr; r++)
+        for (int k = 0; k < 3; k++)
+            fr &= st[r].p.org_near[k] == st[0].p.org_near[k] && st[r].p.org_far[k] == st[0].p.org_far[k] &&
+                  st[r].p.near_row[k] == st[0].p.near_row[k];
+    rt_frustum fru;
+    float pcull = 0.0f; /* the greatest cull of the packet's rays */
+    if (fr) {
+        for (int k = 0; k < 3; k++) {
+            float lo = ops[0].inv[k], hi = lo;
+            for (int r = 1; r < nr; r++) {
+                lo = ops[r].inv[k] < lo ? ops[r].inv[k] : lo;
+                hi = ops[r].inv[k] > hi ? ops[r].inv[k] : hi;
+            }
+            fru.on[k] = _mm512_set1_ps(st[0].p.org_near[k]);
+            fru.of[k] = _mm512_set1_ps(st[0].p.org_far[k]);
+            fru.ilo[k] = _mm512_set1_ps(lo);
+            fru.ihi[k] = _mm512_set1_ps(hi);
+            fru.row[k] = st[0].p.near_row[k];
+        }
+        for (int r = 0; r < nr; r++)
+            pcull = cull[r] > pcull ? cull[r] : pcull;
+    }
+#endif
+    rt_pkt_entry stack[RT_STACK_SIZE];
+    int sp = 0;
+    uint32_t cur = 0; /* the root */
+    uint64_t act = nr == 64 ? ~(uint64_t)0 : ((uint64_t)1 << nr) - 1;
+    for (;;) {
+        if (!(cur & RT_LEAF)) {
+            const rt_wn *n = &wnodes[cur];
+#if RT_BOX_SIMD == 3
+            /* One child in the frustum: the packet goes on as it is, untested
+             * (a ray that misses that child's box is dropped a level down). */
+            if (fr) {
+                float fd[RT_W];
+                unsigned fm = rt__box_frustum(n, &fru, tmin_f, pcull, fd);
+                if (!fm)
+                    goto pop;
+                if (!(fm & rt__leaf_mask(n))) {
+                    int ch[RT_W], m = 0;
+                    for (; fm; fm &= fm - 1) {
+                        int c = __builtin_ctz(fm), j = m++;
+                        while (j > 0 && fd[ch[j - 1]] < fd[c]) {
+                            ch[j] = ch[j - 1];
+                            j--;
+                        }
+                        ch[j] = c;
+                    }
+                    RR_CHECK(sp + m - 1 <= RT_STACK_SIZE);
+                    for (int j = 0; j < m - 1; j++) {
+                        stack[sp].rays = act;
+                        stack[sp].ref = n->child[ch[j]];
+                        stack[sp].dist = fd[ch[j]];
+                        sp++;
+                    }
+                    cur = n->child[ch[m - 1]];
+                    continue;
+                }
+            }
+#endif
+            uint64_t in[RT_W];
+            float dmin[RT_W];
+            unsigned any = 0;
+#if RT_BOX_SIMD == 3
+            /* The masks and least entries in registers: two vectors of 8
+             * ray masks, one of 16 entries, updated by the lanes entered. */
+            __m512i in_lo = _mm512_setzero_si512(), in_hi = _mm512_setzero_si512();
+            __m512 dm = _mm512_set1_ps(INFINITY);
+#else
+            for (int c = 0; c < RT_W; c++) {
+                in[c] = 0;
+                dmin[c] = INFINITY;
+            }
+#endif
+            for (uint64_t m = act; m; m &= m - 1) {
+                int r = __builtin_ctzll(m);
+                float dist[RT_W];
+                unsigned mask;
+                if (dbl >> r & 1) {
+                    const rt_pkt_ray *s = &st[r];
+                    mask = rt__box4_double(n, &s->p, tmin, s->b.t + fabs(s->b.t) * 1e-15, dist);
+                } else {
+                    rt_boxray br;
+                    rt__boxray_of(&ops[r], &st[r].p, &br);
+                    mask = rt__box4_fast(n, &br, tmin_f, cull[r], dist);
+                }
+                any |= mask;
+#if RT_BOX_SIMD == 3
+                const __m512i bit = _mm512_set1_epi64((long long)((uint64_t)1 << r));
+                in_lo = _mm512_mask_or_epi64(in_lo, (__mmask8)mask, in_lo, bit);
+                in_hi = _mm512_mask_or_epi64(in_hi, (__mmask8)(mask >> 8), in_hi, bit);
+                dm = _mm512_mask_min_ps(dm, (__mmask16)mask, dm, _mm512_loadu_ps(dist));
+#else
+                for (; mask; mask &= mask - 1) {
+                    int c = __builtin_ctz(mask);
+                    in[c] |= (uint64_t)1 << r;
+                    dmin[c] = dist[c] < dmin[c] ? dist[c] : dmin[c];
+                }
+#endif
+            }
+#if RT_BOX_SIMD == 3
+            _mm512_storeu_si512((void *)in, in_lo);
+            _mm512_storeu_si512((void *)(in + 8), in_hi);
+            _mm512_storeu_ps(dmin, dm);
+#endif
+            if (any) {
+                /* Sort the entered children by descending least entry; push
+                 * all but the nearest (farthest first), visit that. */
+                int ch[RT_W], m = 0;
+                for (; any; any &= any - 1) {
+                    int c = __builtin_ctz(any), j = m++;
+                    while (j > 0 && dmin[ch[j - 1]] < dmin[c]) {
+                        ch[j] = ch[j - 1];
+                        j--;
+                    }
+                    ch[j] = c;
+                }
+                RR_CHECK(sp + m - 1 <= RT_STACK_SIZE);
+                for (int j = 0; j < m - 1; j++) {
+                    stack[sp].rays = in[ch[j]];
+                    stack[sp].ref = n->child[ch[j]];
+                    stack[sp].dist = dmin[ch[j]];
+                    sp++;
+                }
+                cur = n->child[ch[m - 1]];
+                act = in[ch[m - 1]];
+                continue;
+            }
+        } else {
+            const rt_pk *k = &a->pks[cur & ~RT_LEAF];
+            for (uint64_t m = act; m; m &= m - 1) {
+                int r = __builtin_ctzll(m);
+                rt_pkt_ray *s = &st[r];
+                if (!s->tri_ready) {
+                    rt__ray_prepare_tri(&s->p);
+                    rt__pkray_init(&s->p, a->vmax, s->exact_only, &s->pr);
+                    s->tri_ready = 1;
+                }
+                rt__leaf_closest(a, k, &s->p, &s->pr, tmin, 0, 0, &s->b, &hits[r]);
+                cull[r] = s->b.cull;
+            }
+#if RT_BOX_SIMD == 3
+            if (fr) {
+                pcull = 0.0f;
+                for (int r = 0; r < nr; r++)
+                    pcull = cull[r] > pcull ? cull[r] : pcull;
+            }
+#endif
+        }
+#if RT_BOX_SIMD == 3
+    pop:
+#endif
+        /* Pop, dropping the rays whose best hit lies before the entry. */
+        for (;;) {
+            if (sp == 0)
+                goto out;
+            sp--;
+            uint64_t keep = 0;
+            for (uint64_t m = stack[sp].rays; m; m &= m - 1) {
+                int r = __builtin_ctzll(m);
+                if (!(stack[sp].dist > cull[r]))
+                    keep |= (uint64_t)1 << r;
+            }
+            if (keep) {
+                cur = stack[sp].ref;
+                act = keep;
+                break;
+            }
+        }
+    }
+out:;
+    int nhit = 0;
+    for (int r = 0; r < nr; r++)
+        if (st[r].b.found) {
+            rt__best_fill(a, &st[r].b, rays[r], &hits[r]);
+            found[r] = 1;
+            nhit++;
+        }
+    return nhit;
+}
+#endif /* RT_WALKN */
 #endif /* RT_WALK */
 
 #ifdef RT_OCCL
@@ -500,24 +857,6 @@ out:
  * the entered children are tested at once, before any inner child is
  * descended into (a shadow ray leaving a surface often ends on a nearby
  * occluder), so only inner nodes ever go on the stack. */
-
-/* Bit i set: child i is a leaf (RT_LEAF is the sign bit of the reference;
- * empty lanes, RT_EMPTY, also read as leaves, but the ray never enters them). */
-static inline unsigned rt__leaf_mask(const rt_wn *n)
-{
-#if RT_BOX_SIMD == 3
-    return (unsigned)_mm512_cmplt_epi32_mask(_mm512_load_si512((const void *)n->child), _mm512_setzero_si512());
-#elif RT_BOX_SIMD == 2
-    return (unsigned)_mm256_movemask_ps(_mm256_castsi256_ps(_mm256_load_si256((const __m256i *)n->child)));
-#elif RT_BOX_SIMD == 1
-    return (unsigned)_mm_movemask_ps(_mm_castsi128_ps(_mm_load_si128((const __m128i *)n->child)));
-#else
-    unsigned m = 0;
-    for (int i = 0; i < RT_W; i++)
-        m |= (n->child[i] >> 31) << i;
-    return m;
-#endif
-}
 
 /* The any-hit walk of this width (rt_internal.h). */
 int RT_OCCL(const rt_accel *a, rr_ray ray, double tmin, double tmax)

@@ -626,6 +626,72 @@ static void bvh_occluded_matches_walk(void **state)
     }
 }
 
+/* rt_accel_closest_n gives every ray of a packet rt_accel_closest's hit, bit
+ * for bit, at every width: packets from one origin, narrow (the 16-wide
+ * walk's frustum, which lets whole packets through untested) and wide, from
+ * scattered origins, with axis-parallel directions (the double box test),
+ * tmin < 0 and finite tmax mixed in, and counts that are not a multiple of
+ * RT_PACKET_MAX (the call splits them). On a UV sphere of shared edges and
+ * vertices too, where ties between triangles decide the hit. */
+static void packet_walk_matches_single(void **state)
+{
+    (void)state;
+    rr_error err;
+    int ws[3], nw = widths_available(ws);
+    static const int sizes[] = {1, 7, 16, 64, 100, 200};
+    enum { MAXN = 200 };
+    for (int pass = 0; pass < 3; pass++) {
+        rr_rng rng = rr_rng_make(91, (uint64_t)pass);
+        char *json = pass < 2 ? random_scene(&rng, 600, 8) : uv_sphere_scene(40, 64, "\"auto\"");
+        scene *s = NULL;
+        assert_int_equal(scene_load_string(json, "packets", "", NULL, &s, &err), RR_OK);
+        free(json);
+        if (pass >= 1)
+            verts_to_float(s);
+        for (int wi = 0; wi < nw; wi++) {
+            rt_accel *a = NULL;
+            assert_int_equal(rt__accel_build_width(s, ws[wi], &a, &err), RR_OK);
+            long hits = 0, rays = 0;
+            for (int q = 0; q < 600; q++) {
+                int n = sizes[q % 6], kind = (q / 6) % 5;
+                rr_ray r[MAXN];
+                rt_hit h[MAXN];
+                unsigned char f[MAXN];
+                rr_vec3 o = rr_v3_scale(random_unit(&rng), 1.5 + rr_rng_uniform(&rng));
+                rr_vec3 c = random_point(&rng, pass < 2 ? 1.0 : 0.6);
+                double spread = kind == 0 ? 1e-3 : kind == 1 ? 0.05 : 0.8;
+                for (int i = 0; i < n; i++) {
+                    r[i].o = kind == 3 ? random_point(&rng, 2.0) : o;
+                    r[i].d = rr_v3_sub(rr_v3_add(c, rr_v3_scale(random_point(&rng, 1.0), spread)), r[i].o);
+                    if (kind == 4 && i % 5 == 0)
+                        r[i].d.y = i % 10 ? 0.0 : -0.0; /* the double box test for this ray */
+                }
+                double tmin = q % 13 == 0 ? -0.25 : q % 2 ? 1e-9 : 0.0;
+                double tmax = q % 4 == 0 ? 1.0 + 2.0 * rr_rng_uniform(&rng) : INFINITY;
+                memset(h, 0, sizeof h);
+                int nh = rt_accel_closest_n(a, r, n, tmin, tmax, h, f), count = 0;
+                for (int i = 0; i < n; i++) {
+                    rt_hit g;
+                    memset(&g, 0, sizeof g);
+                    int fg = rt_accel_closest(a, r[i], tmin, tmax, &g);
+                    if (!same_hit(f[i], &h[i], fg, &g))
+                        fprintf(stderr, "width %d packet %d ray %d: %d %d tri %lld %lld t %.17g %.17g\n", ws[wi], q,
+                                i, f[i], fg, (long long)h[i].tri, (long long)g.tri, h[i].t, g.t);
+                    assert_true(same_hit(f[i], &h[i], fg, &g));
+                    count += fg;
+                }
+                assert_int_equal(nh, count);
+                hits += count;
+                rays += n;
+            }
+            /* Neither all misses nor all hits: the packets meet the scene. */
+            assert_true(hits > rays / 10 && hits < rays - rays / 20);
+            rt_accel_destroy(a);
+        }
+        scene_destroy(s);
+    }
+}
+
 /* ---- the packets' float test (rt_kernel.h rt__pk_cand) ---- */
 
 /* A double in [-1, 1). */
@@ -803,6 +869,7 @@ int main(void)
         cmocka_unit_test(bvh_build_threads_same_tree),
         cmocka_unit_test(bvh_widths_agree),
         cmocka_unit_test(bvh_occluded_matches_walk),
+        cmocka_unit_test(packet_walk_matches_single),
         cmocka_unit_test(f_round_matches_nextafter),
         cmocka_unit_test(pk_float_test_conservative),
     };
