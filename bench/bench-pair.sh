@@ -30,7 +30,7 @@ def parse(path):
             m = re.search(r'(\d+) ms .*?(\d+) nodes.*?([\d.]+) bytes/triangle', line)
             d[(scene, 'build ms', 1)] = float(m.group(1))
             d[(scene, 'bytes/tri', 1)] = float(m.group(3))
-        elif line.split() and line.split()[0] in ('primary', 'diffuse', 'shadow'):
+        elif line.split() and line.split()[0] in ('primary', 'diffuse', 'shadow', 'packets'):
             w = line.split()
             d[(scene, w[0], int(w[1]))] = float(w[4])
     return d
@@ -38,6 +38,8 @@ A = [parse(f'{out}/a{i}') for i in range(1, n + 1)]
 B = [parse(f'{out}/b{i}') for i in range(1, n + 1)]
 print(f'{"scene":<10} {"figure":<10} {"thr":>3} {"A":>9} {"B":>9}  A/B median (min-max), {n} pairs')
 for k in A[0]:
+    if not all(k in x for x in A + B):
+        continue  # a figure only one binary prints (a workload the other has not)
     r = [a[k] / b[k] for a, b in zip(A, B)]
     print(f'{k[0]:<10} {k[1]:<10} {k[2]:>3} {statistics.median(a[k] for a in A):9.2f} '
           f'{statistics.median(b[k] for b in B):9.2f}  {statistics.median(r):.3f} ({min(r):.3f}-{max(r):.3f})')

@@ -362,64 +362,73 @@ static inline void rt__best_init(rt_best *b, double tmax)
     b->cull = rt__f_up(tmax) * (1.0f + RT_BOX_GROW);
 }
 
-/* The primitives of the leaf whose first packet is k against one ray:
- * improves *b (and fills *hit for a primitive); with any, returns 1 at the
- * first hit. Inlined into both walks (a call cost primary rays 4 %). */
+/* Lane i of packet k (a candidate of the float test) against one ray:
+ * improves *b (and fills *hit for a primitive); with any, returns 1 at a
+ * hit. Inlined into the walks (a call cost primary rays 4 %). */
+static inline __attribute__((always_inline)) int rt__lane_closest(const rt_accel *a, const rt_pk *k, int i,
+                                                                   const rt_ray_pre *p, double tmin, int any, int two,
+                                                                   rt_best *b, rt_hit *hit)
+{
+    uint32_t fl = k->ref[i], lk = fl & RT_REF_LANE;
+    if (lk != RT_REF_PRIM) {
+        double t;
+        int front;
+        /* Exact ties (a ray through a shared edge or vertex) go to the
+         * lowest triangle index, as in rt_ref_closest, so the hit does not
+         * depend on the order the walk meets the triangles in (the widths'
+         * trees differ, and RT_WALKN's order). */
+        int tie = b->tri && fl >> RT_REF_SHIFT < b->tri->ref[b->lane] >> RT_REF_SHIFT;
+        /* Two-sided: a back face of a culling object a hair beyond a front
+         * face wins (RT_TIE_REL), so that a ray leaving a closed box through
+         * a face that lies flush with another surface's front (a board
+         * standing on the floor) meets the box first, as the burial rule
+         * needs. */
+        double lim = two && b->tri && b->front ? b->t + fabs(b->t) * RT_TIE_REL : b->t;
+        /* Two inline calls, not one helper: gcc did not inline the helper,
+         * and primary rays lost 4 % (mesh-1m). */
+        int got = lk == RT_REF_FAST ? rt__tri_hit_pk(p, k, i, tmin, lim, tie, &t, &front)
+                                    : rt__tri_hit_drec(p, rt__pk_dverts(a, k, i), (fl & p->cull_mask) != 0, tmin, lim,
+                                                       tie, &t, &front);
+        if (got && t >= b->t && !(t == b->t && tie))
+            got = !front && (fl & RT_REF_CULL);
+        else if (got && two && b->back_cull && front && t > b->t - fabs(b->t) * RT_TIE_REL)
+            got = 0; /* nor does a front face a hair before it */
+        if (got) {
+            if (any)
+                return 1;
+            b->found = 1;
+            b->t = t;
+            b->tri = k;
+            b->lane = i;
+            b->front = front;
+            b->back_cull = !front && (fl & RT_REF_CULL);
+            b->cull = rt__f_up(t) * (1.0f + RT_BOX_GROW);
+        }
+    } else {
+        rt_prim pr_ = {rt_prim_kind_of(a->scene, fl >> RT_REF_SHIFT), fl >> RT_REF_SHIFT};
+        if (rt__prim_hit(a, pr_, p, tmin, &b->t, any ? NULL : hit)) {
+            if (any)
+                return 1;
+            b->found = 1;
+            b->tri = NULL;
+            b->back_cull = 0;
+            b->cull = rt__f_up(b->t) * (1.0f + RT_BOX_GROW);
+        }
+    }
+    return 0;
+}
+
+/* The primitives of the leaf whose first packet is k against one ray
+ * (rt__lane_closest on the lanes rt__pk_cand keeps). */
 static inline __attribute__((always_inline)) int rt__leaf_closest(const rt_accel *a, const rt_pk *k,
                                                                    const rt_ray_pre *p, const rt_pkray *pr,
                                                                    double tmin, int any, int two, rt_best *b,
                                                                    rt_hit *hit)
 {
     for (;; k++) {
-        for (unsigned lanes = rt__pk_cand(k, pr); lanes; lanes &= lanes - 1) {
-            int i = __builtin_ctz(lanes);
-            uint32_t fl = k->ref[i], lk = fl & RT_REF_LANE;
-            if (lk != RT_REF_PRIM) {
-                double t;
-                int front;
-                /* Exact ties (a ray through a shared edge or vertex) go to
-                 * the lowest triangle index, as in rt_ref_closest, so the hit
-                 * does not depend on the order the walk meets the triangles
-                 * in (the widths' trees differ, and RT_WALKN's order). */
-                int tie = b->tri && fl >> RT_REF_SHIFT < b->tri->ref[b->lane] >> RT_REF_SHIFT;
-                /* Two-sided: a back face of a culling object a hair beyond a
-                 * front face wins (RT_TIE_REL), so that a ray leaving a closed
-                 * box through a face that lies flush with another surface's
-                 * front (a board standing on the floor) meets the box first,
-                 * as the burial rule needs. */
-                double lim = two && b->tri && b->front ? b->t + fabs(b->t) * RT_TIE_REL : b->t;
-                /* Two inline calls, not one helper: gcc did not inline the
-                 * helper, and primary rays lost 4 % (mesh-1m). */
-                int got = lk == RT_REF_FAST ? rt__tri_hit_pk(p, k, i, tmin, lim, tie, &t, &front)
-                                            : rt__tri_hit_drec(p, rt__pk_dverts(a, k, i), (fl & p->cull_mask) != 0,
-                                                               tmin, lim, tie, &t, &front);
-                if (got && t >= b->t && !(t == b->t && tie))
-                    got = !front && (fl & RT_REF_CULL);
-                else if (got && two && b->back_cull && front && t > b->t - fabs(b->t) * RT_TIE_REL)
-                    got = 0; /* nor does a front face a hair before it */
-                if (got) {
-                    if (any)
-                        return 1;
-                    b->found = 1;
-                    b->t = t;
-                    b->tri = k;
-                    b->lane = i;
-                    b->front = front;
-                    b->back_cull = !front && (fl & RT_REF_CULL);
-                    b->cull = rt__f_up(t) * (1.0f + RT_BOX_GROW);
-                }
-            } else {
-                rt_prim pr_ = {rt_prim_kind_of(a->scene, fl >> RT_REF_SHIFT), fl >> RT_REF_SHIFT};
-                if (rt__prim_hit(a, pr_, p, tmin, &b->t, any ? NULL : hit)) {
-                    if (any)
-                        return 1;
-                    b->found = 1;
-                    b->tri = NULL;
-                    b->back_cull = 0;
-                    b->cull = rt__f_up(b->t) * (1.0f + RT_BOX_GROW);
-                }
-            }
-        }
+        for (unsigned lanes = rt__pk_cand(k, pr); lanes; lanes &= lanes - 1)
+            if (rt__lane_closest(a, k, __builtin_ctz(lanes), p, tmin, any, two, b, hit))
+                return 1;
         if (k->ref[0] & RT_REF_LAST)
             return 0;
     }
@@ -619,6 +628,74 @@ static inline unsigned rt__box_frustum(const rt_wn *n, const rt_frustum *f, floa
 }
 #endif
 
+#if RT_BOX_SIMD == 3
+/* The float test of a leaf packet's triangles against the rays of a packet
+ * that share one origin O exactly, 16 rays at a time (the per-ray
+ * rt__pk_cand tests 4 triangles against one ray). With a = A - O, b, c the
+ * vertices from the origin, the watertight test's edge functions are
+ * U = d.(c x b) / |d_kz|, V = d.(a x c) / |d_kz|, W = d.(b x a) / |d_kz|
+ * exactly (the shear and the axis swap for d_kz < 0 cancel; checked
+ * numerically, and by test_bvh through the walk), so their signs are
+ * those of T = d.n for the three edge normals n, computed once per triangle
+ * in double and rounded to float. A ray is dropped for a triangle, as
+ * rt__pk_cand drops it, when one T is below -E and another above E, or all
+ * three below -E and the triangle culls back faces, with
+ *   E = 8u S + 2^-40 R^2 D + 1e-37,  S = |dx||nx| + |dy||ny| + |dz||nz|,
+ * u = 2^-24, R = the largest |coordinate| of a, b, c, D = the packet's
+ * largest |direction component|. 8u S covers the float side (the roundings
+ * of n and d to float: 2u S; three fused operations: 3u S; E's own), 2^-40
+ * R^2 D (8192 u_d R^2 D) the double side: n's roundings (about 30 u_d R^2
+ * D in T) and the double test's own error on U, V, W (about 64 u_d R^2
+ * in U, so 64 u_d R^2 D in T), 1e-37 the underflow of tiny products. A
+ * dropped ray's exact U, V, W then have the signs the estimate says, and
+ * the double test rejects the triangle too (for the same reason as in
+ * rt__pk_cand, the long-double recomputation at zeros cannot change
+ * that). Lanes with R >= 1e15 or R^2 D >= 1e30 (float overflow), double
+ * copies (RT_REF_DBL) and other primitives keep every ray. */
+static inline uint64_t rt__pkt_tri_cand(const float n[9], float e0, int cull, uint64_t act, const float *dx,
+                                        const float *dy, const float *dz)
+{
+    const __m512 ux = _mm512_set1_ps(n[0]), uy = _mm512_set1_ps(n[1]), uz = _mm512_set1_ps(n[2]);
+    const __m512 vx = _mm512_set1_ps(n[3]), vy = _mm512_set1_ps(n[4]), vz = _mm512_set1_ps(n[5]);
+    const __m512 wx = _mm512_set1_ps(n[6]), wy = _mm512_set1_ps(n[7]), wz = _mm512_set1_ps(n[8]);
+    const __m512 e = _mm512_set1_ps(e0), k8u = _mm512_set1_ps(8.0f * RT_PK_U);
+    uint64_t cand = 0;
+    for (int j = 0; j < RT_PACKET_MAX / 16; j++) {
+        __mmask16 live = (__mmask16)(act >> (16 * j));
+        if (!live)
+            continue;
+        __m512 x = _mm512_load_ps(dx + 16 * j), y = _mm512_load_ps(dy + 16 * j), z = _mm512_load_ps(dz + 16 * j);
+        __m512 ax = _mm512_abs_ps(x), ay = _mm512_abs_ps(y), az = _mm512_abs_ps(z);
+        __m512 tu = _mm512_fmadd_ps(z, uz, _mm512_fmadd_ps(y, uy, _mm512_mul_ps(x, ux)));
+        __m512 tv = _mm512_fmadd_ps(z, vz, _mm512_fmadd_ps(y, vy, _mm512_mul_ps(x, vx)));
+        __m512 tw = _mm512_fmadd_ps(z, wz, _mm512_fmadd_ps(y, wy, _mm512_mul_ps(x, wx)));
+        __m512 su = _mm512_fmadd_ps(az, _mm512_abs_ps(uz), _mm512_fmadd_ps(ay, _mm512_abs_ps(uy), _mm512_mul_ps(ax, _mm512_abs_ps(ux))));
+        __m512 sv = _mm512_fmadd_ps(az, _mm512_abs_ps(vz), _mm512_fmadd_ps(ay, _mm512_abs_ps(vy), _mm512_mul_ps(ax, _mm512_abs_ps(vx))));
+        __m512 sw = _mm512_fmadd_ps(az, _mm512_abs_ps(wz), _mm512_fmadd_ps(ay, _mm512_abs_ps(wy), _mm512_mul_ps(ax, _mm512_abs_ps(wx))));
+        __m512 eu = _mm512_fmadd_ps(su, k8u, e), ev = _mm512_fmadd_ps(sv, k8u, e), ew = _mm512_fmadd_ps(sw, k8u, e);
+        const __m512 zero = _mm512_setzero_ps();
+        __mmask16 nu = _mm512_cmp_ps_mask(_mm512_add_ps(tu, eu), zero, _CMP_LT_OQ);
+        __mmask16 nv = _mm512_cmp_ps_mask(_mm512_add_ps(tv, ev), zero, _CMP_LT_OQ);
+        __mmask16 nw = _mm512_cmp_ps_mask(_mm512_add_ps(tw, ew), zero, _CMP_LT_OQ);
+        __mmask16 pu = _mm512_cmp_ps_mask(tu, eu, _CMP_GT_OQ), pv = _mm512_cmp_ps_mask(tv, ev, _CMP_GT_OQ);
+        __mmask16 pw = _mm512_cmp_ps_mask(tw, ew, _CMP_GT_OQ);
+        __mmask16 drop = (__mmask16)(((nu | nv | nw) & (pu | pv | pw)) | (cull ? nu & nv & nw : 0));
+        cand |= (uint64_t)(live & (__mmask16)~drop) << (16 * j);
+    }
+    return cand;
+}
+#endif
+
+#if RT_BOX_SIMD == 3
+static inline float rt__max_cull(const float *cull, int nr)
+{
+    float m = 0.0f;
+    for (int r = 0; r < nr; r++)
+        m = cull[r] > m ? cull[r] : m;
+    return m;
+}
+#endif
+
 typedef struct rt_pkt_entry {
     uint64_t rays;
     uint32_t ref;
@@ -637,7 +714,7 @@ int RT_WALKN(const rt_accel *a, const rr_ray *rays, int nr, double tmin, double 
      * triangles' operands are read at leaves only. */
     rt_pkt_ray st[RT_PACKET_MAX];
     rt_boxops ops[RT_PACKET_MAX];
-    float cull[RT_PACKET_MAX];                  /* st[r].b.cull */
+    _Alignas(64) float cull[RT_PACKET_MAX];     /* st[r].b.cull */
     uint64_t dbl = 0;                           /* the rays whose boxes take the double test */
     for (int r = 0; r < nr; r++) {
         rt_pkt_ray *s = &st[r];
@@ -661,7 +738,9 @@ int RT_WALKN(const rt_accel *a, const rr_ray *rays, int nr, double tmin, double 
             fr &= st[r].p.org_near[k] == st[0].p.org_near[k] && st[r].p.org_far[k] == st[0].p.org_far[k] &&
                   st[r].p.near_row[k] == st[0].p.near_row[k];
     rt_frustum fru;
-    float pcull = 0.0f; /* the greatest cull of the packet's rays */
+    /* The greatest cull of the packet's rays, as the frustum's tmax (taken
+     * over the active rays only at each node, it was 5 % slower). */
+    float pcull = INFINITY;
     if (fr) {
         for (int k = 0; k < 3; k++) {
             float lo = ops[0].inv[k], hi = lo;
@@ -675,8 +754,24 @@ int RT_WALKN(const rt_accel *a, const rr_ray *rays, int nr, double tmin, double 
             fru.ihi[k] = _mm512_set1_ps(hi);
             fru.row[k] = st[0].p.near_row[k];
         }
-        for (int r = 0; r < nr; r++)
-            pcull = cull[r] > pcull ? cull[r] : pcull;
+        pcull = rt__max_cull(cull, nr);
+    }
+    /* One origin exactly: the leaves test 16 rays at a time
+     * (rt__pkt_tri_cand), on the directions in float. */
+    int so = fr;
+    for (int r = 1; r < nr && so; r++)
+        so = memcmp(&rays[r].o, &rays[0].o, sizeof rays[0].o) == 0;
+    _Alignas(64) float dxs[RT_PACKET_MAX], dys[RT_PACKET_MAX], dzs[RT_PACKET_MAX];
+    double dmax = 0.0;
+    if (so) {
+        for (int r = 0; r < RT_PACKET_MAX; r++) {
+            rr_vec3 d = r < nr ? rays[r].d : rays[0].d;
+            dxs[r] = (float)d.x;
+            dys[r] = (float)d.y;
+            dzs[r] = (float)d.z;
+            double m = fmax(fabs(d.x), fmax(fabs(d.y), fabs(d.z)));
+            dmax = m > dmax ? m : dmax;
+        }
     }
 #endif
     rt_pkt_entry stack[RT_STACK_SIZE];
@@ -786,6 +881,77 @@ int RT_WALKN(const rt_accel *a, const rr_ray *rays, int nr, double tmin, double 
             }
         } else {
             const rt_pk *k = &a->pks[cur & ~RT_LEAF];
+#if RT_BOX_SIMD == 3
+            if (so) {
+                const __m256d ox = _mm256_set1_pd(rays[0].o.x), oy = _mm256_set1_pd(rays[0].o.y),
+                              oz = _mm256_set1_pd(rays[0].o.z);
+                for (;; k++) {
+                    /* The three edge normals of the 4 lanes in double. */
+                    __m256d ax = _mm256_sub_pd(_mm256_cvtps_pd(_mm_load_ps(k->v[0])), ox);
+                    __m256d ay = _mm256_sub_pd(_mm256_cvtps_pd(_mm_load_ps(k->v[1])), oy);
+                    __m256d az = _mm256_sub_pd(_mm256_cvtps_pd(_mm_load_ps(k->v[2])), oz);
+                    __m256d bx = _mm256_sub_pd(_mm256_cvtps_pd(_mm_load_ps(k->v[3])), ox);
+                    __m256d by = _mm256_sub_pd(_mm256_cvtps_pd(_mm_load_ps(k->v[4])), oy);
+                    __m256d bz = _mm256_sub_pd(_mm256_cvtps_pd(_mm_load_ps(k->v[5])), oz);
+                    __m256d cx = _mm256_sub_pd(_mm256_cvtps_pd(_mm_load_ps(k->v[6])), ox);
+                    __m256d cy = _mm256_sub_pd(_mm256_cvtps_pd(_mm_load_ps(k->v[7])), oy);
+                    __m256d cz = _mm256_sub_pd(_mm256_cvtps_pd(_mm_load_ps(k->v[8])), oz);
+                    __m256d nd[9] = {
+                        _mm256_sub_pd(_mm256_mul_pd(cy, bz), _mm256_mul_pd(cz, by)), /* c x b */
+                        _mm256_sub_pd(_mm256_mul_pd(cz, bx), _mm256_mul_pd(cx, bz)),
+                        _mm256_sub_pd(_mm256_mul_pd(cx, by), _mm256_mul_pd(cy, bx)),
+                        _mm256_sub_pd(_mm256_mul_pd(ay, cz), _mm256_mul_pd(az, cy)), /* a x c */
+                        _mm256_sub_pd(_mm256_mul_pd(az, cx), _mm256_mul_pd(ax, cz)),
+                        _mm256_sub_pd(_mm256_mul_pd(ax, cy), _mm256_mul_pd(ay, cx)),
+                        _mm256_sub_pd(_mm256_mul_pd(by, az), _mm256_mul_pd(bz, ay)), /* b x a */
+                        _mm256_sub_pd(_mm256_mul_pd(bz, ax), _mm256_mul_pd(bx, az)),
+                        _mm256_sub_pd(_mm256_mul_pd(bx, ay), _mm256_mul_pd(by, ax)),
+                    };
+                    const __m256d absm = _mm256_castsi256_pd(_mm256_set1_epi64x(0x7fffffffffffffffLL));
+                    __m256d R = _mm256_max_pd(_mm256_max_pd(_mm256_and_pd(ax, absm), _mm256_and_pd(ay, absm)),
+                                              _mm256_and_pd(az, absm));
+                    R = _mm256_max_pd(R, _mm256_max_pd(_mm256_max_pd(_mm256_and_pd(bx, absm), _mm256_and_pd(by, absm)),
+                                                       _mm256_and_pd(bz, absm)));
+                    R = _mm256_max_pd(R, _mm256_max_pd(_mm256_max_pd(_mm256_and_pd(cx, absm), _mm256_and_pd(cy, absm)),
+                                                       _mm256_and_pd(cz, absm)));
+                    __m256d r2d = _mm256_mul_pd(_mm256_mul_pd(R, R), _mm256_set1_pd(dmax));
+                    int ok = _mm256_movemask_pd(_mm256_and_pd(_mm256_cmp_pd(R, _mm256_set1_pd(1e15), _CMP_LT_OQ),
+                                                              _mm256_cmp_pd(r2d, _mm256_set1_pd(1e30), _CMP_LT_OQ)));
+                    float nf[9][4], e0[4];
+                    for (int c = 0; c < 9; c++)
+                        _mm_storeu_ps(nf[c], _mm256_cvtpd_ps(nd[c]));
+                    /* 2^-40 R^2 D, one part in 2^20 more for the rounding to float, + 1e-37. */
+                    _mm_storeu_ps(e0, _mm256_cvtpd_ps(_mm256_add_pd(_mm256_mul_pd(r2d, _mm256_set1_pd(0x1.00001p-40)),
+                                                                    _mm256_set1_pd(1e-37))));
+                    for (int i = 0; i < RT_PK; i++) {
+                        uint32_t fl = k->ref[i];
+                        if (!fl)
+                            continue;
+                        uint64_t cand = act;
+                        if ((fl & RT_REF_LANE) == RT_REF_FAST && (ok >> i & 1)) {
+                            float n9[9];
+                            for (int c = 0; c < 9; c++)
+                                n9[c] = nf[c][i];
+                            cand = rt__pkt_tri_cand(n9, e0[i], (fl & RT_REF_CULL) != 0, act, dxs, dys, dzs);
+                        }
+                        for (; cand; cand &= cand - 1) {
+                            int r = __builtin_ctzll(cand);
+                            rt_pkt_ray *s = &st[r];
+                            if (!s->tri_ready) {
+                                rt__ray_prepare_tri(&s->p);
+                                s->tri_ready = 1;
+                            }
+                            rt__lane_closest(a, k, i, &s->p, tmin, 0, 0, &s->b, &hits[r]);
+                            cull[r] = s->b.cull;
+                        }
+                    }
+                    if (k->ref[0] & RT_REF_LAST)
+                        break;
+                }
+                pcull = rt__max_cull(cull, nr);
+                goto pop;
+            }
+#endif
             for (uint64_t m = act; m; m &= m - 1) {
                 int r = __builtin_ctzll(m);
                 rt_pkt_ray *s = &st[r];
@@ -798,11 +964,7 @@ int RT_WALKN(const rt_accel *a, const rr_ray *rays, int nr, double tmin, double 
                 cull[r] = s->b.cull;
             }
 #if RT_BOX_SIMD == 3
-            if (fr) {
-                pcull = 0.0f;
-                for (int r = 0; r < nr; r++)
-                    pcull = cull[r] > pcull ? cull[r] : pcull;
-            }
+            pcull = rt__max_cull(cull, nr);
 #endif
         }
 #if RT_BOX_SIMD == 3

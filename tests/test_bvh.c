@@ -653,7 +653,7 @@ static void packet_walk_matches_single(void **state)
             assert_int_equal(rt__accel_build_width(s, ws[wi], &a, &err), RR_OK);
             long hits = 0, rays = 0;
             for (int q = 0; q < 600; q++) {
-                int n = sizes[q % 6], kind = (q / 6) % 5;
+                int n = sizes[q % 6], kind = (q / 6) % 6;
                 rr_ray r[MAXN];
                 rt_hit h[MAXN];
                 unsigned char f[MAXN];
@@ -665,6 +665,16 @@ static void packet_walk_matches_single(void **state)
                     r[i].d = rr_v3_sub(rr_v3_add(c, rr_v3_scale(random_point(&rng, 1.0), spread)), r[i].o);
                     if (kind == 4 && i % 5 == 0)
                         r[i].d.y = i % 10 ? 0.0 : -0.0; /* the double box test for this ray */
+                    if (kind == 5) {
+                        /* Through a vertex or an edge's midpoint: edge
+                         * functions exactly 0, where the float tests' error
+                         * bounds decide (and the ties between triangles). */
+                        const scene_tri *t = &s->tris[rr_rng_below(&rng, (uint32_t)s->ntris)];
+                        rr_vec3 p = s->verts[t->v[0]];
+                        if (i % 2)
+                            p = rr_v3_scale(rr_v3_add(p, s->verts[t->v[1]]), 0.5);
+                        r[i].d = rr_v3_sub(p, o);
+                    }
                 }
                 double tmin = q % 13 == 0 ? -0.25 : q % 2 ? 1e-9 : 0.0;
                 double tmax = q % 4 == 0 ? 1.0 + 2.0 * rr_rng_uniform(&rng) : INFINITY;
