@@ -687,12 +687,49 @@ static inline uint64_t rt__pkt_tri_cand(const float n[9], float e0, int cull, ui
 #endif
 
 #if RT_BOX_SIMD == 3
-static inline float rt__max_cull(const float *cull, int nr)
+/* The float box test of child c of n against the active rays of a frustum
+ * packet, 16 rays at a time, on the rays' operands in SoA (ray r's cn, cf,
+ * inv at [k][r]; rows shared): the per-ray fused test's arithmetic lane
+ * for lane (one FMA per plane, the same min and max, none of them NaN: inv
+ * is finite, c < 1e37), so the same answer bit for bit. Returns the rays
+ * that enter the child. */
+static inline uint64_t rt__box_rays(const rt_wn *n, int c, const int row[3], const float (*cn)[RT_PACKET_MAX],
+                                    const float (*cf)[RT_PACKET_MAX], const float (*inv)[RT_PACKET_MAX],
+                                    const float *cull, float tmin, uint64_t act)
 {
-    float m = 0.0f;
-    for (int r = 0; r < nr; r++)
-        m = cull[r] > m ? cull[r] : m;
-    return m;
+    const __m512 px0 = _mm512_set1_ps(n->b[row[0]][c]), px1 = _mm512_set1_ps(n->b[row[0] ^ 1][c]);
+    const __m512 py0 = _mm512_set1_ps(n->b[row[1]][c]), py1 = _mm512_set1_ps(n->b[row[1] ^ 1][c]);
+    const __m512 pz0 = _mm512_set1_ps(n->b[row[2]][c]), pz1 = _mm512_set1_ps(n->b[row[2] ^ 1][c]);
+    const __m512 lo = _mm512_set1_ps(tmin), grow = _mm512_set1_ps(1.0f + RT_BOX_GROW);
+    uint64_t in = 0;
+    for (int j = 0; j < RT_PACKET_MAX / 16; j++) {
+        __mmask16 live = (__mmask16)(act >> (16 * j));
+        if (!live)
+            continue;
+        const int o = 16 * j;
+        __m512 ix = _mm512_load_ps(inv[0] + o), iy = _mm512_load_ps(inv[1] + o), iz = _mm512_load_ps(inv[2] + o);
+        __m512 tx0 = _mm512_fmsub_ps(px0, ix, _mm512_load_ps(cn[0] + o));
+        __m512 ty0 = _mm512_fmsub_ps(py0, iy, _mm512_load_ps(cn[1] + o));
+        __m512 tz0 = _mm512_fmsub_ps(pz0, iz, _mm512_load_ps(cn[2] + o));
+        __m512 tx1 = _mm512_fmsub_ps(px1, ix, _mm512_load_ps(cf[0] + o));
+        __m512 ty1 = _mm512_fmsub_ps(py1, iy, _mm512_load_ps(cf[1] + o));
+        __m512 tz1 = _mm512_fmsub_ps(pz1, iz, _mm512_load_ps(cf[2] + o));
+        __m512 t0 = _mm512_max_ps(_mm512_max_ps(tx0, ty0), _mm512_max_ps(tz0, lo));
+        __m512 t1 = _mm512_min_ps(_mm512_min_ps(tx1, ty1), tz1);
+        t1 = _mm512_min_ps(_mm512_load_ps(cull + o), _mm512_mul_ps(t1, grow));
+        in |= (uint64_t)_mm512_mask_cmp_ps_mask(live, t0, t1, _CMP_LE_OQ) << o;
+    }
+    return in;
+}
+
+/* The greatest of cull[0 .. RT_PACKET_MAX) (the entries past the packet's
+ * rays are 0): one chain of 64 scalar compares was 4 % of the walk. */
+static inline float rt__max_cull(const float *cull)
+{
+    __m512 m = _mm512_load_ps(cull);
+    for (int j = 1; j < RT_PACKET_MAX / 16; j++)
+        m = _mm512_max_ps(m, _mm512_load_ps(cull + 16 * j));
+    return _mm512_reduce_max_ps(m);
 }
 #endif
 
@@ -714,8 +751,10 @@ int RT_WALKN(const rt_accel *a, const rr_ray *rays, int nr, double tmin, double 
      * triangles' operands are read at leaves only. */
     rt_pkt_ray st[RT_PACKET_MAX];
     rt_boxops ops[RT_PACKET_MAX];
-    _Alignas(64) float cull[RT_PACKET_MAX];     /* st[r].b.cull */
+    _Alignas(64) float cull[RT_PACKET_MAX];     /* st[r].b.cull; 0 past nr */
     uint64_t dbl = 0;                           /* the rays whose boxes take the double test */
+    for (int r = nr; r < RT_PACKET_MAX; r++)
+        cull[r] = 0.0f;
     for (int r = 0; r < nr; r++) {
         rt_pkt_ray *s = &st[r];
         rt__ray_prepare_box(rays[r], &s->p, 1);
@@ -738,6 +777,7 @@ int RT_WALKN(const rt_accel *a, const rr_ray *rays, int nr, double tmin, double 
             fr &= st[r].p.org_near[k] == st[0].p.org_near[k] && st[r].p.org_far[k] == st[0].p.org_far[k] &&
                   st[r].p.near_row[k] == st[0].p.near_row[k];
     rt_frustum fru;
+    _Alignas(64) float scn[3][RT_PACKET_MAX], scf[3][RT_PACKET_MAX], sinv[3][RT_PACKET_MAX];
     /* The greatest cull of the packet's rays, as the frustum's tmax (taken
      * over the active rays only at each node, it was 5 % slower). */
     float pcull = INFINITY;
@@ -754,7 +794,14 @@ int RT_WALKN(const rt_accel *a, const rr_ray *rays, int nr, double tmin, double 
             fru.ihi[k] = _mm512_set1_ps(hi);
             fru.row[k] = st[0].p.near_row[k];
         }
-        pcull = rt__max_cull(cull, nr);
+        pcull = rt__max_cull(cull);
+        for (int r = 0; r < RT_PACKET_MAX; r++)
+            for (int k = 0; k < 3; k++) {
+                const rt_boxops *q = &ops[r < nr ? r : 0];
+                scn[k][r] = q->a[k];
+                scf[k][r] = q->b[k];
+                sinv[k][r] = q->inv[k];
+            }
     }
     /* One origin exactly: the leaves test 16 rays at a time
      * (rt__pkt_tri_cand), on the directions in float. */
@@ -789,26 +836,36 @@ int RT_WALKN(const rt_accel *a, const rr_ray *rays, int nr, double tmin, double 
                 unsigned fm = rt__box_frustum(n, &fru, tmin_f, pcull, fd);
                 if (!fm)
                     goto pop;
-                if (!(fm & rt__leaf_mask(n))) {
-                    int ch[RT_W], m = 0;
-                    for (; fm; fm &= fm - 1) {
-                        int c = __builtin_ctz(fm), j = m++;
-                        while (j > 0 && fd[ch[j - 1]] < fd[c]) {
-                            ch[j] = ch[j - 1];
-                            j--;
-                        }
-                        ch[j] = c;
+                /* Inner children only: the packet goes into each as it is,
+                 * untested (a ray that misses one is dropped a level down);
+                 * leaves among them: each child's rays found 16 at a time. */
+                const int leaves = (fm & rt__leaf_mask(n)) != 0;
+                uint64_t fin[RT_W];
+                int ch[RT_W], m = 0;
+                for (; fm; fm &= fm - 1) {
+                    int c = __builtin_ctz(fm);
+                    fin[c] = leaves ? rt__box_rays(n, c, fru.row, scn, scf, sinv, cull, tmin_f, act) : act;
+                    if (!fin[c])
+                        continue;
+                    int j = m++;
+                    while (j > 0 && fd[ch[j - 1]] < fd[c]) {
+                        ch[j] = ch[j - 1];
+                        j--;
                     }
-                    RR_CHECK(sp + m - 1 <= RT_STACK_SIZE);
-                    for (int j = 0; j < m - 1; j++) {
-                        stack[sp].rays = act;
-                        stack[sp].ref = n->child[ch[j]];
-                        stack[sp].dist = fd[ch[j]];
-                        sp++;
-                    }
-                    cur = n->child[ch[m - 1]];
-                    continue;
+                    ch[j] = c;
                 }
+                if (!m)
+                    goto pop;
+                RR_CHECK(sp + m - 1 <= RT_STACK_SIZE);
+                for (int j = 0; j < m - 1; j++) {
+                    stack[sp].rays = fin[ch[j]];
+                    stack[sp].ref = n->child[ch[j]];
+                    stack[sp].dist = fd[ch[j]];
+                    sp++;
+                }
+                cur = n->child[ch[m - 1]];
+                act = fin[ch[m - 1]];
+                continue;
             }
 #endif
             uint64_t in[RT_W];
@@ -948,7 +1005,7 @@ int RT_WALKN(const rt_accel *a, const rr_ray *rays, int nr, double tmin, double 
                     if (k->ref[0] & RT_REF_LAST)
                         break;
                 }
-                pcull = rt__max_cull(cull, nr);
+                pcull = rt__max_cull(cull);
                 goto pop;
             }
 #endif
@@ -964,7 +1021,7 @@ int RT_WALKN(const rt_accel *a, const rr_ray *rays, int nr, double tmin, double 
                 cull[r] = s->b.cull;
             }
 #if RT_BOX_SIMD == 3
-            pcull = rt__max_cull(cull, nr);
+            pcull = rt__max_cull(cull);
 #endif
         }
 #if RT_BOX_SIMD == 3
@@ -989,6 +1046,11 @@ int RT_WALKN(const rt_accel *a, const rr_ray *rays, int nr, double tmin, double 
         }
     }
 out:;
+    /* The hit triangles' scene records, fetched before they are read: one
+     * cache miss per ray, and they now overlap. */
+    for (int r = 0; r < nr; r++)
+        if (st[r].b.found && st[r].b.tri)
+            __builtin_prefetch(&a->scene->tris[st[r].b.tri->ref[st[r].b.lane] >> RT_REF_SHIFT]);
     int nhit = 0;
     for (int r = 0; r < nr; r++)
         if (st[r].b.found) {
