@@ -317,12 +317,12 @@ static void shade_surface(const render_ctx *c, const rt_hit *h, rr_vec3 dir, rr_
         local->c[RT_LAYER_INDIRECT] = bounce_term(c, h, m, depth, bounce, nlight, rng);
 }
 
-static rr_rgb radiance(const render_ctx *c, rr_ray ray, int depth, int bounce, const mis_state *mis, rr_rng *rng,
-                       shade_out *out)
+/* The radiance along ray, whose closest hit (found, h) is known. */
+static rr_rgb radiance_at(const render_ctx *c, rr_ray ray, int found, const rt_hit *h, int depth, int bounce,
+                          const mis_state *mis, rr_rng *rng, shade_out *out)
 {
     const scene *s = c->s;
-    rt_hit h;
-    if (!rt_accel_closest(c->a, ray, 0.0, INFINITY, &h)) {
+    if (!found) {
         if (out) {
             memset(out, 0, sizeof *out);
             out->c[RT_LAYER_EMISSION] = s->settings.background;
@@ -333,15 +333,23 @@ static rr_rgb radiance(const render_ctx *c, rr_ray ray, int depth, int bounce, c
     shade_out local;
     memset(&local, 0, sizeof local);
     if (c->o->show_field)
-        shade_field(c, &h, V, depth, bounce, rng, &local);
+        shade_field(c, h, V, depth, bounce, rng, &local);
     else
-        shade_surface(c, &h, ray.d, V, depth, bounce, mis, rng, &local);
+        shade_surface(c, h, ray.d, V, depth, bounce, mis, rng, &local);
     rr_rgb sum = rr_rgb_make(0, 0, 0);
     for (int i = 0; i < RT_LAYER_COUNT; i++)
         sum = rr_rgb_add(sum, local.c[i]);
     if (out)
         *out = local;
     return sum;
+}
+
+static rr_rgb radiance(const render_ctx *c, rr_ray ray, int depth, int bounce, const mis_state *mis, rr_rng *rng,
+                       shade_out *out)
+{
+    rt_hit h;
+    int found = rt_accel_closest(c->a, ray, 0.0, INFINITY, &h);
+    return radiance_at(c, ray, found, &h, depth, bounce, mis, rng, out);
 }
 
 /* Stratified sub-pixel offset for sample k of n, warped by the pixel filter:
@@ -371,52 +379,88 @@ static void pixel_offset(int k, int n, rt_filter filter, rr_rng *rng, double *dx
     }
 }
 
+/* The camera rays of a tile in packets of RT_PACKET_TILE x RT_PACKET_TILE
+ * pixels (rt_accel_closest_n: neighbouring pixels' rays walk the BVH
+ * together, the same hits as one at a time). */
+#define RT_PACKET_TILE 8
+
+/* Per pixel of a tile: its RNG stream and its sums over the samples. */
+typedef struct tile_px {
+    rr_rng rng;
+    shade_out acc;
+} tile_px;
+
 /* Renders the tile at (x0, y0) into film; 0 when an interrupt stopped it
- * (the tile is then black, like the tiles never begun). */
+ * (the tile is then black, like the tiles never begun). Sample by sample
+ * over the tile: the camera rays of sample k of every pixel are traced
+ * together, then each pixel shades its own. Every pixel draws from its own
+ * stream in the order it did one pixel at a time (offset, then shading, for
+ * k = 0, 1, ...), so the image is the same bits. */
 static int render_tile(const render_ctx *c, int spp, int x0, int y0, rt_film *film)
 {
     const rr_view *v = &c->s->view;
     const rt_render_opts *o = c->o;
+    const int w = x0 + RT_TILE < v->width ? RT_TILE : v->width - x0;
+    const int h = y0 + RT_TILE < v->height ? RT_TILE : v->height - y0;
+    tile_px px[RT_TILE * RT_TILE];
+    rr_ray rays[RT_TILE * RT_TILE];
+    rt_hit hits[RT_TILE * RT_TILE];
+    unsigned char found[RT_TILE * RT_TILE];
+    int order[RT_TILE * RT_TILE], n = 0; /* pixel (y * RT_TILE + x) of each ray, packet by packet */
+    for (int py = 0; py < h; py += RT_PACKET_TILE)
+        for (int pxl = 0; pxl < w; pxl += RT_PACKET_TILE)
+            for (int y = py; y < py + RT_PACKET_TILE && y < h; y++)
+                for (int x = pxl; x < pxl + RT_PACKET_TILE && x < w; x++)
+                    order[n++] = y * RT_TILE + x;
+    for (int y = 0; y < h; y++)
+        for (int x = 0; x < w; x++) {
+            tile_px *q = &px[y * RT_TILE + x];
+            q->rng = rr_rng_make(o->seed, (uint64_t)(y0 + y) * (uint64_t)v->width + (uint64_t)(x0 + x));
+            memset(&q->acc, 0, sizeof q->acc);
+        }
     int stopped = 0;
-    for (int row = y0; row < y0 + RT_TILE && row < v->height && !stopped; row++)
-        for (int col = x0; col < x0 + RT_TILE && col < v->width; col++) {
+    for (int k = 0; k < spp && !stopped; k++) {
+        for (int j = 0; j < n; j++) {
+            int p = order[j];
+            double dx, dy;
+            pixel_offset(k, spp, o->filter, &px[p].rng, &dx, &dy);
+            rays[j] = rr_view_ray(v, x0 + p % RT_TILE, y0 + p / RT_TILE, dx, dy);
+        }
+        for (int j = 0; j < n; j += RT_PACKET_TILE * RT_PACKET_TILE) {
+            int m = n - j < RT_PACKET_TILE * RT_PACKET_TILE ? n - j : RT_PACKET_TILE * RT_PACKET_TILE;
+            rt_accel_closest_n(c->a, rays + j, m, 0.0, INFINITY, hits + j, found + j);
+        }
+        for (int j = 0; j < n; j++) {
             if (o->interrupt && *o->interrupt) {
                 stopped = 1;
                 break;
             }
-            rr_rng rng = rr_rng_make(o->seed, (uint64_t)row * (uint64_t)v->width + (uint64_t)col);
-            shade_out acc;
-            memset(&acc, 0, sizeof acc);
-            for (int k = 0; k < spp; k++) {
-                /* Within a pixel too: at 2^24 spp one pixel takes minutes. */
-                if ((k & 255) == 255 && o->interrupt && *o->interrupt) {
-                    stopped = 1;
-                    break;
-                }
-                double dx, dy;
-                pixel_offset(k, spp, o->filter, &rng, &dx, &dy);
-                shade_out so;
-                radiance(c, rr_view_ray(v, col, row, dx, dy), 0, 0, NULL, &rng, &so);
-                for (int i = 0; i < RT_LAYER_COUNT; i++)
-                    acc.c[i] = rr_rgb_add(acc.c[i], so.c[i]);
-            }
-            if (stopped)
-                break;
-            rr_rgb sum = rr_rgb_make(0, 0, 0);
-            for (int i = 0; i < RT_LAYER_COUNT; i++) {
-                rr_rgb mean = rr_rgb_scale(acc.c[i], 1.0 / spp);
-                rr_image_set(&film->layer[i], col, row, mean);
-                sum = rr_rgb_add(sum, mean);
-            }
-            rr_image_set(&film->beauty, col, row, sum);
-        }
-    if (!stopped)
-        return 1;
-    for (int row = y0; row < y0 + RT_TILE && row < v->height; row++)
-        for (int col = x0; col < x0 + RT_TILE && col < v->width; col++) {
-            rr_image_set(&film->beauty, col, row, rr_rgb_make(0, 0, 0));
+            tile_px *q = &px[order[j]];
+            shade_out so;
+            radiance_at(c, rays[j], found[j], &hits[j], 0, 0, NULL, &q->rng, &so);
             for (int i = 0; i < RT_LAYER_COUNT; i++)
-                rr_image_set(&film->layer[i], col, row, rr_rgb_make(0, 0, 0));
+                q->acc.c[i] = rr_rgb_add(q->acc.c[i], so.c[i]);
+        }
+    }
+    if (!stopped) {
+        for (int y = 0; y < h; y++)
+            for (int x = 0; x < w; x++) {
+                const tile_px *q = &px[y * RT_TILE + x];
+                rr_rgb sum = rr_rgb_make(0, 0, 0);
+                for (int i = 0; i < RT_LAYER_COUNT; i++) {
+                    rr_rgb mean = rr_rgb_scale(q->acc.c[i], 1.0 / spp);
+                    rr_image_set(&film->layer[i], x0 + x, y0 + y, mean);
+                    sum = rr_rgb_add(sum, mean);
+                }
+                rr_image_set(&film->beauty, x0 + x, y0 + y, sum);
+            }
+        return 1;
+    }
+    for (int y = 0; y < h; y++)
+        for (int x = 0; x < w; x++) {
+            rr_image_set(&film->beauty, x0 + x, y0 + y, rr_rgb_make(0, 0, 0));
+            for (int i = 0; i < RT_LAYER_COUNT; i++)
+                rr_image_set(&film->layer[i], x0 + x, y0 + y, rr_rgb_make(0, 0, 0));
         }
     return 0;
 }
