@@ -1,4 +1,5 @@
-/* rt_traverse.c - ray queries through the wide BVH: closest hit and any hit.
+/* rt_traverse.c - ray queries through the wide BVH: closest hit, any hit,
+ * and closest hit for packets of rays (rt_accel_closest_n).
  *
  * Both walk the same nodes with the same per-primitive kernels; the only
  * difference is that the any-hit query returns at the first occluder. The
