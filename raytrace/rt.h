@@ -528,7 +528,8 @@ rr_status rt_render(const scene *s, const rt_accel *a, const rt_render_opts *opt
  *   object_id  the index of the object hit in the scene's objects, in every
  *              channel (-1 on a miss)
  * Only the AOVs whose bit (1u << RT_AOV_*) is in mask are written.
- * Deterministic, threads as rt_render_opts.threads. */
+ * Deterministic, threads as rt_render_opts.threads; the rays go in 8 x 8
+ * pixel packets (rt_accel_closest_n). */
 enum { RT_AOV_ALBEDO = 0, RT_AOV_NORMAL, RT_AOV_DEPTH, RT_AOV_OBJECT_ID, RT_AOV_COUNT };
 const char *rt_aov_name(int aov);
 void rt_render_aovs(const scene *s, const rt_accel *a, unsigned mask, rr_image *aov, int threads);

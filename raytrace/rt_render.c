@@ -552,26 +552,39 @@ void rt_render_aovs(const scene *s, const rt_accel *a, unsigned mask, rr_image *
 #endif
     (void)nthreads;
     (void)threads;
+    /* 8 x 8 pixel packets (rt_accel_closest_n), rows of packets to threads. */
+    const int P = RT_PACKET_TILE, prow = (v->height + P - 1) / P;
 #pragma omp parallel for schedule(dynamic, 1) num_threads(nthreads)
-    for (int row = 0; row < v->height; row++)
-        for (int col = 0; col < v->width; col++) {
-            rr_ray r = rr_view_ray(v, col, row, 0.0, 0.0);
-            rt_hit h;
-            int hit = rt_accel_closest(a, r, 0.0, INFINITY, &h);
-            rr_rgb val[RT_AOV_COUNT];
-            if (hit) {
-                double depth = h.t * rr_v3_len(r.d), id = (double)h.object;
-                val[RT_AOV_ALBEDO] = s->materials[h.material].diffuse;
-                val[RT_AOV_NORMAL] = rr_rgb_make(h.normal.x, h.normal.y, h.normal.z);
-                val[RT_AOV_DEPTH] = rr_rgb_make(depth, depth, depth);
-                val[RT_AOV_OBJECT_ID] = rr_rgb_make(id, id, id);
-            } else {
-                val[RT_AOV_ALBEDO] = val[RT_AOV_NORMAL] = val[RT_AOV_DEPTH] = rr_rgb_make(0, 0, 0);
-                val[RT_AOV_OBJECT_ID] = rr_rgb_make(-1, -1, -1);
+    for (int pr = 0; pr < prow; pr++)
+        for (int x0 = 0; x0 < v->width; x0 += P) {
+            rr_ray r[RT_PACKET_TILE * RT_PACKET_TILE];
+            rt_hit hs[RT_PACKET_TILE * RT_PACKET_TILE];
+            unsigned char f[RT_PACKET_TILE * RT_PACKET_TILE];
+            int cols[RT_PACKET_TILE * RT_PACKET_TILE], rows[RT_PACKET_TILE * RT_PACKET_TILE], n = 0;
+            for (int row = pr * P; row < pr * P + P && row < v->height; row++)
+                for (int col = x0; col < x0 + P && col < v->width; col++) {
+                    cols[n] = col;
+                    rows[n] = row;
+                    r[n++] = rr_view_ray(v, col, row, 0.0, 0.0);
+                }
+            rt_accel_closest_n(a, r, n, 0.0, INFINITY, hs, f);
+            for (int j = 0; j < n; j++) {
+                const rt_hit *hp = &hs[j];
+                rr_rgb val[RT_AOV_COUNT];
+                if (f[j]) {
+                    double depth = hp->t * rr_v3_len(r[j].d), id = (double)hp->object;
+                    val[RT_AOV_ALBEDO] = s->materials[hp->material].diffuse;
+                    val[RT_AOV_NORMAL] = rr_rgb_make(hp->normal.x, hp->normal.y, hp->normal.z);
+                    val[RT_AOV_DEPTH] = rr_rgb_make(depth, depth, depth);
+                    val[RT_AOV_OBJECT_ID] = rr_rgb_make(id, id, id);
+                } else {
+                    val[RT_AOV_ALBEDO] = val[RT_AOV_NORMAL] = val[RT_AOV_DEPTH] = rr_rgb_make(0, 0, 0);
+                    val[RT_AOV_OBJECT_ID] = rr_rgb_make(-1, -1, -1);
+                }
+                for (int k = 0; k < RT_AOV_COUNT; k++)
+                    if (mask & (1u << k))
+                        rr_image_set(&aov[k], cols[j], rows[j], val[k]);
             }
-            for (int k = 0; k < RT_AOV_COUNT; k++)
-                if (mask & (1u << k))
-                    rr_image_set(&aov[k], col, row, val[k]);
         }
 }
 
