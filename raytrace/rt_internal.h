@@ -235,7 +235,7 @@ rr_status rt__accel_build_width(const scene *s, int width, rt_accel **out, rr_er
 #define RT_TIE_REL 1e-9
 int rt__walk4(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_hit *hit, int mode);
 /* The packet walks of one width (rt_accel_closest_n): nr <= RT_PACKET_MAX rays
- * together, each with rt__walkN's answer (mode 0), bit for bit (rt_wide.h). */
+ * together, each with rt__walkN's answer (mode 0), bit for bit (rt_packet.h). */
 int rt__walkn4(const rt_accel *a, const rr_ray *rays, int nr, double tmin, double tmax, rt_hit *hits,
                unsigned char *found);
 /* The any-hit walks of one width (rt_accel_occluded): the same answer as
