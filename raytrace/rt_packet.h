@@ -192,6 +192,34 @@ typedef struct rt_pkt_entry {
     float dist;
 } rt_pkt_entry;
 
+/* Child c into ch[0 .. m), kept sorted by descending d; returns m + 1. */
+static inline int rt__pkt_insert(int *ch, int m, int c, const float *d)
+{
+    int j = m;
+    while (j > 0 && d[ch[j - 1]] < d[c]) {
+        ch[j] = ch[j - 1];
+        j--;
+    }
+    ch[j] = c;
+    return m + 1;
+}
+
+/* Pushes the children ch[0 .. m - 1) of n (farthest first) with their rays
+ * and entries, and returns the nearest, ch[m - 1], with its rays in *act. */
+static inline uint32_t rt__pkt_push(const rt_wn *n, const int *ch, int m, const uint64_t *rays, const float *d,
+                                    rt_pkt_entry *stack, int *sp, uint64_t *act)
+{
+    RR_CHECK(*sp + m - 1 <= RT_STACK_SIZE);
+    for (int j = 0; j < m - 1; j++) {
+        stack[*sp].rays = rays[ch[j]];
+        stack[*sp].ref = n->child[ch[j]];
+        stack[*sp].dist = d[ch[j]];
+        (*sp)++;
+    }
+    *act = rays[ch[m - 1]];
+    return n->child[ch[m - 1]];
+}
+
 int RT_WALKN(const rt_accel *a, const rr_ray *rays, int nr, double tmin, double tmax, rt_hit *hits,
              unsigned char *found)
 {
@@ -298,26 +326,12 @@ int RT_WALKN(const rt_accel *a, const rr_ray *rays, int nr, double tmin, double 
                 for (; fm; fm &= fm - 1) {
                     int c = __builtin_ctz(fm);
                     fin[c] = leaves ? rt__box_rays(n, c, fru.row, scn, scf, sinv, cull, tmin_f, act) : act;
-                    if (!fin[c])
-                        continue;
-                    int j = m++;
-                    while (j > 0 && fd[ch[j - 1]] < fd[c]) {
-                        ch[j] = ch[j - 1];
-                        j--;
-                    }
-                    ch[j] = c;
+                    if (fin[c])
+                        m = rt__pkt_insert(ch, m, c, fd);
                 }
                 if (!m)
                     goto pop;
-                RR_CHECK(sp + m - 1 <= RT_STACK_SIZE);
-                for (int j = 0; j < m - 1; j++) {
-                    stack[sp].rays = fin[ch[j]];
-                    stack[sp].ref = n->child[ch[j]];
-                    stack[sp].dist = fd[ch[j]];
-                    sp++;
-                }
-                cur = n->child[ch[m - 1]];
-                act = fin[ch[m - 1]];
+                cur = rt__pkt_push(n, ch, m, fin, fd, stack, &sp, &act);
                 continue;
             }
 #endif
@@ -370,23 +384,9 @@ int RT_WALKN(const rt_accel *a, const rr_ray *rays, int nr, double tmin, double 
                 /* Sort the entered children by descending least entry; push
                  * all but the nearest (farthest first), visit that. */
                 int ch[RT_W], m = 0;
-                for (; any; any &= any - 1) {
-                    int c = __builtin_ctz(any), j = m++;
-                    while (j > 0 && dmin[ch[j - 1]] < dmin[c]) {
-                        ch[j] = ch[j - 1];
-                        j--;
-                    }
-                    ch[j] = c;
-                }
-                RR_CHECK(sp + m - 1 <= RT_STACK_SIZE);
-                for (int j = 0; j < m - 1; j++) {
-                    stack[sp].rays = in[ch[j]];
-                    stack[sp].ref = n->child[ch[j]];
-                    stack[sp].dist = dmin[ch[j]];
-                    sp++;
-                }
-                cur = n->child[ch[m - 1]];
-                act = in[ch[m - 1]];
+                for (; any; any &= any - 1)
+                    m = rt__pkt_insert(ch, m, __builtin_ctz(any), dmin);
+                cur = rt__pkt_push(n, ch, m, in, dmin, stack, &sp, &act);
                 continue;
             }
         } else {
