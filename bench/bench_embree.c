@@ -13,7 +13,9 @@
  * fourth workload, "packets", traces the primary rays again as packets:
  * radray's rt_accel_closest_n on 8 x 8 pixel tiles against Embree's
  * rtcIntersect16 on 4 x 4 tiles (and, on a line below, against Embree's
- * rtcIntersect1 figure of the primary row).
+ * rtcIntersect1 figure of the primary row). A fifth, "shadowpk", does the
+ * same with the shadow rays (rt_accel_occluded_n against rtcOccluded16, and
+ * below against the shadow row's rtcOccluded1).
  *
  * Reported per scene: BVH build time of both (median of 3; radray at 1
  * thread and at all threads, render.threads 1 and 0; Embree on a "threads=1"
@@ -229,28 +231,33 @@ static double trace_embree(RTCScene sc, const struct RTCRay *rays, size_t count,
     return dt;
 }
 
-/* Primary rays in packets: radray's rt_accel_closest_n over 8 x 8 pixel
- * tiles, Embree's rtcIntersect16 over 4 x 4 tiles (idx8, idx4:
- * bench_tile_order); results stored by the rays' own index. */
-static double trace_radray_pk(const rt_accel *a, const ray_set *rs, const uint32_t *idx, int threads, result *out,
-                              size_t *nhits)
+/* A set in packets: radray's rt_accel_closest_n / rt_accel_occluded_n
+ * (shadow) over the rays of each 8 x 8 pixel tile, Embree's rtcIntersect16
+ * / rtcOccluded16 over each 4 x 4 tile's (bench_tile_order); results stored
+ * by the rays' own index. */
+static double trace_radray_pk(const rt_accel *a, const ray_set *rs, const tile_order *to, int shadow, int threads,
+                              result *out, size_t *nhits)
 {
-    const long n = (long)rs->n;
+    const long nt = (long)to->ntiles;
     size_t hits = 0;
     double t0 = now_s();
 #pragma omp parallel for schedule(dynamic, 16) num_threads(threads) reduction(+ : hits)
-    for (long j0 = 0; j0 < n; j0 += 64) {
+    for (long t = 0; t < nt; t++) {
         rr_ray r[64];
         rt_hit h[64];
         unsigned char f[64];
-        int m = n - j0 < 64 ? (int)(n - j0) : 64;
+        const uint32_t *idx = to->idx + to->start[t];
+        int m = (int)(to->start[t + 1] - to->start[t]);
+        if (m == 0)
+            continue;
         for (int k = 0; k < m; k++)
-            r[k] = rs->rays[idx[j0 + k]];
-        hits += (size_t)rt_accel_closest_n(a, r, m, 0.0, rs->tmax, h, f);
+            r[k] = rs->rays[idx[k]];
+        hits += (size_t)(shadow ? rt_accel_occluded_n(a, r, m, 0.0, rs->tmax, f)
+                                : rt_accel_closest_n(a, r, m, 0.0, rs->tmax, h, f));
         if (out)
             for (int k = 0; k < m; k++) {
-                result x = {f[k], f[k] ? (int64_t)h[k].tri : -1, f[k] ? h[k].t : 0.0};
-                out[idx[j0 + k]] = x;
+                result x = {f[k], f[k] && !shadow ? (int64_t)h[k].tri : -1, f[k] && !shadow ? h[k].t : 0.0};
+                out[idx[k]] = x;
             }
     }
     double dt = now_s() - t0;
@@ -258,21 +265,24 @@ static double trace_radray_pk(const rt_accel *a, const ray_set *rs, const uint32
     return dt;
 }
 
-static double trace_embree16(RTCScene sc, const struct RTCRay *rays, const uint32_t *idx, size_t count, int threads,
+static double trace_embree16(RTCScene sc, const struct RTCRay *rays, const tile_order *to, int shadow, int threads,
                              result *out, size_t *nhits)
 {
-    const long n = (long)count;
+    const long nt = (long)to->ntiles;
     size_t hits = 0;
     double t0 = now_s();
 #pragma omp parallel for schedule(dynamic, 64) num_threads(threads) reduction(+ : hits)
-    for (long j0 = 0; j0 < n; j0 += 16) {
+    for (long t = 0; t < nt; t++) {
+        const uint32_t *idx = to->idx + to->start[t];
+        int m = (int)(to->start[t + 1] - to->start[t]);
+        if (m == 0)
+            continue;
         struct RTCIntersectContext ctx;
         rtcInitIntersectContext(&ctx);
         RTC_ALIGN(64) struct RTCRayHit16 rh;
         RTC_ALIGN(64) int valid[16];
-        int m = n - j0 < 16 ? (int)(n - j0) : 16;
         for (int k = 0; k < 16; k++) {
-            const struct RTCRay *r = &rays[idx[j0 + (k < m ? k : 0)]];
+            const struct RTCRay *r = &rays[idx[k < m ? k : 0]];
             valid[k] = k < m ? -1 : 0;
             rh.ray.org_x[k] = r->org_x;
             rh.ray.org_y[k] = r->org_y;
@@ -289,17 +299,22 @@ static double trace_embree16(RTCScene sc, const struct RTCRay *rays, const uint3
             rh.hit.geomID[k] = RTC_INVALID_GEOMETRY_ID;
             rh.hit.instID[0][k] = RTC_INVALID_GEOMETRY_ID;
         }
-        rtcIntersect16(valid, sc, &ctx, &rh);
+        if (shadow)
+            rtcOccluded16(valid, sc, &ctx, &rh.ray);
+        else
+            rtcIntersect16(valid, sc, &ctx, &rh);
         for (int k = 0; k < m; k++) {
             result x = {0, -1, 0.0};
-            if (rh.hit.geomID[k] != RTC_INVALID_GEOMETRY_ID) {
+            if (shadow) {
+                x.hit = rh.ray.tfar[k] < 0.0f; /* set to -inf when occluded */
+            } else if (rh.hit.geomID[k] != RTC_INVALID_GEOMETRY_ID) {
                 x.hit = 1;
                 x.prim = rh.hit.primID[k];
                 x.t = rh.ray.tfar[k];
             }
             hits += (size_t)x.hit;
             if (out)
-                out[idx[j0 + k]] = x;
+                out[idx[k]] = x;
         }
     }
     double dt = now_s() - t0;
@@ -393,25 +408,31 @@ static void run_scene(bench_scene *b, int res, uint64_t seed, const int *threads
     rr_vec3 ext = rr_v3_sub(s->bbox_max, s->bbox_min);
     double extent = fmax(ext.x, fmax(ext.y, ext.z));
     /* "packets": the primary rays again, radray's rt_accel_closest_n on
-     * 8 x 8 tiles against Embree's rtcIntersect16 on 4 x 4 tiles. */
-    const char *wname[4] = {"primary", "diffuse", "shadow", "packets"};
-    const ray_set *wset[4] = {&prim, &diff, &shad, &prim};
-    uint32_t *idx8 = bench_tile_order(&prim, 8), *idx4 = bench_tile_order(&prim, 4);
-    double emb1_primary[2] = {0}; /* Embree's primary rate per thread count (at most 2) */
+     * 8 x 8 tiles against Embree's rtcIntersect16 on 4 x 4 tiles;
+     * "shadowpk": the shadow rays the same way (rt_accel_occluded_n,
+     * rtcOccluded16). */
+    const char *wname[5] = {"primary", "diffuse", "shadow", "packets", "shadowpk"};
+    const ray_set *wset[5] = {&prim, &diff, &shad, &prim, &shad};
+    tile_order to8[5], to4[5];
+    for (int w = 3; w < 5; w++) {
+        to8[w] = bench_tile_order(wset[w], 8);
+        to4[w] = bench_tile_order(wset[w], 4);
+    }
+    double emb1[3][2] = {{0}}; /* Embree's rtcIntersect1 / rtcOccluded1 rates per workload and thread count */
     printf("%-8s %7s %9s %6s %10s %10s %7s %8s %8s %8s %8s\n", "workload", "threads", "rays", "hit%", "radray",
            "Embree", "ratio", "hitmiss%", "prim%", "t%", "agree%");
-    for (int w = 0; w < 4; w++) {
+    for (int w = 0; w < 5; w++) {
         const ray_set *rs = wset[w];
-        int shadow = w == 2, pk = w == 3;
+        int shadow = w == 2 || w == 4, pk = w >= 3;
         struct RTCRay *er = xmalloc(rs->n * sizeof *er);
         for (size_t i = 0; i < rs->n; i++)
-            er[i] = to_embree_ray(rs->rays[i], rs->tmax, extent, w == 1 || w == 2);
+            er[i] = to_embree_ray(rs->rays[i], rs->tmax, extent, rs != &prim);
         /* Agreement (untimed, all threads). */
         result *ra = xmalloc(rs->n * sizeof *ra), *rb = xmalloc(rs->n * sizeof *rb);
         size_t ha, hb;
         if (pk) {
-            trace_radray_pk(a, rs, idx8, omp_get_max_threads(), ra, &ha);
-            trace_embree16(sc, er, idx4, rs->n, omp_get_max_threads(), rb, &hb);
+            trace_radray_pk(a, rs, &to8[w], shadow, omp_get_max_threads(), ra, &ha);
+            trace_embree16(sc, er, &to4[w], shadow, omp_get_max_threads(), rb, &hb);
         } else {
             trace_radray(a, rs, shadow, omp_get_max_threads(), ra, &ha);
             trace_embree(sc, er, rs->n, shadow, omp_get_max_threads(), rb, &hb);
@@ -424,31 +445,35 @@ static void run_scene(bench_scene *b, int res, uint64_t seed, const int *threads
             double sa[BENCH_TRACE_REPS], sb[BENCH_TRACE_REPS];
             size_t h;
             for (int r = 0; r < BENCH_TRACE_REPS; r++)
-                sa[r] = pk ? trace_radray_pk(a, rs, idx8, th, NULL, &h) : trace_radray(a, rs, shadow, th, NULL, &h);
+                sa[r] = pk ? trace_radray_pk(a, rs, &to8[w], shadow, th, NULL, &h)
+                           : trace_radray(a, rs, shadow, th, NULL, &h);
             for (int r = 0; r < BENCH_TRACE_REPS; r++)
-                sb[r] = pk ? trace_embree16(sc, er, idx4, rs->n, th, NULL, &h)
+                sb[r] = pk ? trace_embree16(sc, er, &to4[w], shadow, th, NULL, &h)
                            : trace_embree(sc, er, rs->n, shadow, th, NULL, &h);
             double mra = mrays(rs->n, sa), mrb = mrays(rs->n, sb);
-            if (w == 0 && ti < 2)
-                emb1_primary[ti] = mrb;
+            if (w < 3 && ti < 2)
+                emb1[w][ti] = mrb;
             printf("%-8s %7d %9zu %6.1f %10.2f %10.2f %6.2fx %8.3f %8.3f %8.3f %8.3f\n", wname[w], th, rs->n,
                    pct(ha, rs->n), mra, mrb, mra / mrb, pct(g.same_hitmiss, g.n),
                    shadow ? 100.0 : pct(g.same_prim, g.both_hit), shadow ? 100.0 : pct(g.same_t, g.both_hit),
                    pct(g.all, g.n));
             if (pk && ti < 2)
-                printf("  (packets: radray %.2f Mrays/s against Embree's rtcIntersect1 %.2f: %.2fx)\n", mra,
-                       emb1_primary[ti], mra / emb1_primary[ti]);
+                printf("  (%s: radray %.2f Mrays/s against Embree's %s %.2f: %.2fx)\n", wname[w], mra,
+                       shadow ? "rtcOccluded1" : "rtcIntersect1", emb1[shadow ? 2 : 0][ti],
+                       mra / emb1[shadow ? 2 : 0][ti]);
             fflush(stdout);
         }
         if (ha != hb)
             printf("  (%s: radray %zu hits, Embree %zu hits)\n", wname[w], ha, hb);
         free(er);
     }
-    free(idx8);
-    free(idx4);
-    free(prim.rays);
-    free(diff.rays);
-    free(shad.rays);
+    for (int w = 3; w < 5; w++) {
+        bench_tile_order_free(&to8[w]);
+        bench_tile_order_free(&to4[w]);
+    }
+    ray_set_free(&prim);
+    ray_set_free(&diff);
+    ray_set_free(&shad);
     rtcReleaseScene(sc);
     rtcReleaseDevice(dev);
     free(m.verts);

@@ -10,11 +10,13 @@
  *
  * Per scene it reports the generation and load times, the BVH build time
  * (median of 3 builds at each thread count), the node count and the memory per triangle, then
- * Mrays/s (median of 5 repetitions) for three workloads, each at 1 thread and
+ * Mrays/s (median of 5 repetitions) for five workloads, each at 1 thread and
  * at all threads:
  *   primary  coherent pinhole-camera rays, closest hit
  *   diffuse  one cosine-weighted direction from every primary hit, closest hit
  *   shadow   from every primary hit to a point light, any hit
+ *   packets  primary again, in 8 x 8 pixel packets (rt_accel_closest_n)
+ *   shadowpk shadow again, each 8 x 8 tile's rays as a packet (rt_accel_occluded_n)
  * Rays are generated once, untimed, into arrays (each ray from its own RNG
  * stream, so they do not depend on the thread count); the timed loop is an
  * OpenMP dynamic loop over the array, and a checksum of the hits keeps the
@@ -77,30 +79,41 @@ static trace_result trace_closest(const rt_accel *a, const ray_set *rs, int thre
     return r;
 }
 
-/* The primary set in packets: tiles of BENCH_TILE x BENCH_TILE pixels
- * through rt_accel_closest_n (idx: bench_tile_order). The same hits as
- * trace_closest, so the same checksum. */
+/* A set in packets: the rays of each BENCH_TILE x BENCH_TILE pixel tile
+ * (bench_tile_order) through rt_accel_closest_n, or rt_accel_occluded_n
+ * (shadow). The same answers as trace_closest and trace_occluded, so the
+ * same checksums. */
 #define BENCH_TILE 8
-static trace_result trace_packets(const rt_accel *a, const ray_set *rs, const uint32_t *idx, int threads)
+static trace_result trace_packets(const rt_accel *a, const ray_set *rs, const tile_order *to, int shadow, int threads)
 {
     size_t hits = 0;
     uint64_t sum = 0;
-    const long n = (long)rs->n, per = BENCH_TILE * BENCH_TILE;
+    const long nt = (long)to->ntiles;
     const rr_ray *rays = rs->rays;
     const double tmax = rs->tmax;
     double t0 = now_s();
 #pragma omp parallel for schedule(dynamic, 16) num_threads(threads) reduction(+ : hits, sum)
-    for (long j0 = 0; j0 < n; j0 += per) {
+    for (long t = 0; t < nt; t++) {
         rr_ray r[BENCH_TILE * BENCH_TILE];
         rt_hit h[BENCH_TILE * BENCH_TILE];
         unsigned char f[BENCH_TILE * BENCH_TILE];
-        int m = n - j0 < per ? (int)(n - j0) : (int)per;
+        const uint32_t *idx = to->idx + to->start[t];
+        int m = (int)(to->start[t + 1] - to->start[t]);
+        if (m == 0)
+            continue;
         for (int k = 0; k < m; k++)
-            r[k] = rays[idx[j0 + k]];
-        hits += (size_t)rt_accel_closest_n(a, r, m, 0.0, tmax, h, f);
-        for (int k = 0; k < m; k++)
-            if (f[k])
-                sum += rr_hash64(((uint64_t)idx[j0 + k] << 32) ^ (uint64_t)h[k].tri);
+            r[k] = rays[idx[k]];
+        if (shadow) {
+            hits += (size_t)rt_accel_occluded_n(a, r, m, 0.0, tmax, f);
+            for (int k = 0; k < m; k++)
+                if (f[k])
+                    sum += rr_hash64((uint64_t)idx[k]);
+        } else {
+            hits += (size_t)rt_accel_closest_n(a, r, m, 0.0, tmax, h, f);
+            for (int k = 0; k < m; k++)
+                if (f[k])
+                    sum += rr_hash64(((uint64_t)idx[k] << 32) ^ (uint64_t)h[k].tri);
+        }
     }
     trace_result r = {now_s() - t0, hits, sum};
     return r;
@@ -211,19 +224,22 @@ static void run_scene(bench_scene *b, const options *o, const char *tmpdir)
     bench_make_rays(s, a, b, o->seed, &prim, &diff, &shad);
 
     /* "packets": the primary rays again, 8 x 8 pixel tiles through
-     * rt_accel_closest_n; the same hits, so primary's checksum. */
-    const char *wname[4] = {"primary", "diffuse", "shadow", "packets"};
-    const ray_set *wset[4] = {&prim, &diff, &shad, &prim};
-    uint32_t *tiles = bench_tile_order(&prim, BENCH_TILE);
+     * rt_accel_closest_n; the same hits, so primary's checksum. "shadowpk":
+     * the shadow rays of each 8 x 8 tile through rt_accel_occluded_n (they
+     * share their end point, the light), with shadow's checksum. */
+    const char *wname[5] = {"primary", "diffuse", "shadow", "packets", "shadowpk"};
+    const ray_set *wset[5] = {&prim, &diff, &shad, &prim, &shad};
+    tile_order tiles = bench_tile_order(&prim, BENCH_TILE), stiles = bench_tile_order(&shad, BENCH_TILE);
     printf("%-8s %7s %9s %6s %9s %17s  %-16s\n", "workload", "threads", "rays", "hit%", "Mrays/s", "min-max Mrays/s",
            "checksum");
-    for (int w = 0; w < 4; w++) {
+    for (int w = 0; w < 5; w++) {
         for (int ti = 0; ti < o->nthreads; ti++) {
             int th = o->threads[ti];
             double mr[BENCH_TRACE_REPS];
             trace_result tr = {0, 0, 0};
             for (int r = 0; r < BENCH_TRACE_REPS; r++) {
-                trace_result x = w == 3   ? trace_packets(a, wset[w], tiles, th)
+                trace_result x = w == 4   ? trace_packets(a, wset[w], &stiles, 1, th)
+                                 : w == 3 ? trace_packets(a, wset[w], &tiles, 0, th)
                                  : w == 2 ? trace_occluded(a, wset[w], th)
                                           : trace_closest(a, wset[w], th);
                 if (r > 0 && (x.hits != tr.hits || x.checksum != tr.checksum)) {
@@ -246,10 +262,11 @@ static void run_scene(bench_scene *b, const options *o, const char *tmpdir)
             fflush(stdout);
         }
     }
-    free(tiles);
-    free(prim.rays);
-    free(diff.rays);
-    free(shad.rays);
+    bench_tile_order_free(&tiles);
+    bench_tile_order_free(&stiles);
+    ray_set_free(&prim);
+    ray_set_free(&diff);
+    ray_set_free(&shad);
     rt_accel_destroy(a);
     scene_destroy(s);
 }

@@ -442,7 +442,7 @@ void bench_make_rays(const scene *s, const rt_accel *a, const bench_scene *b, ui
 {
     rr_view view = s->view;
     size_t n = (size_t)view.width * (size_t)view.height;
-    ray_set prim = {xmalloc(n * sizeof(rr_ray)), n, INFINITY, view.width};
+    ray_set prim = {xmalloc(n * sizeof(rr_ray)), n, INFINITY, view.width, view.height, NULL};
     for (size_t i = 0; i < n; i++)
         prim.rays[i] = rr_view_ray(&view, (int)(i % (size_t)view.width), (int)(i / (size_t)view.width), 0.0, 0.0);
     rr_vec3 *hp = xmalloc(n * sizeof *hp), *hn = xmalloc(n * sizeof *hn);
@@ -459,8 +459,9 @@ void bench_make_rays(const scene *s, const rt_accel *a, const bench_scene *b, ui
     }
     rr_vec3 ext = rr_v3_sub(s->bbox_max, s->bbox_min);
     double extent = fmax(ext.x, fmax(ext.y, ext.z));
-    ray_set diff = {xmalloc(n * sizeof(rr_ray)), 0, INFINITY, 0};
-    ray_set shad = {xmalloc(n * sizeof(rr_ray)), 0, 1.0 - 1e-7, 0};
+    ray_set diff = {xmalloc(n * sizeof(rr_ray)), 0, INFINITY, view.width, view.height, xmalloc(n * sizeof(uint32_t))};
+    ray_set shad = {xmalloc(n * sizeof(rr_ray)), 0, 1.0 - 1e-7, view.width, view.height,
+                    xmalloc(n * sizeof(uint32_t))};
     for (size_t i = 0; i < n; i++) {
         if (!hit[i])
             continue;
@@ -468,6 +469,7 @@ void bench_make_rays(const scene *s, const rt_accel *a, const bench_scene *b, ui
         double u1 = rr_rng_uniform(&rng), u2 = rr_rng_uniform(&rng);
         rr_vec3 d = cosine_dir(hn[i], u1, u2);
         rr_ray r = {offset_origin(hp[i], hn[i], d, extent), d};
+        diff.pix[diff.n] = (uint32_t)i;
         diff.rays[diff.n++] = r;
         /* To the light, from the hits that face it (the renderer skips the
          * others): unnormalised direction, t = 1 at the light. */
@@ -476,6 +478,7 @@ void bench_make_rays(const scene *s, const rt_accel *a, const bench_scene *b, ui
             continue;
         rr_vec3 org = offset_origin(hp[i], hn[i], to_light, extent);
         rr_ray sr = {org, rr_v3_sub(b->light, org)};
+        shad.pix[shad.n] = (uint32_t)i;
         shad.rays[shad.n++] = sr;
     }
     free(hp);
@@ -487,18 +490,45 @@ void bench_make_rays(const scene *s, const rt_accel *a, const bench_scene *b, ui
     *shad_out = shad;
 }
 
-uint32_t *bench_tile_order(const ray_set *rs, int tile)
+tile_order bench_tile_order(const ray_set *rs, int tile)
 {
-    size_t w = (size_t)rs->width, h = w ? rs->n / w : 0, j = 0;
-    uint32_t *idx = xmalloc((rs->n ? rs->n : 1) * sizeof *idx);
-    for (size_t ty = 0; ty < h; ty += (size_t)tile)
-        for (size_t tx = 0; tx < w; tx += (size_t)tile)
-            for (size_t y = ty; y < ty + (size_t)tile && y < h; y++)
-                for (size_t x = tx; x < tx + (size_t)tile && x < w; x++)
-                    idx[j++] = (uint32_t)(y * w + x);
-    if (j != rs->n) {
-        fprintf(stderr, "%s: the primary set is not width x height rays\n", bench_prog);
-        exit(1);
+    const size_t w = (size_t)rs->width, h = (size_t)rs->height, tw = (w + (size_t)tile - 1) / (size_t)tile;
+    tile_order t;
+    t.ntiles = tw * ((h + (size_t)tile - 1) / (size_t)tile);
+    t.idx = xmalloc((rs->n ? rs->n : 1) * sizeof *t.idx);
+    t.start = xmalloc((t.ntiles + 1) * sizeof *t.start);
+    /* A counting sort by tile, stable: the rays come in pixel order, so
+     * each tile's rays stay in scanline order. */
+    for (size_t k = 0; k <= t.ntiles; k++)
+        t.start[k] = 0;
+    for (size_t i = 0; i < rs->n; i++) {
+        size_t p = rs->pix ? rs->pix[i] : i;
+        if (p >= w * h) {
+            fprintf(stderr, "%s: ray %zu of a set is not in the %zux%zu image\n", bench_prog, i, w, h);
+            exit(1);
+        }
+        t.start[(p / w / (size_t)tile) * tw + (p % w) / (size_t)tile + 1]++;
     }
-    return idx;
+    for (size_t k = 0; k < t.ntiles; k++)
+        t.start[k + 1] += t.start[k];
+    size_t *fill = xmalloc((t.ntiles + 1) * sizeof *fill);
+    memcpy(fill, t.start, (t.ntiles + 1) * sizeof *fill);
+    for (size_t i = 0; i < rs->n; i++) {
+        size_t p = rs->pix ? rs->pix[i] : i;
+        t.idx[fill[(p / w / (size_t)tile) * tw + (p % w) / (size_t)tile]++] = (uint32_t)i;
+    }
+    free(fill);
+    return t;
+}
+
+void bench_tile_order_free(tile_order *t)
+{
+    free(t->idx);
+    free(t->start);
+}
+
+void ray_set_free(ray_set *rs)
+{
+    free(rs->rays);
+    free(rs->pix);
 }

@@ -59,15 +59,27 @@ scene *bench_load_scene(bench_scene *b, int res, const char *tmpdir, double *t_w
 typedef struct ray_set {
     rr_ray *rays;
     size_t n;
-    double tmax; /* the same for every ray of a set */
-    int width;   /* primary rays: the image width (rays in scanline order); else 0 */
+    double tmax;   /* the same for every ray of a set */
+    int width;     /* the image's width and height in pixels */
+    int height;
+    uint32_t *pix; /* the pixel (y * width + x) ray i belongs to, in increasing order;
+                      NULL for the primary set, whose ray i is pixel i */
 } ray_set;
 
-/* The rays of a primary set in the order of tile x tile pixel tiles (rows of
- * tiles, scanline order within a tile; partial tiles at the right and bottom
- * edges): idx[j] is the j-th ray's index in rs (n entries, malloc'd). The
- * tiles are the packets of radray's packet walk (rt_accel_closest_n). */
-uint32_t *bench_tile_order(const ray_set *rs, int tile);
+/* The rays of a set grouped by tile x tile pixel tiles (rows of tiles,
+ * scanline order within a tile; partial tiles at the right and bottom
+ * edges): idx[j] is the j-th ray's index in the set (n entries), and the
+ * rays of tile t are idx[start[t] .. start[t + 1]) (ntiles + 1 entries; a
+ * tile may hold none). The tiles are the packets of radray's packet walks
+ * (rt_accel_closest_n, rt_accel_occluded_n). */
+typedef struct tile_order {
+    uint32_t *idx;
+    size_t *start;
+    size_t ntiles;
+} tile_order;
+tile_order bench_tile_order(const ray_set *rs, int tile);
+void bench_tile_order_free(tile_order *t);
+void ray_set_free(ray_set *rs);
 
 rr_vec3 cosine_dir(rr_vec3 n, double u1, double u2);
 rr_vec3 offset_origin(rr_vec3 p, rr_vec3 n, rr_vec3 dir, double extent);

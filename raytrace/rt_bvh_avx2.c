@@ -14,6 +14,7 @@
 #define RT_WALK rt__walk8
 #define RT_OCCL rt__occl8
 #define RT_WALKN rt__walkn8
+#define RT_OCCLN rt__occln8
 #define RT_BOXTEST rt__box8_test
 #include "rt_wide.h"
 #else

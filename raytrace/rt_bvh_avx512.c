@@ -15,6 +15,7 @@
 #define RT_WALK rt__walk16
 #define RT_OCCL rt__occl16
 #define RT_WALKN rt__walkn16
+#define RT_OCCLN rt__occln16
 #define RT_BOXTEST rt__box16_test
 #include "rt_wide.h"
 

@@ -241,11 +241,15 @@ int rt__walkn4(const rt_accel *a, const rr_ray *rays, int nr, double tmin, doubl
 /* The any-hit walks of one width (rt_accel_occluded): the same answer as
  * rt__walkN with any != 0, without ordering the children (rt_wide.h). */
 int rt__occl4(const rt_accel *a, rr_ray ray, double tmin, double tmax);
+/* The packet any-hit walks (rt_accel_occluded_n): nr <= RT_PACKET_MAX rays,
+ * occ[r] = rt__occlN's answer for ray r (rt_packet.h). */
+int rt__occln4(const rt_accel *a, const rr_ray *rays, int nr, double tmin, double tmax, unsigned char *occ);
 #if RT_HAVE_W8
 int rt__walk8(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_hit *hit, int mode);
 int rt__occl8(const rt_accel *a, rr_ray ray, double tmin, double tmax);
 int rt__walkn8(const rt_accel *a, const rr_ray *rays, int nr, double tmin, double tmax, rt_hit *hits,
                unsigned char *found);
+int rt__occln8(const rt_accel *a, const rr_ray *rays, int nr, double tmin, double tmax, unsigned char *occ);
 unsigned rt__box8_test(const void *node, rr_ray ray, double tmin, double tmax, float *dist, int *fast);
 #endif
 #if RT_HAVE_W16
@@ -253,6 +257,7 @@ int rt__walk16(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_hit *
 int rt__occl16(const rt_accel *a, rr_ray ray, double tmin, double tmax);
 int rt__walkn16(const rt_accel *a, const rr_ray *rays, int nr, double tmin, double tmax, rt_hit *hits,
                 unsigned char *found);
+int rt__occln16(const rt_accel *a, const rr_ray *rays, int nr, double tmin, double tmax, unsigned char *occ);
 unsigned rt__box16_test(const void *node, rr_ray ray, double tmin, double tmax, float *dist, int *fast);
 #endif
 

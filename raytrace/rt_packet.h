@@ -186,6 +186,65 @@ static inline float rt__max_cull(const float *cull)
 }
 #endif
 
+#if RT_BOX_SIMD == 3
+/* The edge normals of leaf packet k's 4 lanes for rt__pkt_tri_cand, with
+ * the vertices taken from the point (px, py, pz): nf[c][lane] (c x b, a x c,
+ * b x a, rounded to float) and the bound e0[lane] = 2^-40 R^2 D
+ * + 16 delta R D + 1e-37 (rt__pkt_tri_cand's E without its float part),
+ * R = rpad + the largest |coordinate| of the vertices from the point, D =
+ * dmax. rpad and delta are 0 for rays from that point. For rays that end
+ * within delta (per axis) of it (RT_OCCLN), U of ray (o, d) is the same as
+ * from the end point e = o + d (d.((c - d) x (b - d)) = d.(c x b)), so the
+ * normals from the point are off by at most 4 R delta per component (16 R
+ * delta D in T, with room), and the double test's own error is that of
+ * vertices within R + D + delta of o: rpad = D + delta. Returns the lanes
+ * whose bound is representable (bit i: lane i). */
+static inline int rt__pkt_normals(const rt_pk *k, double px, double py, double pz, double dmax, double rpad,
+                                  double delta, float nf[9][4], float e0[4])
+{
+    const __m256d ox = _mm256_set1_pd(px), oy = _mm256_set1_pd(py), oz = _mm256_set1_pd(pz);
+    __m256d ax = _mm256_sub_pd(_mm256_cvtps_pd(_mm_load_ps(k->v[0])), ox);
+    __m256d ay = _mm256_sub_pd(_mm256_cvtps_pd(_mm_load_ps(k->v[1])), oy);
+    __m256d az = _mm256_sub_pd(_mm256_cvtps_pd(_mm_load_ps(k->v[2])), oz);
+    __m256d bx = _mm256_sub_pd(_mm256_cvtps_pd(_mm_load_ps(k->v[3])), ox);
+    __m256d by = _mm256_sub_pd(_mm256_cvtps_pd(_mm_load_ps(k->v[4])), oy);
+    __m256d bz = _mm256_sub_pd(_mm256_cvtps_pd(_mm_load_ps(k->v[5])), oz);
+    __m256d cx = _mm256_sub_pd(_mm256_cvtps_pd(_mm_load_ps(k->v[6])), ox);
+    __m256d cy = _mm256_sub_pd(_mm256_cvtps_pd(_mm_load_ps(k->v[7])), oy);
+    __m256d cz = _mm256_sub_pd(_mm256_cvtps_pd(_mm_load_ps(k->v[8])), oz);
+    __m256d nd[9] = {
+        _mm256_sub_pd(_mm256_mul_pd(cy, bz), _mm256_mul_pd(cz, by)), /* c x b */
+        _mm256_sub_pd(_mm256_mul_pd(cz, bx), _mm256_mul_pd(cx, bz)),
+        _mm256_sub_pd(_mm256_mul_pd(cx, by), _mm256_mul_pd(cy, bx)),
+        _mm256_sub_pd(_mm256_mul_pd(ay, cz), _mm256_mul_pd(az, cy)), /* a x c */
+        _mm256_sub_pd(_mm256_mul_pd(az, cx), _mm256_mul_pd(ax, cz)),
+        _mm256_sub_pd(_mm256_mul_pd(ax, cy), _mm256_mul_pd(ay, cx)),
+        _mm256_sub_pd(_mm256_mul_pd(by, az), _mm256_mul_pd(bz, ay)), /* b x a */
+        _mm256_sub_pd(_mm256_mul_pd(bz, ax), _mm256_mul_pd(bx, az)),
+        _mm256_sub_pd(_mm256_mul_pd(bx, ay), _mm256_mul_pd(by, ax)),
+    };
+    const __m256d absm = _mm256_castsi256_pd(_mm256_set1_epi64x(0x7fffffffffffffffLL));
+    __m256d R = _mm256_max_pd(_mm256_max_pd(_mm256_and_pd(ax, absm), _mm256_and_pd(ay, absm)),
+                              _mm256_and_pd(az, absm));
+    R = _mm256_max_pd(R, _mm256_max_pd(_mm256_max_pd(_mm256_and_pd(bx, absm), _mm256_and_pd(by, absm)),
+                                       _mm256_and_pd(bz, absm)));
+    R = _mm256_max_pd(R, _mm256_max_pd(_mm256_max_pd(_mm256_and_pd(cx, absm), _mm256_and_pd(cy, absm)),
+                                       _mm256_and_pd(cz, absm)));
+    R = _mm256_add_pd(R, _mm256_set1_pd(rpad));
+    __m256d r2d = _mm256_mul_pd(_mm256_mul_pd(R, R), _mm256_set1_pd(dmax));
+    int ok = _mm256_movemask_pd(_mm256_and_pd(_mm256_cmp_pd(R, _mm256_set1_pd(1e15), _CMP_LT_OQ),
+                                              _mm256_cmp_pd(r2d, _mm256_set1_pd(1e30), _CMP_LT_OQ)));
+    for (int c = 0; c < 9; c++)
+        _mm_storeu_ps(nf[c], _mm256_cvtpd_ps(nd[c]));
+    /* 2^-40 R^2 D, one part in 2^20 more for the rounding to float, + 1e-37
+     * (+ 16 delta R D, 0 for rays from the point: bits unchanged). */
+    __m256d e = _mm256_add_pd(_mm256_mul_pd(r2d, _mm256_set1_pd(0x1.00001p-40)), _mm256_set1_pd(1e-37));
+    e = _mm256_add_pd(e, _mm256_mul_pd(R, _mm256_set1_pd(16.0 * 1.00001 * delta * dmax)));
+    _mm_storeu_ps(e0, _mm256_cvtpd_ps(e));
+    return ok;
+}
+#endif
+
 typedef struct rt_pkt_entry {
     uint64_t rays;
     uint32_t ref;
@@ -393,46 +452,10 @@ int RT_WALKN(const rt_accel *a, const rr_ray *rays, int nr, double tmin, double 
             const rt_pk *k = &a->pks[cur & ~RT_LEAF];
 #if RT_BOX_SIMD == 3
             if (so) {
-                const __m256d ox = _mm256_set1_pd(rays[0].o.x), oy = _mm256_set1_pd(rays[0].o.y),
-                              oz = _mm256_set1_pd(rays[0].o.z);
+                const double ox = rays[0].o.x, oy = rays[0].o.y, oz = rays[0].o.z;
                 for (;; k++) {
-                    /* The three edge normals of the 4 lanes in double. */
-                    __m256d ax = _mm256_sub_pd(_mm256_cvtps_pd(_mm_load_ps(k->v[0])), ox);
-                    __m256d ay = _mm256_sub_pd(_mm256_cvtps_pd(_mm_load_ps(k->v[1])), oy);
-                    __m256d az = _mm256_sub_pd(_mm256_cvtps_pd(_mm_load_ps(k->v[2])), oz);
-                    __m256d bx = _mm256_sub_pd(_mm256_cvtps_pd(_mm_load_ps(k->v[3])), ox);
-                    __m256d by = _mm256_sub_pd(_mm256_cvtps_pd(_mm_load_ps(k->v[4])), oy);
-                    __m256d bz = _mm256_sub_pd(_mm256_cvtps_pd(_mm_load_ps(k->v[5])), oz);
-                    __m256d cx = _mm256_sub_pd(_mm256_cvtps_pd(_mm_load_ps(k->v[6])), ox);
-                    __m256d cy = _mm256_sub_pd(_mm256_cvtps_pd(_mm_load_ps(k->v[7])), oy);
-                    __m256d cz = _mm256_sub_pd(_mm256_cvtps_pd(_mm_load_ps(k->v[8])), oz);
-                    __m256d nd[9] = {
-                        _mm256_sub_pd(_mm256_mul_pd(cy, bz), _mm256_mul_pd(cz, by)), /* c x b */
-                        _mm256_sub_pd(_mm256_mul_pd(cz, bx), _mm256_mul_pd(cx, bz)),
-                        _mm256_sub_pd(_mm256_mul_pd(cx, by), _mm256_mul_pd(cy, bx)),
-                        _mm256_sub_pd(_mm256_mul_pd(ay, cz), _mm256_mul_pd(az, cy)), /* a x c */
-                        _mm256_sub_pd(_mm256_mul_pd(az, cx), _mm256_mul_pd(ax, cz)),
-                        _mm256_sub_pd(_mm256_mul_pd(ax, cy), _mm256_mul_pd(ay, cx)),
-                        _mm256_sub_pd(_mm256_mul_pd(by, az), _mm256_mul_pd(bz, ay)), /* b x a */
-                        _mm256_sub_pd(_mm256_mul_pd(bz, ax), _mm256_mul_pd(bx, az)),
-                        _mm256_sub_pd(_mm256_mul_pd(bx, ay), _mm256_mul_pd(by, ax)),
-                    };
-                    const __m256d absm = _mm256_castsi256_pd(_mm256_set1_epi64x(0x7fffffffffffffffLL));
-                    __m256d R = _mm256_max_pd(_mm256_max_pd(_mm256_and_pd(ax, absm), _mm256_and_pd(ay, absm)),
-                                              _mm256_and_pd(az, absm));
-                    R = _mm256_max_pd(R, _mm256_max_pd(_mm256_max_pd(_mm256_and_pd(bx, absm), _mm256_and_pd(by, absm)),
-                                                       _mm256_and_pd(bz, absm)));
-                    R = _mm256_max_pd(R, _mm256_max_pd(_mm256_max_pd(_mm256_and_pd(cx, absm), _mm256_and_pd(cy, absm)),
-                                                       _mm256_and_pd(cz, absm)));
-                    __m256d r2d = _mm256_mul_pd(_mm256_mul_pd(R, R), _mm256_set1_pd(dmax));
-                    int ok = _mm256_movemask_pd(_mm256_and_pd(_mm256_cmp_pd(R, _mm256_set1_pd(1e15), _CMP_LT_OQ),
-                                                              _mm256_cmp_pd(r2d, _mm256_set1_pd(1e30), _CMP_LT_OQ)));
                     float nf[9][4], e0[4];
-                    for (int c = 0; c < 9; c++)
-                        _mm_storeu_ps(nf[c], _mm256_cvtpd_ps(nd[c]));
-                    /* 2^-40 R^2 D, one part in 2^20 more for the rounding to float, + 1e-37. */
-                    _mm_storeu_ps(e0, _mm256_cvtpd_ps(_mm256_add_pd(_mm256_mul_pd(r2d, _mm256_set1_pd(0x1.00001p-40)),
-                                                                    _mm256_set1_pd(1e-37))));
+                    int ok = rt__pkt_normals(k, ox, oy, oz, dmax, 0.0, 0.0, nf, e0);
                     for (int i = 0; i < RT_PK; i++) {
                         uint32_t fl = k->ref[i];
                         if (!fl)
@@ -513,3 +536,341 @@ out:;
         }
     return nhit;
 }
+
+#ifdef RT_OCCLN
+/* ---- the packet any-hit walk (rt_accel_occluded_n) ----
+ *
+ * RT_OCCL for up to RT_PACKET_MAX rays together, in its order-free form:
+ * at each node the rays that enter each child are found (per ray, or by
+ * the frustum and 16 rays at a time, below), the leaf children are tested
+ * at once for their rays, and the inner children go on the stack with
+ * their rays. A ray leaves the packet at its first occluder (done), and
+ * the walk ends when every ray has one. Each ray meets every leaf whose
+ * boxes down from the root it enters (and, through the frustum path's
+ * untested inner children, possibly more; an exact hit lies in every box
+ * around it, which the single walk's conservative box test enters), and
+ * the lanes are tested by RT_OCCL's own code (rt__lane_any): the same
+ * answer as rt_accel_occluded for every ray (test_bvh checks it).
+ *
+ * On 16-wide nodes a packet takes the frustum path of RT_WALKN when its
+ * rays share their origin (a point light's rays to surface points), or
+ * when they share their end point o + d and tmax <= 1: the shadow rays of
+ * a tile towards one point light or one light sample. Such segments
+ * o + t d, t in [tmin, tmax], are e - s d with e = o + d and s = 1 - t in
+ * [1 - tmax, 1 - tmin], within [0, 1]: rays from the common end point P
+ * with directions -d, once every e is within Delta of P per axis. So the
+ * frustum is set up for those reversed rays (rt_frustum from P, 1/-d as
+ * the interval), with P moved by Delta towards each slab's near plane
+ * and away from its far one, which tests every box grown by Delta: a box
+ * that a segment meets, grown by Delta, is met by the reversed ray at the
+ * same s. Every ray still takes its own per-ray box test (rt__box_rays) at
+ * nodes with leaf children. */
+typedef struct rt_occ_ray {
+    rt_ray_pre p;
+    rt_pkray pr;
+    int tri_ready, exact_only;
+} rt_occ_ray;
+
+typedef struct rt_occ_entry {
+    uint64_t rays;
+    uint32_t ref;
+} rt_occ_entry;
+
+#if RT_BOX_SIMD == 3
+/* The float nearest x on the side of +inf (up) or -inf; x is a double that
+ * may itself be rounded, so it is first moved by its own rounding error. */
+static inline float rt__f_out(double x, int up)
+{
+    double pad = fabs(x) * 0x1p-52 + 0x1p-1074;
+    return up ? rt__f_up(x + pad) : rt__f_down(x - pad);
+}
+
+/* The reversed frustum of a packet of rays sharing their end point (see
+ * above); 0 when they do not (end points apart by more than a part in
+ * 2^30 of their size, which would widen the frustum for nothing). rows
+ * and inv as the per-ray operands give them (the same rows for all). */
+static int rt__frustum_end(const rr_ray *rays, int nr, const rt_boxops *ops, rt_frustum *f, double P[3],
+                           double *delta_max)
+{
+    P[0] = rays[0].o.x + rays[0].d.x;
+    P[1] = rays[0].o.y + rays[0].d.y;
+    P[2] = rays[0].o.z + rays[0].d.z;
+    *delta_max = 0.0;
+    for (int k = 0; k < 3; k++) {
+        double delta = 0.0, size = fabs(P[k]);
+        float lo = ops[0].inv[k], hi = lo;
+        for (int r = 0; r < nr; r++) {
+            double o = k == 0 ? rays[r].o.x : (k == 1 ? rays[r].o.y : rays[r].o.z);
+            double d = k == 0 ? rays[r].d.x : (k == 1 ? rays[r].d.y : rays[r].d.z);
+            double e = o + d;
+            /* |exact o + d - P| <= |e - P| + the sum's rounding (u |e|,
+             * doubled for the subtraction's own). */
+            double dr = fabs(e - P[k]) + (fabs(e) + fabs(e - P[k])) * 0x1p-51;
+            delta = dr > delta ? dr : delta;
+            size = fmax(size, fmax(fabs(o), fabs(d)));
+            lo = ops[r].inv[k] < lo ? ops[r].inv[k] : lo;
+            hi = ops[r].inv[k] > hi ? ops[r].inv[k] : hi;
+        }
+        if (!(delta <= size * 0x1p-30 + 1e-300))
+            return 0;
+        *delta_max = delta > *delta_max ? delta : *delta_max;
+        /* The reversed rays' direction on axis k is -d: positive where the
+         * rays' near row is the upper plane (d < 0). */
+        const int row = ops[0].row[k], pos = row & 1;
+        f->row[k] = row ^ 1;
+        f->ilo[k] = _mm512_set1_ps(-hi);
+        f->ihi[k] = _mm512_set1_ps(-lo);
+        /* Near side: P moved away from the near plane (the entry comes out
+         * no later than the grown box's); far side: towards it. */
+        f->on[k] = _mm512_set1_ps(rt__f_out(pos ? P[k] + delta : P[k] - delta, pos));
+        f->of[k] = _mm512_set1_ps(rt__f_out(pos ? P[k] - delta : P[k] + delta, !pos));
+    }
+    return 1;
+}
+#endif
+
+int RT_OCCLN(const rt_accel *a, const rr_ray *rays, int nr, double tmin, double tmax, unsigned char *occ)
+{
+    RR_CHECK(nr >= 1 && nr <= RT_PACKET_MAX && a->width == RT_W);
+    memset(occ, 0, (size_t)nr);
+    if (a->nwnodes == 0)
+        return 0;
+    if (!(tmax >= 0.0)) { /* RT_OCCL's rule: such rays go to RT_WALK */
+        int c = 0;
+        for (int r = 0; r < nr; r++) {
+            occ[r] = (unsigned char)RT_WALK(a, rays[r], tmin, tmax, NULL, RT_WALK_ANY);
+            c += occ[r];
+        }
+        return c;
+    }
+    const rt_wn *wnodes = a->wnodes;
+    rt_occ_ray st[RT_PACKET_MAX];
+    rt_boxops ops[RT_PACKET_MAX];
+    uint64_t dbl = 0;
+    for (int r = 0; r < nr; r++) {
+        rt_occ_ray *s = &st[r];
+        rt__ray_prepare_box(rays[r], &s->p, 1);
+        if (!(tmin >= 0.0))
+            s->p.box_double = 1;
+        s->exact_only = s->p.box_double;
+        s->tri_ready = 0;
+        if (!rt__boxops_init(&s->p, &ops[r]))
+            s->p.box_double = 1;
+        dbl |= (uint64_t)s->p.box_double << r;
+    }
+    const float tmin_f = rt__f_down(tmin);
+    const float cull = rt__f_up(tmax) * (1.0f + RT_BOX_GROW);
+    const double tmax_d = tmax + fabs(tmax) * 1e-15;
+    const uint64_t all = nr == 64 ? ~(uint64_t)0 : ((uint64_t)1 << nr) - 1;
+#if RT_BOX_SIMD == 3
+    /* The frustum: one origin, or one end point (tmax <= 1); the same rows. */
+    int fr = !dbl;
+    for (int r = 1; r < nr && fr; r++)
+        for (int k = 0; k < 3; k++)
+            fr &= ops[r].row[k] == ops[0].row[k];
+    int same_o = fr;
+    for (int r = 1; r < nr && same_o; r++)
+        for (int k = 0; k < 3; k++)
+            same_o &= st[r].p.org_near[k] == st[0].p.org_near[k] && st[r].p.org_far[k] == st[0].p.org_far[k];
+    rt_frustum fru;
+    float ftmin = tmin_f, ftmax = cull;
+    /* The leaves' 16-ray test (rt__pkt_tri_cand) from the point P: the
+     * shared origin exactly, or the end point within delta. */
+    int tri16 = 0;
+    double P[3], delta = 0.0, rpad = 0.0;
+    if (same_o) {
+        for (int k = 0; k < 3; k++) {
+            float lo = ops[0].inv[k], hi = lo;
+            for (int r = 1; r < nr; r++) {
+                lo = ops[r].inv[k] < lo ? ops[r].inv[k] : lo;
+                hi = ops[r].inv[k] > hi ? ops[r].inv[k] : hi;
+            }
+            fru.on[k] = _mm512_set1_ps(st[0].p.org_near[k]);
+            fru.of[k] = _mm512_set1_ps(st[0].p.org_far[k]);
+            fru.ilo[k] = _mm512_set1_ps(lo);
+            fru.ihi[k] = _mm512_set1_ps(hi);
+            fru.row[k] = ops[0].row[k];
+        }
+        tri16 = 1;
+        for (int r = 1; r < nr && tri16; r++)
+            tri16 = memcmp(&rays[r].o, &rays[0].o, sizeof rays[0].o) == 0;
+        P[0] = rays[0].o.x;
+        P[1] = rays[0].o.y;
+        P[2] = rays[0].o.z;
+    } else if (fr && tmax <= 1.0 && rt__frustum_end(rays, nr, ops, &fru, P, &delta)) {
+        /* s in [0, 1] (tmin >= 0 here: dbl is clear); an entry at s <= 1
+         * comes out at most 1 + RT_BOX_GROW. */
+        ftmin = 0.0f;
+        ftmax = 1.0f + RT_BOX_GROW;
+        tri16 = 1;
+    } else {
+        fr = 0;
+    }
+    _Alignas(64) float dxs[RT_PACKET_MAX], dys[RT_PACKET_MAX], dzs[RT_PACKET_MAX];
+    double dmax = 0.0;
+    if (tri16) {
+        for (int r = 0; r < RT_PACKET_MAX; r++) {
+            rr_vec3 d = r < nr ? rays[r].d : rays[0].d;
+            dxs[r] = (float)d.x;
+            dys[r] = (float)d.y;
+            dzs[r] = (float)d.z;
+            double m = fmax(fabs(d.x), fmax(fabs(d.y), fabs(d.z)));
+            dmax = m > dmax ? m : dmax;
+        }
+        if (!same_o)
+            rpad = dmax + delta;
+    }
+    _Alignas(64) float scn[3][RT_PACKET_MAX], scf[3][RT_PACKET_MAX], sinv[3][RT_PACKET_MAX], cullv[RT_PACKET_MAX];
+    if (fr)
+        for (int r = 0; r < RT_PACKET_MAX; r++) {
+            const rt_boxops *q = &ops[r < nr ? r : 0];
+            for (int k = 0; k < 3; k++) {
+                scn[k][r] = q->a[k];
+                scf[k][r] = q->b[k];
+                sinv[k][r] = q->inv[k];
+            }
+            cullv[r] = cull;
+        }
+#endif
+    rt_occ_entry stack[RT_STACK_SIZE];
+    int sp = 0;
+    uint32_t cur = 0; /* the root, an inner node */
+    uint64_t act = all, done = 0;
+    for (;;) {
+        const rt_wn *n = &wnodes[cur];
+        const unsigned lm = rt__leaf_mask(n);
+        uint64_t in[RT_W];
+        unsigned any = 0;
+#if RT_BOX_SIMD == 3
+        if (fr) {
+            float fd[RT_W];
+            unsigned fm = rt__box_frustum(n, &fru, ftmin, ftmax, fd);
+            const int leaves = (fm & lm) != 0;
+            for (; fm; fm &= fm - 1) {
+                int c = __builtin_ctz(fm);
+                in[c] = leaves ? rt__box_rays(n, c, ops[0].row, scn, scf, sinv, cullv, tmin_f, act) : act;
+                any |= (unsigned)(in[c] != 0) << c;
+            }
+        } else
+#endif
+        {
+            for (int c = 0; c < RT_W; c++)
+                in[c] = 0;
+            for (uint64_t m = act; m; m &= m - 1) {
+                int r = __builtin_ctzll(m);
+                float dist[RT_W];
+                unsigned mask;
+                if (dbl >> r & 1) {
+                    mask = rt__box4_double(n, &st[r].p, tmin, tmax_d, dist);
+                } else {
+                    rt_boxray br;
+                    rt__boxray_of(&ops[r], &st[r].p, &br);
+                    mask = rt__box4_fast(n, &br, tmin_f, cull, dist);
+                }
+                any |= mask;
+                for (; mask; mask &= mask - 1)
+                    in[__builtin_ctz(mask)] |= (uint64_t)1 << r;
+            }
+        }
+        /* The leaf children first, for all their rays. */
+        for (unsigned leaves = any & lm; leaves; leaves &= leaves - 1) {
+            int c = __builtin_ctz(leaves);
+            const rt_pk *k0 = &a->pks[n->child[c] & ~RT_LEAF];
+#if RT_BOX_SIMD == 3
+            if (tri16) {
+                /* 16 rays per triangle, then the exact test for the rays kept. */
+                for (const rt_pk *k = k0;; k++) {
+                    float nf[9][4], e0[4];
+                    int ok = rt__pkt_normals(k, P[0], P[1], P[2], dmax, rpad, delta, nf, e0);
+                    for (int i = 0; i < RT_PK; i++) {
+                        uint32_t fl = k->ref[i];
+                        uint64_t cand = in[c] & ~done;
+                        if (!fl || !cand)
+                            continue;
+                        if ((fl & RT_REF_LANE) == RT_REF_FAST && (ok >> i & 1)) {
+                            float n9[9];
+                            for (int q = 0; q < 9; q++)
+                                n9[q] = nf[q][i];
+                            cand = rt__pkt_tri_cand(n9, e0[i], (fl & RT_REF_CULL) != 0, cand, dxs, dys, dzs);
+                        }
+                        for (; cand; cand &= cand - 1) {
+                            int r = __builtin_ctzll(cand);
+                            rt_occ_ray *s = &st[r];
+                            if (!s->tri_ready) {
+                                rt__ray_prepare_tri(&s->p);
+                                s->tri_ready = 1;
+                            }
+                            if (rt__lane_any(a, k, i, &s->p, tmin, tmax))
+                                done |= (uint64_t)1 << r;
+                        }
+                    }
+                    if ((k->ref[0] & RT_REF_LAST) || !(in[c] & ~done))
+                        break;
+                }
+                continue;
+            }
+#endif
+            for (uint64_t m = in[c] & ~done; m; m &= m - 1) {
+                int r = __builtin_ctzll(m);
+                rt_occ_ray *s = &st[r];
+                if (!s->tri_ready) {
+                    rt__ray_prepare_tri(&s->p);
+                    rt__pkray_init(&s->p, a->vmax, s->exact_only, &s->pr);
+                    s->tri_ready = 1;
+                }
+                for (const rt_pk *k = k0;; k++) {
+                    unsigned lanes = rt__pk_cand(k, &s->pr);
+                    for (; lanes; lanes &= lanes - 1)
+                        if (rt__lane_any(a, k, __builtin_ctz(lanes), &s->p, tmin, tmax))
+                            break;
+                    if (lanes) {
+                        done |= (uint64_t)1 << r;
+                        break;
+                    }
+                    if (k->ref[0] & RT_REF_LAST)
+                        break;
+                }
+            }
+        }
+        if (done == all)
+            break;
+        /* The inner children: the first is walked next, the others pushed. */
+        int next = 0;
+        for (unsigned inner = any & ~lm; inner; inner &= inner - 1) {
+            int c = __builtin_ctz(inner);
+            uint64_t m = in[c] & ~done;
+            if (!m)
+                continue;
+            if (!next) {
+                cur = n->child[c];
+                act = m;
+                next = 1;
+                continue;
+            }
+            RR_CHECK(sp < RT_STACK_SIZE);
+            stack[sp].rays = m;
+            stack[sp].ref = n->child[c];
+            sp++;
+        }
+        if (next)
+            continue;
+        for (;;) {
+            if (sp == 0)
+                goto out;
+            sp--;
+            act = stack[sp].rays & ~done;
+            if (act) {
+                cur = stack[sp].ref;
+                break;
+            }
+        }
+    }
+out:;
+    int c = 0;
+    for (int r = 0; r < nr; r++) {
+        occ[r] = (unsigned char)(done >> r & 1);
+        c += occ[r];
+    }
+    return c;
+}
+#endif /* RT_OCCLN */

@@ -1,5 +1,6 @@
 /* rt_traverse.c - ray queries through the wide BVH: closest hit, any hit,
- * and closest hit for packets of rays (rt_accel_closest_n).
+ * and closest and any hit for packets of rays (rt_accel_closest_n,
+ * rt_accel_occluded_n).
  *
  * Both walk the same nodes with the same per-primitive kernels; the only
  * difference is that the any-hit query returns at the first occluder. The
@@ -13,6 +14,7 @@
 #define RT_WALK rt__walk4
 #define RT_OCCL rt__occl4
 #define RT_WALKN rt__walkn4
+#define RT_OCCLN rt__occln4
 #include "rt_wide.h"
 
 void rt__ray_prepare(rr_ray ray, rt_ray_pre *p)
@@ -102,4 +104,27 @@ int rt_accel_occluded(const rt_accel *a, rr_ray ray, double tmin, double tmax)
         return rt__occl8(a, ray, tmin, tmax);
 #endif
     return rt__occl4(a, ray, tmin, tmax);
+}
+
+int rt_accel_occluded_n(const rt_accel *a, const rr_ray *rays, int n, double tmin, double tmax, unsigned char *occ)
+{
+    int nocc = 0;
+    for (int i = 0; i < n; i += RT_PACKET_MAX) {
+        int m = n - i < RT_PACKET_MAX ? n - i : RT_PACKET_MAX;
+        t_counts.occluded += (uint64_t)m;
+#if RT_HAVE_W8
+#if RT_HAVE_W16
+        if (a->width == 16) {
+            nocc += rt__occln16(a, rays + i, m, tmin, tmax, occ + i);
+            continue;
+        }
+#endif
+        if (a->width == 8) {
+            nocc += rt__occln8(a, rays + i, m, tmin, tmax, occ + i);
+            continue;
+        }
+#endif
+        nocc += rt__occln4(a, rays + i, m, tmin, tmax, occ + i);
+    }
+    return nocc;
 }

@@ -334,6 +334,25 @@ static inline unsigned rt__leaf_mask(const rt_wn *n)
 #endif
 }
 
+/* Lane i of packet k (a candidate of the float test) against one ray: 1 at
+ * a hit with t in (tmin, tmax), culling back faces as the object asks. The
+ * any-hit walks' lane test (RT_OCCL, RT_OCCLN). */
+static inline __attribute__((always_inline)) int rt__lane_any(const rt_accel *a, const rt_pk *k, int i,
+                                                               const rt_ray_pre *p, double tmin, double tmax)
+{
+    uint32_t fl = k->ref[i], lk = fl & RT_REF_LANE;
+    if (lk != RT_REF_PRIM) {
+        double t;
+        int front;
+        return lk == RT_REF_FAST ? rt__tri_hit_pk(p, k, i, tmin, tmax, 0, &t, &front)
+                                 : rt__tri_hit_drec(p, rt__pk_dverts(a, k, i), (fl & RT_REF_CULL) != 0, tmin, tmax, 0,
+                                                    &t, &front);
+    }
+    rt_prim pr_ = {rt_prim_kind_of(a->scene, fl >> RT_REF_SHIFT), fl >> RT_REF_SHIFT};
+    double best = tmax;
+    return rt__prim_hit(a, pr_, p, tmin, &best, NULL);
+}
+
 #ifdef RT_WALK
 /* ---- the walk ----
  *
@@ -635,23 +654,9 @@ int RT_OCCL(const rt_accel *a, rr_ray ray, double tmin, double tmax)
         for (; leaves; leaves &= leaves - 1) {
             const rt_pk *k = &a->pks[n->child[__builtin_ctz(leaves)] & ~RT_LEAF];
             for (;; k++) {
-                for (unsigned lanes = rt__pk_cand(k, &pr); lanes; lanes &= lanes - 1) {
-                    int i = __builtin_ctz(lanes);
-                    uint32_t fl = k->ref[i], lk = fl & RT_REF_LANE;
-                    if (lk != RT_REF_PRIM) {
-                        double t;
-                        int front;
-                        if (lk == RT_REF_FAST ? rt__tri_hit_pk(&p, k, i, tmin, tmax, 0, &t, &front)
-                                              : rt__tri_hit_drec(&p, rt__pk_dverts(a, k, i), (fl & RT_REF_CULL) != 0,
-                                                                 tmin, tmax, 0, &t, &front))
-                            return 1;
-                    } else {
-                        rt_prim pr_ = {rt_prim_kind_of(a->scene, fl >> RT_REF_SHIFT), fl >> RT_REF_SHIFT};
-                        double best = tmax;
-                        if (rt__prim_hit(a, pr_, &p, tmin, &best, NULL))
-                            return 1;
-                    }
-                }
+                for (unsigned lanes = rt__pk_cand(k, &pr); lanes; lanes &= lanes - 1)
+                    if (rt__lane_any(a, k, __builtin_ctz(lanes), &p, tmin, tmax))
+                        return 1;
                 if (k->ref[0] & RT_REF_LAST)
                     break;
             }

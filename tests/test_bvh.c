@@ -702,6 +702,89 @@ static void packet_walk_matches_single(void **state)
     }
 }
 
+/* rt_accel_occluded_n gives every ray rt_accel_occluded's answer, at every
+ * width: packets that share an origin, packets that share an end point
+ * o + d (shadow rays towards a point: the 16-wide walk's reversed frustum,
+ * with tmax just under 1, 1 itself, or less), end points a few ulps apart
+ * (the frustum's Delta) or apart enough to leave the frustum off,
+ * scattered rays, axis-parallel directions (the double box test), tmin < 0
+ * and tmax < 0 (the closest walk's rule), counts that are not a multiple of
+ * RT_PACKET_MAX. */
+static void packet_occluded_matches_single(void **state)
+{
+    (void)state;
+    rr_error err;
+    int ws[3], nw = widths_available(ws);
+    static const int sizes[] = {1, 9, 16, 64, 100, 130};
+    enum { MAXN = 130 };
+    for (int pass = 0; pass < 2; pass++) {
+        rr_rng rng = rr_rng_make(93, (uint64_t)pass);
+        char *json = pass == 0 ? random_scene(&rng, 40, 3) : uv_sphere_scene(40, 64, "\"auto\"");
+        scene *s = NULL;
+        assert_int_equal(scene_load_string(json, "packets", "", NULL, &s, &err), RR_OK);
+        free(json);
+        verts_to_float(s);
+        for (int wi = 0; wi < nw; wi++) {
+            rt_accel *a = NULL;
+            assert_int_equal(rt__accel_build_width(s, ws[wi], &a, &err), RR_OK);
+            long occl = 0, rays = 0;
+            for (int q = 0; q < 720; q++) {
+                int n = sizes[q % 6], kind = (q / 6) % 6;
+                rr_ray r[MAXN];
+                unsigned char f[MAXN];
+                rr_vec3 p = random_point(&rng, 1.2); /* the shared point */
+                rr_vec3 c = random_point(&rng, 0.8);
+                double spread = q % 3 == 0 ? 0.02 : 0.6;
+                for (int i = 0; i < n; i++) {
+                    rr_vec3 x = rr_v3_add(c, rr_v3_scale(random_point(&rng, 1.0), spread));
+                    if (kind == 0) { /* from one origin */
+                        r[i].o = p;
+                        r[i].d = rr_v3_sub(x, p);
+                    } else if (kind <= 3) { /* to one end point (as nearly as o + d rounds) */
+                        rr_vec3 e = p;
+                        if (kind == 2) /* a few ulps apart */
+                            e = rr_v3_add(p, rr_v3_scale(random_point(&rng, 1.0), 1e-15));
+                        if (kind == 3 && i == n / 2) /* one ray elsewhere: no frustum */
+                            e = rr_v3_add(p, rr_v3(0.01, 0.0, 0.0));
+                        r[i].o = x;
+                        r[i].d = rr_v3_sub(e, x);
+                        if (kind == 1 && i % 7 == 3)
+                            r[i].d.z = 0.0; /* the double box test; this packet takes no frustum */
+                    } else if (kind == 4) { /* scattered */
+                        r[i].o = random_point(&rng, 2.0);
+                        r[i].d = rr_v3_sub(x, r[i].o);
+                    } else { /* through a vertex from one end point */
+                        const scene_tri *t = &s->tris[rr_rng_below(&rng, (uint32_t)s->ntris)];
+                        r[i].o = s->verts[t->v[i % 3]];
+                        r[i].o = rr_v3_add(p, rr_v3_scale(rr_v3_sub(r[i].o, p), 1.5));
+                        r[i].d = rr_v3_sub(p, r[i].o);
+                    }
+                }
+                double tmin = q % 17 == 0 ? -0.25 : q % 2 ? 1e-9 : 0.0;
+                int tk = (q / 36) % 5;
+                double tmax = tk == 0 ? 1.0 - 1e-7 : tk == 1 ? 1.0 : tk == 2 ? 0.3 + 0.5 * rr_rng_uniform(&rng)
+                                                  : tk == 3 ? INFINITY : (q % 11 == 0 ? -1.0 : 1.0 - 1e-7);
+                memset(f, 7, sizeof f);
+                int no = rt_accel_occluded_n(a, r, n, tmin, tmax, f), count = 0;
+                for (int i = 0; i < n; i++) {
+                    int g = rt_accel_occluded(a, r[i], tmin, tmax);
+                    if (f[i] != g)
+                        fprintf(stderr, "width %d packet %d (kind %d) ray %d: %d %d\n", ws[wi], q, kind, i, f[i], g);
+                    assert_int_equal(f[i], g);
+                    count += g;
+                }
+                assert_int_equal(no, count);
+                occl += count;
+                rays += n;
+            }
+            /* Neither all clear nor all occluded. */
+            assert_true(occl > rays / 10 && occl < rays - rays / 10);
+            rt_accel_destroy(a);
+        }
+        scene_destroy(s);
+    }
+}
+
 /* ---- the packets' float test (rt_kernel.h rt__pk_cand) ---- */
 
 /* A double in [-1, 1). */
@@ -880,6 +963,7 @@ int main(void)
         cmocka_unit_test(bvh_widths_agree),
         cmocka_unit_test(bvh_occluded_matches_walk),
         cmocka_unit_test(packet_walk_matches_single),
+        cmocka_unit_test(packet_occluded_matches_single),
         cmocka_unit_test(f_round_matches_nextafter),
         cmocka_unit_test(pk_float_test_conservative),
     };
