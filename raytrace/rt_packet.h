@@ -38,6 +38,15 @@
  * children passed the packet untested, the rays of each child found 16 at a
  * time at nodes with leaf children (rt__box_rays), and leaves that test 16
  * rays per triangle (rt__pkt_tri_cand) instead of one ray per 4 triangles. */
+/* The largest |component| of d (no NaN here), by comparisons: fmax is a
+ * libm call in this build, and was a fifth of a short packet walk. */
+static inline double rt__abs_max3(rr_vec3 d)
+{
+    double ax = d.x < 0.0 ? -d.x : d.x, ay = d.y < 0.0 ? -d.y : d.y, az = d.z < 0.0 ? -d.z : d.z;
+    double m = ax > ay ? ax : ay;
+    return az > m ? az : m;
+}
+
 typedef struct rt_pkt_ray {
     rt_ray_pre p;
     rt_pkray pr;
@@ -356,7 +365,7 @@ int RT_WALKN(const rt_accel *a, const rr_ray *rays, int nr, double tmin, double 
             dxs[r] = (float)d.x;
             dys[r] = (float)d.y;
             dzs[r] = (float)d.z;
-            double m = fmax(fabs(d.x), fmax(fabs(d.y), fabs(d.z)));
+            double m = rt__abs_max3(d);
             dmax = m > dmax ? m : dmax;
         }
     }
@@ -595,35 +604,41 @@ static int rt__frustum_end(const rr_ray *rays, int nr, const rt_boxops *ops, rt_
     P[0] = rays[0].o.x + rays[0].d.x;
     P[1] = rays[0].o.y + rays[0].d.y;
     P[2] = rays[0].o.z + rays[0].d.z;
-    *delta_max = 0.0;
-    for (int k = 0; k < 3; k++) {
-        double delta = 0.0, size = fabs(P[k]);
-        float lo = ops[0].inv[k], hi = lo;
-        for (int r = 0; r < nr; r++) {
-            double o = k == 0 ? rays[r].o.x : (k == 1 ? rays[r].o.y : rays[r].o.z);
-            double d = k == 0 ? rays[r].d.x : (k == 1 ? rays[r].d.y : rays[r].d.z);
-            double e = o + d;
+    double delta[3] = {0.0, 0.0, 0.0}, size = 0.0;
+    float lo[3], hi[3];
+    for (int k = 0; k < 3; k++)
+        lo[k] = hi[k] = ops[0].inv[k];
+    /* Comparisons, not fmax (rt__abs_max3). */
+    for (int r = 0; r < nr; r++) {
+        const double *o = &rays[r].o.x, *d = &rays[r].d.x;
+        for (int k = 0; k < 3; k++) {
+            double e = o[k] + d[k], g = e - P[k];
+            double ae = e < 0.0 ? -e : e, ag = g < 0.0 ? -g : g, ad = d[k] < 0.0 ? -d[k] : d[k];
             /* |exact o + d - P| <= |e - P| + the sum's rounding (u |e|,
              * doubled for the subtraction's own). */
-            double dr = fabs(e - P[k]) + (fabs(e) + fabs(e - P[k])) * 0x1p-51;
-            delta = dr > delta ? dr : delta;
-            size = fmax(size, fmax(fabs(o), fabs(d)));
-            lo = ops[r].inv[k] < lo ? ops[r].inv[k] : lo;
-            hi = ops[r].inv[k] > hi ? ops[r].inv[k] : hi;
+            double dr = ag + (ae + ag) * 0x1p-51;
+            delta[k] = dr > delta[k] ? dr : delta[k];
+            size = ae > size ? ae : size;
+            size = ad > size ? ad : size;
+            lo[k] = ops[r].inv[k] < lo[k] ? ops[r].inv[k] : lo[k];
+            hi[k] = ops[r].inv[k] > hi[k] ? ops[r].inv[k] : hi[k];
         }
-        if (!(delta <= size * 0x1p-30 + 1e-300))
+    }
+    *delta_max = 0.0;
+    for (int k = 0; k < 3; k++) {
+        if (!(delta[k] <= size * 0x1p-30 + 1e-300))
             return 0;
-        *delta_max = delta > *delta_max ? delta : *delta_max;
+        *delta_max = delta[k] > *delta_max ? delta[k] : *delta_max;
         /* The reversed rays' direction on axis k is -d: positive where the
          * rays' near row is the upper plane (d < 0). */
         const int row = ops[0].row[k], pos = row & 1;
         f->row[k] = row ^ 1;
-        f->ilo[k] = _mm512_set1_ps(-hi);
-        f->ihi[k] = _mm512_set1_ps(-lo);
+        f->ilo[k] = _mm512_set1_ps(-hi[k]);
+        f->ihi[k] = _mm512_set1_ps(-lo[k]);
         /* Near side: P moved away from the near plane (the entry comes out
          * no later than the grown box's); far side: towards it. */
-        f->on[k] = _mm512_set1_ps(rt__f_out(pos ? P[k] + delta : P[k] - delta, pos));
-        f->of[k] = _mm512_set1_ps(rt__f_out(pos ? P[k] - delta : P[k] + delta, !pos));
+        f->on[k] = _mm512_set1_ps(rt__f_out(pos ? P[k] + delta[k] : P[k] - delta[k], pos));
+        f->of[k] = _mm512_set1_ps(rt__f_out(pos ? P[k] - delta[k] : P[k] + delta[k], !pos));
     }
     return 1;
 }
@@ -714,7 +729,7 @@ int RT_OCCLN(const rt_accel *a, const rr_ray *rays, int nr, double tmin, double 
             dxs[r] = (float)d.x;
             dys[r] = (float)d.y;
             dzs[r] = (float)d.z;
-            double m = fmax(fabs(d.x), fmax(fabs(d.y), fabs(d.z)));
+            double m = rt__abs_max3(d);
             dmax = m > dmax ? m : dmax;
         }
         if (!same_o)
