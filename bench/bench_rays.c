@@ -1,6 +1,6 @@
 /* bench_rays.c - reproducible ray-throughput benchmark of the BVH (radray-bench).
  *
- *   radray-bench [--quick] [--threads LIST] [--scene NAME] [--seed N]
+ *   radray-bench [--quick] [--threads LIST] [--scene NAME] [--seed N] [--light-size F]
  *
  * Two procedural scenes are generated in-process from a fixed recipe and seed
  * (see make_room / make_mesh1m in bench_scenes.c and bench/README.md), written as binary
@@ -146,16 +146,19 @@ typedef struct options {
     int nthreads;
     const char *only;
     uint64_t seed;
+    double light_size;
 } options;
 
 static void usage(FILE *f)
 {
     fprintf(f,
-            "usage: radray-bench [--quick] [--threads LIST] [--scene NAME] [--seed N]\n"
+            "usage: radray-bench [--quick] [--threads LIST] [--scene NAME] [--seed N] [--light-size F]\n"
             "  --quick         256x256 rays per workload instead of 1024x1024\n"
             "  --threads LIST  comma-separated thread counts (default: 1,<omp_get_max_threads()>)\n"
             "  --scene NAME    run only room-100k, mesh-1m or bunny-1m\n"
-            "  --seed N        scene and ray seed (default %u; change it only to test robustness)\n",
+            "  --seed N        scene and ray seed (default %u; change it only to test robustness)\n"
+            "  --light-size F  shadow rays to points of a square light of side F x the scene's extent\n"
+            "                  (default 0: the point light; other checksums then)\n",
             BENCH_SEED);
 }
 
@@ -302,6 +305,13 @@ int main(int argc, char **argv)
                 return 2;
             }
             o.seed = (uint64_t)v;
+        } else if (!strcmp(argv[i], "--light-size") && i + 1 < argc) {
+            char *end;
+            o.light_size = strtod(argv[++i], &end);
+            if (end == argv[i] || *end || !(o.light_size >= 0.0 && o.light_size <= 1.0)) {
+                fprintf(stderr, "radray-bench: bad --light-size '%s' (want 0 .. 1)\n", argv[i]);
+                return 2;
+            }
         } else if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
             usage(stdout);
             return 0;
@@ -350,6 +360,7 @@ int main(int argc, char **argv)
             soup_free(&b.mesh);
             continue;
         }
+        b.light_size = o.light_size;
         run_scene(&b, &o, tmpdir);
     }
     rmdir(tmpdir);

@@ -473,11 +473,18 @@ void bench_make_rays(const scene *s, const rt_accel *a, const bench_scene *b, ui
         diff.rays[diff.n++] = r;
         /* To the light, from the hits that face it (the renderer skips the
          * others): unnormalised direction, t = 1 at the light. */
-        rr_vec3 to_light = rr_v3_sub(b->light, hp[i]);
+        /* A square light (light_size > 0): a uniform point of it, from the
+         * pixel's stream after the diffuse ray's draws. */
+        rr_vec3 lp = b->light;
+        if (b->light_size > 0.0) {
+            double side = b->light_size * extent, u3 = rr_rng_uniform(&rng), u4 = rr_rng_uniform(&rng);
+            lp = rr_v3_add(lp, rr_v3(side * (u3 - 0.5), 0.0, side * (u4 - 0.5)));
+        }
+        rr_vec3 to_light = rr_v3_sub(lp, hp[i]);
         if (rr_v3_dot(hn[i], to_light) <= 0.0)
             continue;
         rr_vec3 org = offset_origin(hp[i], hn[i], to_light, extent);
-        rr_ray sr = {org, rr_v3_sub(b->light, org)};
+        rr_ray sr = {org, rr_v3_sub(lp, org)};
         shad.pix[shad.n] = (uint32_t)i;
         shad.rays[shad.n++] = sr;
     }

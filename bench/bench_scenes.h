@@ -44,6 +44,8 @@ typedef struct bench_scene {
     rr_vec3 eye, target;
     double fov;
     rr_vec3 light;
+    double light_size; /* 0: the point light; else shadow rays go to points of a horizontal square
+                          of that side (a fraction of the scene's extent) centred on it */
 } bench_scene;
 
 void make_room(bench_scene *b, uint64_t seed);
@@ -86,7 +88,8 @@ rr_vec3 offset_origin(rr_vec3 p, rr_vec3 n, rr_vec3 dir, double extent);
 
 /* The three workloads: primary (one per pixel), diffuse (one cosine-weighted
  * ray from every primary hit, from PCG stream (seed, pixel)) and shadow (from
- * every primary hit facing b->light, t < 1 - 1e-7). Primary hits come from a. */
+ * every primary hit facing b->light, t < 1 - 1e-7; to a point of the square
+ * light when b->light_size > 0). Primary hits come from a. */
 void bench_make_rays(const scene *s, const rt_accel *a, const bench_scene *b, uint64_t seed, ray_set *prim,
                      ray_set *diff, ray_set *shad);
 

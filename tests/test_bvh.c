@@ -706,7 +706,8 @@ static void packet_walk_matches_single(void **state)
  * width: packets that share an origin, packets that share an end point
  * o + d (shadow rays towards a point: the 16-wide walk's reversed frustum,
  * with tmax just under 1, 1 itself, or less), end points a few ulps apart
- * (the frustum's Delta) or apart enough to leave the frustum off,
+ * (the frustum's Delta) or spread over a small light (a wider frustum,
+ * no 16-ray leaf test) or apart enough to leave the frustum off,
  * scattered rays, axis-parallel directions (the double box test), tmin < 0
  * and tmax < 0 (the closest walk's rule), counts that are not a multiple of
  * RT_PACKET_MAX. */
@@ -728,8 +729,8 @@ static void packet_occluded_matches_single(void **state)
             rt_accel *a = NULL;
             assert_int_equal(rt__accel_build_width(s, ws[wi], &a, &err), RR_OK);
             long occl = 0, rays = 0;
-            for (int q = 0; q < 720; q++) {
-                int n = sizes[q % 6], kind = (q / 6) % 6;
+            for (int q = 0; q < 840; q++) {
+                int n = sizes[q % 6], kind = (q / 6) % 7;
                 rr_ray r[MAXN];
                 unsigned char f[MAXN];
                 rr_vec3 p = random_point(&rng, 1.2); /* the shared point */
@@ -740,12 +741,14 @@ static void packet_occluded_matches_single(void **state)
                     if (kind == 0) { /* from one origin */
                         r[i].o = p;
                         r[i].d = rr_v3_sub(x, p);
-                    } else if (kind <= 3) { /* to one end point (as nearly as o + d rounds) */
+                    } else if (kind <= 3 || kind == 6) { /* to one end point (as nearly as o + d rounds) */
                         rr_vec3 e = p;
+                        if (kind == 6) /* to points of a small light: a wider frustum */
+                            e = rr_v3_add(p, rr_v3_scale(random_point(&rng, 1.0), 0.05));
                         if (kind == 2) /* a few ulps apart */
                             e = rr_v3_add(p, rr_v3_scale(random_point(&rng, 1.0), 1e-15));
                         if (kind == 3 && i == n / 2) /* one ray elsewhere: no frustum */
-                            e = rr_v3_add(p, rr_v3(0.01, 0.0, 0.0));
+                            e = rr_v3_add(p, rr_v3(1.5, 0.0, 0.0));
                         r[i].o = x;
                         r[i].d = rr_v3_sub(e, x);
                         if (kind == 1 && i % 7 == 3)
