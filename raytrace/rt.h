@@ -301,17 +301,6 @@ typedef struct rt_light_sample {
  * n: 1 and *out when its light (or its image's, through its mirrors)
  * reaches x from the side n points to, unshadowed; else 0. */
 int rt_lights_delta(const rt_lights *L, size_t k, rr_vec3 x, rr_vec3 n, rt_light_sample *out);
-/* rt_lights_delta in two steps: 1 and *out when the light's geometry lets
- * it reach x (its images' mirrors included), with the shadow ray to trace,
- * rt_accel_occluded(a, *ray, 0, *tmax) (the shadow-ray rule); else 0 and
- * no ray. */
-int rt_lights_delta_ray(const rt_lights *L, size_t k, rr_vec3 x, rr_vec3 n, rr_ray *ray, double *tmax,
-                        rt_light_sample *out);
-/* rt_lights_delta at n points at once: lit[i] and out[i] as rt_lights_delta
- * gives them for (x[i], nrm[i]), bit for bit; a point light's shadow rays
- * are traced as packets (rt_accel_occluded_n): for the points of a tile. */
-void rt_lights_delta_n(const rt_lights *L, size_t k, int n, const rr_vec3 *x, const rr_vec3 *nrm, rt_light_sample *out,
-                       unsigned char *lit);
 /* One area-light sample at x from uniforms u0 (light choice), u1, u2 (point):
  * 1 and *out when it is unshadowed and arrives on n's side; else 0 (a sample
  * that counts 0: the estimator stays unbiased). */

@@ -471,8 +471,7 @@ static int crosses_first_plane(const rt_lights *L, const light *l, rr_vec3 x, rr
     return (a > 0 && b < 0) || (a < 0 && b > 0);
 }
 
-int rt_lights_delta_ray(const rt_lights *L, size_t k, rr_vec3 x, rr_vec3 n, rr_ray *ray, double *tmax,
-                        rt_light_sample *out)
+int rt_lights_delta(const rt_lights *L, size_t k, rr_vec3 x, rr_vec3 n, rt_light_sample *out)
 {
     const light *l = &L->delta[k];
     const scene_light *sl = &L->s->lights[l->index];
@@ -493,56 +492,16 @@ int rt_lights_delta_ray(const rt_lights *L, size_t k, rr_vec3 x, rr_vec3 n, rr_r
     rr_rgb thru;
     if (!fold_legs(L, l, x, n, dir, &o, &on, &d, &thru))
         return 0;
-    /* The last leg by the shadow-ray rule (rt_visible, rt_visible_dir). */
-    if (l->kind == LK_DIRECTIONAL) {
-        ray->o = rt_offset_origin(L->scale, o, on, d);
-        ray->d = d;
-        *tmax = INFINITY;
-    } else {
-        ray->o = rt_offset_origin(L->scale, o, on, rr_v3_sub(sl->position, o));
-        ray->d = rr_v3_sub(sl->position, ray->o);
-        *tmax = RT_SHADOW_END;
-    }
+    int vis = l->kind == LK_DIRECTIONAL ? rt_visible_dir(L->a, L->scale, o, on, d)
+                                        : rt_visible(L->a, L->scale, o, on, sl->position);
+    if (!vis)
+        return 0;
     out->L = dir;
     out->E = rr_rgb_scale(rr_rgb_mul(thru, l->radiance), l->kind == LK_DIRECTIONAL ? 1.0 : 1.0 / r2);
     out->pdf = 0.0;
     out->dist = sqrt(r2);
     out->image = l->nchain > 0;
     return 1;
-}
-
-int rt_lights_delta(const rt_lights *L, size_t k, rr_vec3 x, rr_vec3 n, rt_light_sample *out)
-{
-    rr_ray r;
-    double tmax;
-    return rt_lights_delta_ray(L, k, x, n, &r, &tmax, out) && !rt_accel_occluded(L->a, r, 0.0, tmax);
-}
-
-void rt_lights_delta_n(const rt_lights *L, size_t k, int n, const rr_vec3 *x, const rr_vec3 *nrm, rt_light_sample *out,
-                       unsigned char *lit)
-{
-    rr_ray rays[RT_PACKET_MAX];
-    int idx[RT_PACKET_MAX];
-    unsigned char occ[RT_PACKET_MAX];
-    for (int i0 = 0; i0 < n; i0 += RT_PACKET_MAX) {
-        int m = 0, i1 = n - i0 < RT_PACKET_MAX ? n : i0 + RT_PACKET_MAX;
-        double tmax = 0.0;
-        for (int i = i0; i < i1; i++) {
-            lit[i] = (unsigned char)rt_lights_delta_ray(L, k, x[i], nrm[i], &rays[m], &tmax, &out[i]);
-            if (lit[i])
-                idx[m++] = i;
-        }
-        /* A point light's rays end at it: one packet (rt_accel_occluded_n's
-         * shared end point). A directional light's are parallel, which the
-         * packet walk has no frustum for: one at a time. */
-        if (L->delta[k].kind == LK_DIRECTIONAL)
-            for (int j = 0; j < m; j++)
-                occ[j] = (unsigned char)rt_accel_occluded(L->a, rays[j], 0.0, tmax);
-        else if (m > 0)
-            rt_accel_occluded_n(L->a, rays, m, 0.0, tmax, occ);
-        for (int j = 0; j < m; j++)
-            lit[idx[j]] = !occ[j];
-    }
 }
 
 static size_t pick(const rt_lights *L, double u, double *p)

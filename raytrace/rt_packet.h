@@ -54,6 +54,48 @@ typedef struct rt_pkt_ray {
     int tri_ready, exact_only;
 } rt_pkt_ray;
 
+/* A ray's triangle set-up, at its first leaf: for the exact test and for
+ * the per-ray float test (rt__pk_cand). */
+static inline void rt__pkt_ready(const rt_accel *a, rt_pkt_ray *s)
+{
+    if (!s->tri_ready) {
+        rt__ray_prepare_tri(&s->p);
+        rt__pkray_init(&s->p, a->vmax, s->exact_only, &s->pr);
+        s->tri_ready = 1;
+    }
+}
+
+/* For the lanes `slow` of leaf packet k, which the 16-ray test does not take
+ * (other primitives, lanes whose bound overflows): lanes[i] = the rays of
+ * act that the per-ray float test rt__pk_cand keeps for lane i, as the
+ * single walk's leaf code would. (Keeping every ray for such lanes, as the
+ * walks first did for double-vertex triangles too, sent all of a packet's
+ * rays to the exact test: packets were 1.5x slower than single rays in a
+ * room of 273 transformed bunnies.) */
+/* The used lanes of leaf packet k that the 16-ray test cannot take: not a
+ * triangle, or (ok, from rt__pkt_normals) a bound out of range. */
+static inline unsigned rt__pkt_slow_mask(const rt_pk *k, int ok)
+{
+    unsigned slow = 0;
+    for (int i = 0; i < RT_PK; i++)
+        if (k->ref[i] && ((k->ref[i] & RT_REF_LANE) == RT_REF_PRIM || !(ok >> i & 1)))
+            slow |= 1u << i;
+    return slow;
+}
+
+static inline void rt__pkt_slow_lanes(const rt_accel *a, const rt_pk *k, unsigned slow, uint64_t act, rt_pkt_ray *st,
+                                      uint64_t lanes[RT_PK])
+{
+    for (int i = 0; i < RT_PK; i++)
+        lanes[i] = 0;
+    for (uint64_t m = act; m; m &= m - 1) {
+        int r = __builtin_ctzll(m);
+        rt__pkt_ready(a, &st[r]);
+        for (unsigned c = rt__pk_cand(k, &st[r].pr) & slow; c; c &= c - 1)
+            lanes[__builtin_ctz(c)] |= (uint64_t)1 << r;
+    }
+}
+
 #if RT_BOX_SIMD == 3
 /* A shared-origin packet's frustum test (rays from one point, as a pinhole
  * camera's): one slab test for the whole packet, with 1/d per axis as the
@@ -109,8 +151,10 @@ static inline unsigned rt__box_frustum(const rt_wn *n, const rt_frustum *f, floa
  * dropped ray's exact U, V, W then have the signs the estimate says, and
  * the double test rejects the triangle too (for the same reason as in
  * rt__pk_cand, the long-double recomputation at zeros cannot change
- * that). Lanes with R >= 1e15 or R^2 D >= 1e30 (float overflow), double
- * copies (RT_REF_DBL) and other primitives keep every ray. */
+ * that). Triangles with double vertices (RT_REF_DBL) take the same test,
+ * their normals from the double copy (rt__pkt_normals). Lanes with R >=
+ * 1e15 or R^2 D >= 1e30 (float overflow) and other primitives go to the
+ * per-ray float test (rt__pkt_slow_lanes). */
 static inline uint64_t rt__pkt_tri_cand(const float n[9], float e0, int cull, uint64_t act, const float *dx,
                                         const float *dy, const float *dz)
 {
@@ -208,19 +252,37 @@ static inline float rt__max_cull(const float *cull)
  * delta D in T, with room), and the double test's own error is that of
  * vertices within R + D + delta of o: rpad = D + delta. Returns the lanes
  * whose bound is representable (bit i: lane i). */
-static inline int rt__pkt_normals(const rt_pk *k, double px, double py, double pz, double dmax, double rpad,
-                                  double delta, float nf[9][4], float e0[4])
+static inline int rt__pkt_normals(const rt_accel *a, const rt_pk *k, double px, double py, double pz, double dmax,
+                                  double rpad, double delta, float nf[9][4], float e0[4])
 {
     const __m256d ox = _mm256_set1_pd(px), oy = _mm256_set1_pd(py), oz = _mm256_set1_pd(pz);
-    __m256d ax = _mm256_sub_pd(_mm256_cvtps_pd(_mm_load_ps(k->v[0])), ox);
-    __m256d ay = _mm256_sub_pd(_mm256_cvtps_pd(_mm_load_ps(k->v[1])), oy);
-    __m256d az = _mm256_sub_pd(_mm256_cvtps_pd(_mm_load_ps(k->v[2])), oz);
-    __m256d bx = _mm256_sub_pd(_mm256_cvtps_pd(_mm_load_ps(k->v[3])), ox);
-    __m256d by = _mm256_sub_pd(_mm256_cvtps_pd(_mm_load_ps(k->v[4])), oy);
-    __m256d bz = _mm256_sub_pd(_mm256_cvtps_pd(_mm_load_ps(k->v[5])), oz);
-    __m256d cx = _mm256_sub_pd(_mm256_cvtps_pd(_mm_load_ps(k->v[6])), ox);
-    __m256d cy = _mm256_sub_pd(_mm256_cvtps_pd(_mm_load_ps(k->v[7])), oy);
-    __m256d cz = _mm256_sub_pd(_mm256_cvtps_pd(_mm_load_ps(k->v[8])), oz);
+    const __m256d absm = _mm256_castsi256_pd(_mm256_set1_epi64x(0x7fffffffffffffffLL));
+    __m256d va[9];
+    for (int c = 0; c < 9; c++)
+        va[c] = _mm256_cvtps_pd(_mm_load_ps(k->v[c]));
+    /* Double-vertex lanes (RT_REF_DBL): the normals from the double copy
+     * the exact test reads (v holds them rounded to float, and a bound for
+     * that rounding, D V (2^-19 R + 2^-43 V), kept nothing: for a bunny's
+     * small triangles 10 m from a light it exceeds T itself). */
+    unsigned dl = 0;
+    for (int i = 0; i < RT_PK; i++)
+        dl |= (unsigned)((k->ref[i] & RT_REF_LANE) == RT_REF_DBL) << i;
+    if (dl) {
+        double t[9][4];
+        for (int c = 0; c < 9; c++)
+            _mm256_storeu_pd(t[c], va[c]);
+        for (; dl; dl &= dl - 1) {
+            const int i = __builtin_ctz(dl);
+            const double *dv = rt__pk_dverts(a, k, i);
+            for (int c = 0; c < 9; c++)
+                t[c][i] = dv[c];
+        }
+        for (int c = 0; c < 9; c++)
+            va[c] = _mm256_loadu_pd(t[c]);
+    }
+    __m256d ax = _mm256_sub_pd(va[0], ox), ay = _mm256_sub_pd(va[1], oy), az = _mm256_sub_pd(va[2], oz);
+    __m256d bx = _mm256_sub_pd(va[3], ox), by = _mm256_sub_pd(va[4], oy), bz = _mm256_sub_pd(va[5], oz);
+    __m256d cx = _mm256_sub_pd(va[6], ox), cy = _mm256_sub_pd(va[7], oy), cz = _mm256_sub_pd(va[8], oz);
     __m256d nd[9] = {
         _mm256_sub_pd(_mm256_mul_pd(cy, bz), _mm256_mul_pd(cz, by)), /* c x b */
         _mm256_sub_pd(_mm256_mul_pd(cz, bx), _mm256_mul_pd(cx, bz)),
@@ -232,7 +294,6 @@ static inline int rt__pkt_normals(const rt_pk *k, double px, double py, double p
         _mm256_sub_pd(_mm256_mul_pd(bz, ax), _mm256_mul_pd(bx, az)),
         _mm256_sub_pd(_mm256_mul_pd(bx, ay), _mm256_mul_pd(by, ax)),
     };
-    const __m256d absm = _mm256_castsi256_pd(_mm256_set1_epi64x(0x7fffffffffffffffLL));
     __m256d R = _mm256_max_pd(_mm256_max_pd(_mm256_and_pd(ax, absm), _mm256_and_pd(ay, absm)),
                               _mm256_and_pd(az, absm));
     R = _mm256_max_pd(R, _mm256_max_pd(_mm256_max_pd(_mm256_and_pd(bx, absm), _mm256_and_pd(by, absm)),
@@ -464,13 +525,19 @@ int RT_WALKN(const rt_accel *a, const rr_ray *rays, int nr, double tmin, double 
                 const double ox = rays[0].o.x, oy = rays[0].o.y, oz = rays[0].o.z;
                 for (;; k++) {
                     float nf[9][4], e0[4];
-                    int ok = rt__pkt_normals(k, ox, oy, oz, dmax, 0.0, 0.0, nf, e0);
+                    int ok = rt__pkt_normals(a, k, ox, oy, oz, dmax, 0.0, 0.0, nf, e0);
+                    unsigned slow = rt__pkt_slow_mask(k, ok);
+                    uint64_t lanes[RT_PK];
+                    if (slow)
+                        rt__pkt_slow_lanes(a, k, slow, act, st, lanes);
                     for (int i = 0; i < RT_PK; i++) {
                         uint32_t fl = k->ref[i];
                         if (!fl)
                             continue;
-                        uint64_t cand = act;
-                        if ((fl & RT_REF_LANE) == RT_REF_FAST && (ok >> i & 1)) {
+                        uint64_t cand;
+                        if (slow >> i & 1) {
+                            cand = lanes[i];
+                        } else {
                             float n9[9];
                             for (int c = 0; c < 9; c++)
                                 n9[c] = nf[c][i];
@@ -479,10 +546,7 @@ int RT_WALKN(const rt_accel *a, const rr_ray *rays, int nr, double tmin, double 
                         for (; cand; cand &= cand - 1) {
                             int r = __builtin_ctzll(cand);
                             rt_pkt_ray *s = &st[r];
-                            if (!s->tri_ready) {
-                                rt__ray_prepare_tri(&s->p);
-                                s->tri_ready = 1;
-                            }
+                            rt__pkt_ready(a, s);
                             rt__lane_closest(a, k, i, &s->p, tmin, 0, 0, &s->b, &hits[r]);
                             cull[r] = s->b.cull;
                         }
@@ -497,11 +561,7 @@ int RT_WALKN(const rt_accel *a, const rr_ray *rays, int nr, double tmin, double 
             for (uint64_t m = act; m; m &= m - 1) {
                 int r = __builtin_ctzll(m);
                 rt_pkt_ray *s = &st[r];
-                if (!s->tri_ready) {
-                    rt__ray_prepare_tri(&s->p);
-                    rt__pkray_init(&s->p, a->vmax, s->exact_only, &s->pr);
-                    s->tri_ready = 1;
-                }
+                rt__pkt_ready(a, s);
                 rt__leaf_closest(a, k, &s->p, &s->pr, tmin, 0, 0, &s->b, &hits[r]);
                 cull[r] = s->b.cull;
             }
@@ -574,11 +634,6 @@ out:;
  * that a segment meets, grown by Delta, is met by the reversed ray at the
  * same s. Every ray still takes its own per-ray box test (rt__box_rays) at
  * nodes with leaf children. */
-typedef struct rt_occ_ray {
-    rt_ray_pre p;
-    rt_pkray pr;
-    int tri_ready, exact_only;
-} rt_occ_ray;
 
 typedef struct rt_occ_entry {
     uint64_t rays;
@@ -673,11 +728,11 @@ int RT_OCCLN(const rt_accel *a, const rr_ray *rays, int nr, double tmin, double 
         return c;
     }
     const rt_wn *wnodes = a->wnodes;
-    rt_occ_ray st[RT_PACKET_MAX];
+    rt_pkt_ray st[RT_PACKET_MAX];
     rt_boxops ops[RT_PACKET_MAX];
     uint64_t dbl = 0;
     for (int r = 0; r < nr; r++) {
-        rt_occ_ray *s = &st[r];
+        rt_pkt_ray *s = &st[r];
         rt__ray_prepare_box(rays[r], &s->p, 1);
         if (!(tmin >= 0.0))
             s->p.box_double = 1;
@@ -810,13 +865,19 @@ int RT_OCCLN(const rt_accel *a, const rr_ray *rays, int nr, double tmin, double 
                 /* 16 rays per triangle, then the exact test for the rays kept. */
                 for (const rt_pk *k = k0;; k++) {
                     float nf[9][4], e0[4];
-                    int ok = rt__pkt_normals(k, P[0], P[1], P[2], dmax, rpad, delta, nf, e0);
+                    int ok = rt__pkt_normals(a, k, P[0], P[1], P[2], dmax, rpad, delta, nf, e0);
+                    unsigned slow = rt__pkt_slow_mask(k, ok);
+                    uint64_t lanes[RT_PK];
+                    if (slow)
+                        rt__pkt_slow_lanes(a, k, slow, in[c] & ~done, st, lanes);
                     for (int i = 0; i < RT_PK; i++) {
                         uint32_t fl = k->ref[i];
                         uint64_t cand = in[c] & ~done;
                         if (!fl || !cand)
                             continue;
-                        if ((fl & RT_REF_LANE) == RT_REF_FAST && (ok >> i & 1)) {
+                        if (slow >> i & 1) {
+                            cand &= lanes[i];
+                        } else {
                             float n9[9];
                             for (int q = 0; q < 9; q++)
                                 n9[q] = nf[q][i];
@@ -824,11 +885,8 @@ int RT_OCCLN(const rt_accel *a, const rr_ray *rays, int nr, double tmin, double 
                         }
                         for (; cand; cand &= cand - 1) {
                             int r = __builtin_ctzll(cand);
-                            rt_occ_ray *s = &st[r];
-                            if (!s->tri_ready) {
-                                rt__ray_prepare_tri(&s->p);
-                                s->tri_ready = 1;
-                            }
+                            rt_pkt_ray *s = &st[r];
+                            rt__pkt_ready(a, s);
                             if (rt__lane_any(a, k, i, &s->p, tmin, tmax))
                                 done |= (uint64_t)1 << r;
                         }
@@ -841,12 +899,8 @@ int RT_OCCLN(const rt_accel *a, const rr_ray *rays, int nr, double tmin, double 
 #endif
             for (uint64_t m = in[c] & ~done; m; m &= m - 1) {
                 int r = __builtin_ctzll(m);
-                rt_occ_ray *s = &st[r];
-                if (!s->tri_ready) {
-                    rt__ray_prepare_tri(&s->p);
-                    rt__pkray_init(&s->p, a->vmax, s->exact_only, &s->pr);
-                    s->tri_ready = 1;
-                }
+                rt_pkt_ray *s = &st[r];
+                rt__pkt_ready(a, s);
                 for (const rt_pk *k = k0;; k++) {
                     unsigned lanes = rt__pk_cand(k, &s->pr);
                     for (; lanes; lanes &= lanes - 1)

@@ -97,17 +97,6 @@ typedef struct mis_state {
     rt_mirror_path path;
 } mis_state;
 
-/* The delta lights' samples at a camera ray's hit, found for a packet of
- * pixels at once (rt_lights_delta_n, so a point light's shadow rays go as
- * one packet): lit[k] and ls[k] are rt_lights_delta's answer for light k
- * at the hit point and shading normal, for scenes with at most
- * RT_PRE_LIGHTS delta lights (and their images). */
-#define RT_PRE_LIGHTS 8
-typedef struct delta_pre {
-    rt_light_sample ls[RT_PRE_LIGHTS];
-    unsigned char lit[RT_PRE_LIGHTS];
-} delta_pre;
-
 static rr_rgb radiance(const render_ctx *c, rr_ray ray, int depth, int bounce, const mis_state *mis, rr_rng *rng,
                        shade_out *out);
 
@@ -189,20 +178,14 @@ void rt_phong(rr_vec3 N, rr_vec3 L, rr_vec3 V, const scene_material *m, rr_rgb E
  * heuristic against nbw BSDF rays in all (nbw = nb, or 1 when the caller
  * takes a bounce ray; nbw = 0: pure light sampling). */
 static void direct_light(const render_ctx *c, rr_vec3 H, rr_vec3 N, rr_vec3 V, const scene_material *m, int nl, int nb,
-                         int nbw, int depth, const delta_pre *pre, rr_rng *rng, rr_rgb *diffuse, rr_rgb *specular)
+                         int nbw, int depth, rr_rng *rng, rr_rgb *diffuse, rr_rgb *specular)
 {
     const rt_lights *L = c->lights;
     size_t nd = rt_lights_delta_count(L);
     for (size_t k = 0; k < nd; k++) {
         rt_light_sample ls;
-        if (pre) {
-            if (!pre->lit[k])
-                continue;
-            ls = pre->ls[k];
-        } else if (!rt_lights_delta(L, k, H, N, &ls)) {
-            continue;
-        }
-        rt_phong(N, ls.L, V, m, ls.E, diffuse, specular);
+        if (rt_lights_delta(L, k, H, N, &ls))
+            rt_phong(N, ls.L, V, m, ls.E, diffuse, specular);
     }
     if (rt_lights_area_count(L) == 0)
         return;
@@ -303,7 +286,7 @@ static rr_rgb bounce_term(const render_ctx *c, const rt_hit *h, const scene_mate
 /* The lecture's shading at hit h seen along -V: emission, direct light with
  * shadow rays, Phong, mirrors, and the indirect term the options name. */
 static void shade_surface(const render_ctx *c, const rt_hit *h, rr_vec3 dir, rr_vec3 V, int depth, int bounce,
-                          const mis_state *mis, const delta_pre *pre, rr_rng *rng, shade_out *local)
+                          const mis_state *mis, rr_rng *rng, shade_out *local)
 {
     const scene *s = c->s;
     const scene_material *m = &s->materials[h->material];
@@ -323,7 +306,7 @@ static void shade_surface(const render_ctx *c, const rt_hit *h, rr_vec3 dir, rr_
      * importance sampling in every mode, not only with secondary rays). */
     int nbsdf = bounces || !rt_lights_near(c->lights, h->point) ? 0 : (nlight + 3) / 4;
     if (diffuse || rr_rgb_max(m->specular) > 0.0)
-        direct_light(c, h->point, N, V, m, nlight, nbsdf, bounces ? 1 : nbsdf, depth, pre, rng,
+        direct_light(c, h->point, N, V, m, nlight, nbsdf, bounces ? 1 : nbsdf, depth, rng,
                      &local->c[RT_LAYER_DIFFUSE], &local->c[RT_LAYER_SPECULAR]);
     if (indirect == RT_INDIRECT_AMBIENT)
         local->c[RT_LAYER_AMBIENT] = rr_rgb_scale(rr_rgb_mul(m->diffuse, s->settings.ambient), m->ambient);
@@ -336,7 +319,7 @@ static void shade_surface(const render_ctx *c, const rt_hit *h, rr_vec3 dir, rr_
 
 /* The radiance along ray, whose closest hit (found, h) is known. */
 static rr_rgb radiance_at(const render_ctx *c, rr_ray ray, int found, const rt_hit *h, int depth, int bounce,
-                          const mis_state *mis, const delta_pre *pre, rr_rng *rng, shade_out *out)
+                          const mis_state *mis, rr_rng *rng, shade_out *out)
 {
     const scene *s = c->s;
     if (!found) {
@@ -352,7 +335,7 @@ static rr_rgb radiance_at(const render_ctx *c, rr_ray ray, int found, const rt_h
     if (c->o->show_field)
         shade_field(c, h, V, depth, bounce, rng, &local);
     else
-        shade_surface(c, h, ray.d, V, depth, bounce, mis, pre, rng, &local);
+        shade_surface(c, h, ray.d, V, depth, bounce, mis, rng, &local);
     rr_rgb sum = rr_rgb_make(0, 0, 0);
     for (int i = 0; i < RT_LAYER_COUNT; i++)
         sum = rr_rgb_add(sum, local.c[i]);
@@ -366,7 +349,7 @@ static rr_rgb radiance(const render_ctx *c, rr_ray ray, int depth, int bounce, c
 {
     rt_hit h;
     int found = rt_accel_closest(c->a, ray, 0.0, INFINITY, &h);
-    return radiance_at(c, ray, found, &h, depth, bounce, mis, NULL, rng, out);
+    return radiance_at(c, ray, found, &h, depth, bounce, mis, rng, out);
 }
 
 /* Stratified sub-pixel offset for sample k of n, warped by the pixel filter:
@@ -407,38 +390,6 @@ typedef struct tile_px {
     shade_out acc;
 } tile_px;
 
-/* The delta lights at the hits of a packet of camera rays, for the pixels
- * that shade them (shade_surface calls direct_light for a diffuse or
- * specular material): pre[j] for hit j, every light's shadow rays of the
- * packet together (rt_lights_delta_n). The other pixels' entries are left
- * unset and unread. Returns 1. */
-static int packet_delta(const render_ctx *c, const rt_hit *hits, const unsigned char *found, int m, delta_pre *pre)
-{
-    rr_vec3 x[RT_PACKET_TILE * RT_PACKET_TILE], nrm[RT_PACKET_TILE * RT_PACKET_TILE];
-    rt_light_sample ls[RT_PACKET_TILE * RT_PACKET_TILE];
-    unsigned char lit[RT_PACKET_TILE * RT_PACKET_TILE];
-    int idx[RT_PACKET_TILE * RT_PACKET_TILE], u = 0;
-    for (int j = 0; j < m; j++) {
-        if (!found[j])
-            continue;
-        const scene_material *mt = &c->s->materials[hits[j].material];
-        if (rr_rgb_max(mt->diffuse) > 0.0 || rr_rgb_max(mt->specular) > 0.0) {
-            x[u] = hits[j].point;
-            nrm[u] = hits[j].normal;
-            idx[u++] = j;
-        }
-    }
-    size_t nd = rt_lights_delta_count(c->lights);
-    for (size_t k = 0; k < nd; k++) {
-        rt_lights_delta_n(c->lights, k, u, x, nrm, ls, lit);
-        for (int i = 0; i < u; i++) {
-            pre[idx[i]].ls[k] = ls[i];
-            pre[idx[i]].lit[k] = lit[i];
-        }
-    }
-    return 1;
-}
-
 /* Renders the tile at (x0, y0) into film; 0 when an interrupt stopped it
  * (the tile is then black, like the tiles never begun). Sample by sample
  * over the tile: the camera rays of sample k of every pixel are traced
@@ -467,9 +418,6 @@ static int render_tile(const render_ctx *c, int spp, int x0, int y0, rt_film *fi
             q->rng = rr_rng_make(o->seed, (uint64_t)(y0 + y) * (uint64_t)v->width + (uint64_t)(x0 + x));
             memset(&q->acc, 0, sizeof q->acc);
         }
-    enum { PK = RT_PACKET_TILE * RT_PACKET_TILE };
-    delta_pre pre[PK];
-    const int pre_lights = !o->show_field && rt_lights_delta_count(c->lights) <= RT_PRE_LIGHTS;
     int stopped = 0;
     for (int k = 0; k < spp && !stopped; k++) {
         for (int j = 0; j < n; j++) {
@@ -478,21 +426,20 @@ static int render_tile(const render_ctx *c, int spp, int x0, int y0, rt_film *fi
             pixel_offset(k, spp, o->filter, &px[p].rng, &dx, &dy);
             rays[j] = rr_view_ray(v, x0 + p % RT_TILE, y0 + p / RT_TILE, dx, dy);
         }
-        for (int j0 = 0; j0 < n && !stopped; j0 += PK) {
-            int m = n - j0 < PK ? n - j0 : PK;
-            rt_accel_closest_n(c->a, rays + j0, m, 0.0, INFINITY, hits + j0, found + j0);
-            int npre = pre_lights ? packet_delta(c, hits + j0, found + j0, m, pre) : 0;
-            for (int j = j0; j < j0 + m; j++) {
-                if (o->interrupt && *o->interrupt) {
-                    stopped = 1;
-                    break;
-                }
-                tile_px *q = &px[order[j]];
-                shade_out so;
-                radiance_at(c, rays[j], found[j], &hits[j], 0, 0, NULL, npre ? &pre[j - j0] : NULL, &q->rng, &so);
-                for (int i = 0; i < RT_LAYER_COUNT; i++)
-                    q->acc.c[i] = rr_rgb_add(q->acc.c[i], so.c[i]);
+        for (int j = 0; j < n; j += RT_PACKET_TILE * RT_PACKET_TILE) {
+            int m = n - j < RT_PACKET_TILE * RT_PACKET_TILE ? n - j : RT_PACKET_TILE * RT_PACKET_TILE;
+            rt_accel_closest_n(c->a, rays + j, m, 0.0, INFINITY, hits + j, found + j);
+        }
+        for (int j = 0; j < n; j++) {
+            if (o->interrupt && *o->interrupt) {
+                stopped = 1;
+                break;
             }
+            tile_px *q = &px[order[j]];
+            shade_out so;
+            radiance_at(c, rays[j], found[j], &hits[j], 0, 0, NULL, &q->rng, &so);
+            for (int i = 0; i < RT_LAYER_COUNT; i++)
+                q->acc.c[i] = rr_rgb_add(q->acc.c[i], so.c[i]);
         }
     }
     if (!stopped) {

@@ -306,6 +306,21 @@ static void bvh_negative_zero_direction(void **state)
 /* The same scene with every vertex rounded to float, so the BVH takes its fast
  * path (triangles copied into the leaf packets, rt_internal.h); the scene's
  * other data are not touched (only verts are read by the tests below). */
+/* Moves every vertex and sphere of s by off (nothing for off = 0), and its
+ * bounds. */
+static void move_scene(scene *s, rr_vec3 off)
+{
+    if (off.x == 0.0 && off.y == 0.0 && off.z == 0.0)
+        return;
+    for (size_t i = 0; i < s->nverts; i++)
+        s->verts[i] = rr_v3_add(s->verts[i], off);
+    for (size_t i = 0; i < s->nobjects; i++)
+        if (s->objects[i].kind == SCENE_OBJ_SPHERE)
+            s->objects[i].center = rr_v3_add(s->objects[i].center, off);
+    s->bbox_min = rr_v3_add(s->bbox_min, off);
+    s->bbox_max = rr_v3_add(s->bbox_max, off);
+}
+
 static void verts_to_float(scene *s)
 {
     /* Through volatile: GCC 12.2 at -O2 (SLP vectorizer) compiles the plain
@@ -640,14 +655,18 @@ static void packet_walk_matches_single(void **state)
     int ws[3], nw = widths_available(ws);
     static const int sizes[] = {1, 7, 16, 64, 100, 200};
     enum { MAXN = 200 };
-    for (int pass = 0; pass < 3; pass++) {
+    for (int pass = 0; pass < 4; pass++) {
         rr_rng rng = rr_rng_make(91, (uint64_t)pass);
-        char *json = pass < 2 ? random_scene(&rng, 600, 8) : uv_sphere_scene(40, 64, "\"auto\"");
+        char *json = pass != 2 ? random_scene(&rng, 600, 8) : uv_sphere_scene(40, 64, "\"auto\"");
         scene *s = NULL;
         assert_int_equal(scene_load_string(json, "packets", "", NULL, &s, &err), RR_OK);
         free(json);
-        if (pass >= 1)
+        if (pass == 1 || pass == 2)
             verts_to_float(s);
+        /* Pass 3: the scene far from the world origin, double vertices (their
+         * float copies' rounding then dwarfs the triangles' own float bound). */
+        const rr_vec3 off = pass == 3 ? rr_v3(1000.0, -500.0, 250.0) : rr_v3(0, 0, 0);
+        move_scene(s, off);
         for (int wi = 0; wi < nw; wi++) {
             rt_accel *a = NULL;
             assert_int_equal(rt__accel_build_width(s, ws[wi], &a, &err), RR_OK);
@@ -670,12 +689,14 @@ static void packet_walk_matches_single(void **state)
                          * functions exactly 0, where the float tests' error
                          * bounds decide (and the ties between triangles). */
                         const scene_tri *t = &s->tris[rr_rng_below(&rng, (uint32_t)s->ntris)];
-                        rr_vec3 p = s->verts[t->v[0]];
+                        rr_vec3 p = rr_v3_sub(s->verts[t->v[0]], off);
                         if (i % 2)
-                            p = rr_v3_scale(rr_v3_add(p, s->verts[t->v[1]]), 0.5);
+                            p = rr_v3_scale(rr_v3_add(p, rr_v3_sub(s->verts[t->v[1]], off)), 0.5);
                         r[i].d = rr_v3_sub(p, o);
                     }
                 }
+                for (int i = 0; i < n; i++)
+                    r[i].o = rr_v3_add(r[i].o, off);
                 double tmin = q % 13 == 0 ? -0.25 : q % 2 ? 1e-9 : 0.0;
                 double tmax = q % 4 == 0 ? 1.0 + 2.0 * rr_rng_uniform(&rng) : INFINITY;
                 memset(h, 0, sizeof h);
@@ -710,7 +731,8 @@ static void packet_walk_matches_single(void **state)
  * no 16-ray leaf test) or apart enough to leave the frustum off,
  * scattered rays, axis-parallel directions (the double box test), tmin < 0
  * and tmax < 0 (the closest walk's rule), counts that are not a multiple of
- * RT_PACKET_MAX. */
+ * RT_PACKET_MAX; triangles with double vertices (which the 16-ray leaf test
+ * hands to the per-ray one) and float ones. */
 static void packet_occluded_matches_single(void **state)
 {
     (void)state;
@@ -718,13 +740,18 @@ static void packet_occluded_matches_single(void **state)
     int ws[3], nw = widths_available(ws);
     static const int sizes[] = {1, 9, 16, 64, 100, 130};
     enum { MAXN = 130 };
-    for (int pass = 0; pass < 2; pass++) {
+    for (int pass = 0; pass < 4; pass++) {
         rr_rng rng = rr_rng_make(93, (uint64_t)pass);
-        char *json = pass == 0 ? random_scene(&rng, 40, 3) : uv_sphere_scene(40, 64, "\"auto\"");
+        char *json = pass != 2 ? random_scene(&rng, 40, 3) : uv_sphere_scene(40, 64, "\"auto\"");
         scene *s = NULL;
         assert_int_equal(scene_load_string(json, "packets", "", NULL, &s, &err), RR_OK);
         free(json);
-        verts_to_float(s);
+        if (pass == 1 || pass == 2) /* passes 0 and 3: double vertices */
+            verts_to_float(s);
+        /* Pass 3: far from the world origin, where the double vertices' float
+         * copies are off by more than the triangles' own float bound. */
+        const rr_vec3 off = pass == 3 ? rr_v3(1000.0, -500.0, 250.0) : rr_v3(0, 0, 0);
+        move_scene(s, off);
         for (int wi = 0; wi < nw; wi++) {
             rt_accel *a = NULL;
             assert_int_equal(rt__accel_build_width(s, ws[wi], &a, &err), RR_OK);
@@ -758,11 +785,13 @@ static void packet_occluded_matches_single(void **state)
                         r[i].d = rr_v3_sub(x, r[i].o);
                     } else { /* through a vertex from one end point */
                         const scene_tri *t = &s->tris[rr_rng_below(&rng, (uint32_t)s->ntris)];
-                        r[i].o = s->verts[t->v[i % 3]];
+                        r[i].o = rr_v3_sub(s->verts[t->v[i % 3]], off);
                         r[i].o = rr_v3_add(p, rr_v3_scale(rr_v3_sub(r[i].o, p), 1.5));
                         r[i].d = rr_v3_sub(p, r[i].o);
                     }
                 }
+                for (int i = 0; i < n; i++) /* o + d moves with o */
+                    r[i].o = rr_v3_add(r[i].o, off);
                 double tmin = q % 17 == 0 ? -0.25 : q % 2 ? 1e-9 : 0.0;
                 int tk = (q / 36) % 5;
                 double tmax = tk == 0 ? 1.0 - 1e-7 : tk == 1 ? 1.0 : tk == 2 ? 0.3 + 0.5 * rr_rng_uniform(&rng)
