@@ -30,7 +30,7 @@ def parse(path):
             m = re.search(r'(\d+) ms .*?(\d+) nodes.*?([\d.]+) bytes/triangle', line)
             d[(scene, 'build ms', 1)] = float(m.group(1))
             d[(scene, 'bytes/tri', 1)] = float(m.group(3))
-        elif line.split() and line.split()[0] in ('primary', 'diffuse', 'shadow', 'packets'):
+        elif line.split() and line.split()[0] in ('primary', 'diffuse', 'shadow', 'packets', 'shadowpk'):
             w = line.split()
             d[(scene, w[0], int(w[1]))] = float(w[4])
     return d

@@ -225,9 +225,12 @@ int rt_accel_closest_n(const rt_accel *a, const rr_ray *rays, int n, double tmin
 int rt_accel_occluded(const rt_accel *a, rr_ray ray, double tmin, double tmax);
 /* rt_accel_occluded for n rays at once (any n >= 0), in packets of up to
  * RT_PACKET_MAX: occ[i] = rt_accel_occluded(a, rays[i], tmin, tmax), bit for
- * bit. Faster for coherent rays: rays from one point, or rays that end at
- * one point (o + d the same, tmax <= 1: the shadow rays of a tile towards
- * one point light or light sample). Returns the number occluded. */
+ * bit. Faster for coherent rays on large meshes: rays from one point, or
+ * rays that end at one point (o + d the same, tmax <= 1: the shadow rays of
+ * a tile towards one point light), 1.7-2x one at a time on the bench's
+ * 100k-1M triangle scenes; rays to different points of an area light gain
+ * 1.1-1.3x there, and nothing on small scenes (notes/performance.md).
+ * Returns the number occluded. */
 int rt_accel_occluded_n(const rt_accel *a, const rr_ray *rays, int n, double tmin, double tmax, unsigned char *occ);
 /* Rays traced through rt_accel_closest (camera, mirror, bounce and BSDF
  * rays, area-light shadow rays, which must meet the emitter, form-factor

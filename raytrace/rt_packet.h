@@ -1,5 +1,5 @@
-/* rt_packet.h - private to raytrace/: the packet walk (RT_WALKN,
- * rt_accel_closest_n) of one node width. Included by rt_wide.h, inside its
+/* rt_packet.h - private to raytrace/: the packet walks (RT_WALKN,
+ * rt_accel_closest_n; RT_OCCLN, rt_accel_occluded_n) of one node width. Included by rt_wide.h, inside its
  * RT_WALK part, when the file defines RT_WALKN: it uses that width's box
  * tests (rt__box4_fast, rt__box4_double, rt_boxops), the leaf code of the
  * single walk (rt_best, rt__lane_closest, rt__leaf_closest) and

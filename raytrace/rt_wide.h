@@ -3,13 +3,13 @@
  * per translation unit (the width-independent kernel is rt_kernel.h).
  *
  * A file defines RT_W (4, 8 or 16; 4 if not) and, to get the walks, RT_WALK
- * (the closest-hit walk's name), RT_OCCL (the any-hit walk) and RT_WALKN
- * (the packet walk, rt_accel_closest_n), then includes this header:
- * rt_traverse.c instantiates rt__walk4 / rt__occl4 / rt__walkn4,
- * rt_bvh_avx2.c (compiled for AVX2) the 8-wide ones, rt_bvh_avx512.c
- * (compiled for AVX-512F) the 16-wide ones. The packet walk's frustum and
- * 16-ray tests exist on 16-wide nodes only; the other widths walk packets
- * with per-ray tests.
+ * (the closest-hit walk's name), RT_OCCL (the any-hit walk), RT_WALKN and
+ * RT_OCCLN (the packet walks, rt_accel_closest_n and rt_accel_occluded_n,
+ * in rt_packet.h), then includes this header: rt_traverse.c instantiates
+ * rt__walk4 / rt__occl4 / rt__walkn4 / rt__occln4, rt_bvh_avx2.c (compiled
+ * for AVX2) the 8-wide ones, rt_bvh_avx512.c (compiled for AVX-512F) the
+ * 16-wide ones. The packet walks' frustum and 16-ray tests exist on 16-wide
+ * nodes only; the other widths walk packets with per-ray tests.
  *
  * Versions of the box test, one contract (tests/test_bvh.c checks that they
  * agree and that none culls a box the ray touches):
