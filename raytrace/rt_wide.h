@@ -5,7 +5,7 @@
  * A file defines RT_W (4, 8 or 16; 4 if not) and, to get the walks, RT_WALK
  * (the closest-hit walk's name), RT_OCCL (the any-hit walk), RT_WALKN and
  * RT_OCCLN (the packet walks, rt_accel_closest_n and rt_accel_occluded_n,
- * in rt_packet.h), then includes this header: rt_traverse.c instantiates
+ * in rt_packet.h and rt_packet_occl.h), then includes this header: rt_traverse.c instantiates
  * rt__walk4 / rt__occl4 / rt__walkn4 / rt__occln4, rt_bvh_avx2.c (compiled
  * for AVX2) the 8-wide ones, rt_bvh_avx512.c (compiled for AVX-512F) the
  * 16-wide ones. The packet walks' frustum and 16-ray tests exist on 16-wide
@@ -591,6 +591,9 @@ out:
 
 #ifdef RT_WALKN
 #include "rt_packet.h" /* the packet walk, on this width's box tests and rt__lane_closest */
+#endif
+#ifdef RT_OCCLN
+#include "rt_packet_occl.h" /* the packet any-hit walk, on rt_packet.h's set-up and rt__lane_any */
 #endif
 #endif /* RT_WALK */
 
