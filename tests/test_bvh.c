@@ -3,7 +3,7 @@
  * box the ray touches; the leaf packets' triangles against the reference; both
  * node widths give the same hits; the any-hit walk against the ordered one;
  * the float rounding helpers. (The BVH against the lecture's reference and
- * its watertightness: test_raytrace.c.) */
+ * its watertightness: test_raytrace.c; the packet walks: test_packet.c.) */
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -16,6 +16,7 @@
 
 #include "rt.h"
 #include "rt_wide.h" /* private header of raytrace/ */
+#include "test_bvh_util.h"
 #include "test_scenes.h"
 
 #define assert_near(a, b, tol) assert_true(fabs((double)(a) - (double)(b)) <= (tol))
@@ -303,36 +304,6 @@ static void bvh_negative_zero_direction(void **state)
     scene_destroy(s);
 }
 
-/* The same scene with every vertex rounded to float, so the BVH takes its fast
- * path (triangles copied into the leaf packets, rt_internal.h); the scene's
- * other data are not touched (only verts are read by the tests below). */
-/* Moves every vertex and sphere of s by off (nothing for off = 0), and its
- * bounds. */
-static void move_scene(scene *s, rr_vec3 off)
-{
-    if (off.x == 0.0 && off.y == 0.0 && off.z == 0.0)
-        return;
-    for (size_t i = 0; i < s->nverts; i++)
-        s->verts[i] = rr_v3_add(s->verts[i], off);
-    for (size_t i = 0; i < s->nobjects; i++)
-        if (s->objects[i].kind == SCENE_OBJ_SPHERE)
-            s->objects[i].center = rr_v3_add(s->objects[i].center, off);
-    s->bbox_min = rr_v3_add(s->bbox_min, off);
-    s->bbox_max = rr_v3_add(s->bbox_max, off);
-}
-
-static void verts_to_float(scene *s)
-{
-    /* Through volatile: GCC 12.2 at -O2 (SLP vectorizer) compiles the plain
-     * s->verts[i] = rr_v3((float)x, (float)y, (float)z) loop to round z
-     * alone, so these tests ran on double vertices (the slow path) unnoticed;
-     * bvh_widths_agree now checks that the lanes are fast. */
-    for (size_t i = 0; i < s->nverts; i++) {
-        volatile float x = (float)s->verts[i].x, y = (float)s->verts[i].y, z = (float)s->verts[i].z;
-        s->verts[i] = rr_v3(x, y, z);
-    }
-}
-
 /* bvh_matches_reference_random, on float vertices (the fast path, mixed with
  * spheres in the same leaves). */
 static void bvh_fast_path_matches_reference_random(void **state)
@@ -468,18 +439,6 @@ static void bvh_fast_path_large_and_watertight(void **state)
  * The nodes are 64-byte aligned (aligned SIMD loads). RADRAY_BVH_WIDTH=4 or
  * 8 selects that width. */
 
-/* The widths this build and CPU walk: 4, then 8 and 16 where available. */
-static int widths_available(int w[3])
-{
-    int n = 0;
-    w[n++] = 4;
-    if (rt__bvh_width_ok(8))
-        w[n++] = 8;
-    if (rt__bvh_width_ok(16))
-        w[n++] = 16;
-    return n;
-}
-
 /* rt__walkN of width w (the ordered walk, any-hit mode). */
 static int walk_any(const rt_accel *a, int w, rr_ray r, double tmin, double tmax)
 {
@@ -492,17 +451,6 @@ static int walk_any(const rt_accel *a, int w, rr_ray r, double tmin, double tmax
         return rt__walk8(a, r, tmin, tmax, NULL, 1);
 #endif
     return w == 4 ? rt__walk4(a, r, tmin, tmax, NULL, 1) : -1;
-}
-static int same_hit(int f1, const rt_hit *h1, int f2, const rt_hit *h2)
-{
-    if (f1 != f2)
-        return 0;
-    if (!f1)
-        return 1;
-    return h1->tri == h2->tri && h1->object == h2->object && h1->material == h2->material && h1->part == h2->part &&
-           h1->front == h2->front && memcmp(&h1->t, &h2->t, sizeof h1->t) == 0 &&
-           memcmp(&h1->normal, &h2->normal, sizeof h1->normal) == 0 &&
-           memcmp(&h1->point, &h2->point, sizeof h1->point) == 0;
 }
 
 static void bvh_widths_agree(void **state)
@@ -635,182 +583,6 @@ static void bvh_occluded_matches_walk(void **state)
                 occl += f;
             }
             assert_true(occl > n / 10 && occl < n - n / 10);
-            rt_accel_destroy(a);
-        }
-        scene_destroy(s);
-    }
-}
-
-/* rt_accel_closest_n gives every ray of a packet rt_accel_closest's hit, bit
- * for bit, at every width: packets from one origin, narrow (the 16-wide
- * walk's frustum, which lets whole packets through untested) and wide, from
- * scattered origins, with axis-parallel directions (the double box test),
- * tmin < 0 and finite tmax mixed in, and counts that are not a multiple of
- * RT_PACKET_MAX (the call splits them). On a UV sphere of shared edges and
- * vertices too, where ties between triangles decide the hit. */
-static void packet_walk_matches_single(void **state)
-{
-    (void)state;
-    rr_error err;
-    int ws[3], nw = widths_available(ws);
-    static const int sizes[] = {1, 7, 16, 64, 100, 200};
-    enum { MAXN = 200 };
-    for (int pass = 0; pass < 4; pass++) {
-        rr_rng rng = rr_rng_make(91, (uint64_t)pass);
-        char *json = pass != 2 ? random_scene(&rng, 600, 8) : uv_sphere_scene(40, 64, "\"auto\"");
-        scene *s = NULL;
-        assert_int_equal(scene_load_string(json, "packets", "", NULL, &s, &err), RR_OK);
-        free(json);
-        if (pass == 1 || pass == 2)
-            verts_to_float(s);
-        /* Pass 3: the scene far from the world origin, double vertices (their
-         * float copies' rounding then dwarfs the triangles' own float bound). */
-        const rr_vec3 off = pass == 3 ? rr_v3(1000.0, -500.0, 250.0) : rr_v3(0, 0, 0);
-        move_scene(s, off);
-        for (int wi = 0; wi < nw; wi++) {
-            rt_accel *a = NULL;
-            assert_int_equal(rt__accel_build_width(s, ws[wi], &a, &err), RR_OK);
-            long hits = 0, rays = 0;
-            for (int q = 0; q < 600; q++) {
-                int n = sizes[q % 6], kind = (q / 6) % 6;
-                rr_ray r[MAXN];
-                rt_hit h[MAXN];
-                unsigned char f[MAXN];
-                rr_vec3 o = rr_v3_scale(random_unit(&rng), 1.5 + rr_rng_uniform(&rng));
-                rr_vec3 c = random_point(&rng, pass < 2 ? 1.0 : 0.6);
-                double spread = kind == 0 ? 1e-3 : kind == 1 ? 0.05 : 0.8;
-                for (int i = 0; i < n; i++) {
-                    r[i].o = kind == 3 ? random_point(&rng, 2.0) : o;
-                    r[i].d = rr_v3_sub(rr_v3_add(c, rr_v3_scale(random_point(&rng, 1.0), spread)), r[i].o);
-                    if (kind == 4 && i % 5 == 0)
-                        r[i].d.y = i % 10 ? 0.0 : -0.0; /* the double box test for this ray */
-                    if (kind == 5) {
-                        /* Through a vertex or an edge's midpoint: edge
-                         * functions exactly 0, where the float tests' error
-                         * bounds decide (and the ties between triangles). */
-                        const scene_tri *t = &s->tris[rr_rng_below(&rng, (uint32_t)s->ntris)];
-                        rr_vec3 p = rr_v3_sub(s->verts[t->v[0]], off);
-                        if (i % 2)
-                            p = rr_v3_scale(rr_v3_add(p, rr_v3_sub(s->verts[t->v[1]], off)), 0.5);
-                        r[i].d = rr_v3_sub(p, o);
-                    }
-                }
-                for (int i = 0; i < n; i++)
-                    r[i].o = rr_v3_add(r[i].o, off);
-                double tmin = q % 13 == 0 ? -0.25 : q % 2 ? 1e-9 : 0.0;
-                double tmax = q % 4 == 0 ? 1.0 + 2.0 * rr_rng_uniform(&rng) : INFINITY;
-                memset(h, 0, sizeof h);
-                int nh = rt_accel_closest_n(a, r, n, tmin, tmax, h, f), count = 0;
-                for (int i = 0; i < n; i++) {
-                    rt_hit g;
-                    memset(&g, 0, sizeof g);
-                    int fg = rt_accel_closest(a, r[i], tmin, tmax, &g);
-                    if (!same_hit(f[i], &h[i], fg, &g))
-                        fprintf(stderr, "width %d packet %d ray %d: %d %d tri %lld %lld t %.17g %.17g\n", ws[wi], q,
-                                i, f[i], fg, (long long)h[i].tri, (long long)g.tri, h[i].t, g.t);
-                    assert_true(same_hit(f[i], &h[i], fg, &g));
-                    count += fg;
-                }
-                assert_int_equal(nh, count);
-                hits += count;
-                rays += n;
-            }
-            /* Neither all misses nor all hits: the packets meet the scene. */
-            assert_true(hits > rays / 10 && hits < rays - rays / 20);
-            rt_accel_destroy(a);
-        }
-        scene_destroy(s);
-    }
-}
-
-/* rt_accel_occluded_n gives every ray rt_accel_occluded's answer, at every
- * width: packets that share an origin, packets that share an end point
- * o + d (shadow rays towards a point: the 16-wide walk's reversed frustum,
- * with tmax just under 1, 1 itself, or less), end points a few ulps apart
- * (the frustum's Delta) or spread over a small light (a wider frustum,
- * no 16-ray leaf test) or apart enough to leave the frustum off,
- * scattered rays, axis-parallel directions (the double box test), tmin < 0
- * and tmax < 0 (the closest walk's rule), counts that are not a multiple of
- * RT_PACKET_MAX; triangles with double vertices (which the 16-ray leaf test
- * hands to the per-ray one) and float ones. */
-static void packet_occluded_matches_single(void **state)
-{
-    (void)state;
-    rr_error err;
-    int ws[3], nw = widths_available(ws);
-    static const int sizes[] = {1, 9, 16, 64, 100, 130};
-    enum { MAXN = 130 };
-    for (int pass = 0; pass < 4; pass++) {
-        rr_rng rng = rr_rng_make(93, (uint64_t)pass);
-        char *json = pass != 2 ? random_scene(&rng, 40, 3) : uv_sphere_scene(40, 64, "\"auto\"");
-        scene *s = NULL;
-        assert_int_equal(scene_load_string(json, "packets", "", NULL, &s, &err), RR_OK);
-        free(json);
-        if (pass == 1 || pass == 2) /* passes 0 and 3: double vertices */
-            verts_to_float(s);
-        /* Pass 3: far from the world origin, where the double vertices' float
-         * copies are off by more than the triangles' own float bound. */
-        const rr_vec3 off = pass == 3 ? rr_v3(1000.0, -500.0, 250.0) : rr_v3(0, 0, 0);
-        move_scene(s, off);
-        for (int wi = 0; wi < nw; wi++) {
-            rt_accel *a = NULL;
-            assert_int_equal(rt__accel_build_width(s, ws[wi], &a, &err), RR_OK);
-            long occl = 0, rays = 0;
-            for (int q = 0; q < 840; q++) {
-                int n = sizes[q % 6], kind = (q / 6) % 7;
-                rr_ray r[MAXN];
-                unsigned char f[MAXN];
-                rr_vec3 p = random_point(&rng, 1.2); /* the shared point */
-                rr_vec3 c = random_point(&rng, 0.8);
-                double spread = q % 3 == 0 ? 0.02 : 0.6;
-                for (int i = 0; i < n; i++) {
-                    rr_vec3 x = rr_v3_add(c, rr_v3_scale(random_point(&rng, 1.0), spread));
-                    if (kind == 0) { /* from one origin */
-                        r[i].o = p;
-                        r[i].d = rr_v3_sub(x, p);
-                    } else if (kind <= 3 || kind == 6) { /* to one end point (as nearly as o + d rounds) */
-                        rr_vec3 e = p;
-                        if (kind == 6) /* to points of a small light: a wider frustum */
-                            e = rr_v3_add(p, rr_v3_scale(random_point(&rng, 1.0), 0.05));
-                        if (kind == 2) /* a few ulps apart */
-                            e = rr_v3_add(p, rr_v3_scale(random_point(&rng, 1.0), 1e-15));
-                        if (kind == 3 && i == n / 2) /* one ray elsewhere: no frustum */
-                            e = rr_v3_add(p, rr_v3(1.5, 0.0, 0.0));
-                        r[i].o = x;
-                        r[i].d = rr_v3_sub(e, x);
-                        if (kind == 1 && i % 7 == 3)
-                            r[i].d.z = 0.0; /* the double box test; this packet takes no frustum */
-                    } else if (kind == 4) { /* scattered */
-                        r[i].o = random_point(&rng, 2.0);
-                        r[i].d = rr_v3_sub(x, r[i].o);
-                    } else { /* through a vertex from one end point */
-                        const scene_tri *t = &s->tris[rr_rng_below(&rng, (uint32_t)s->ntris)];
-                        r[i].o = rr_v3_sub(s->verts[t->v[i % 3]], off);
-                        r[i].o = rr_v3_add(p, rr_v3_scale(rr_v3_sub(r[i].o, p), 1.5));
-                        r[i].d = rr_v3_sub(p, r[i].o);
-                    }
-                }
-                for (int i = 0; i < n; i++) /* o + d moves with o */
-                    r[i].o = rr_v3_add(r[i].o, off);
-                double tmin = q % 17 == 0 ? -0.25 : q % 2 ? 1e-9 : 0.0;
-                int tk = (q / 36) % 5;
-                double tmax = tk == 0 ? 1.0 - 1e-7 : tk == 1 ? 1.0 : tk == 2 ? 0.3 + 0.5 * rr_rng_uniform(&rng)
-                                                  : tk == 3 ? INFINITY : (q % 11 == 0 ? -1.0 : 1.0 - 1e-7);
-                memset(f, 7, sizeof f);
-                int no = rt_accel_occluded_n(a, r, n, tmin, tmax, f), count = 0;
-                for (int i = 0; i < n; i++) {
-                    int g = rt_accel_occluded(a, r[i], tmin, tmax);
-                    if (f[i] != g)
-                        fprintf(stderr, "width %d packet %d (kind %d) ray %d: %d %d\n", ws[wi], q, kind, i, f[i], g);
-                    assert_int_equal(f[i], g);
-                    count += g;
-                }
-                assert_int_equal(no, count);
-                occl += count;
-                rays += n;
-            }
-            /* Neither all clear nor all occluded. */
-            assert_true(occl > rays / 10 && occl < rays - rays / 10);
             rt_accel_destroy(a);
         }
         scene_destroy(s);
@@ -994,8 +766,6 @@ int main(void)
         cmocka_unit_test(bvh_build_threads_same_tree),
         cmocka_unit_test(bvh_widths_agree),
         cmocka_unit_test(bvh_occluded_matches_walk),
-        cmocka_unit_test(packet_walk_matches_single),
-        cmocka_unit_test(packet_occluded_matches_single),
         cmocka_unit_test(f_round_matches_nextafter),
         cmocka_unit_test(pk_float_test_conservative),
     };
