@@ -242,7 +242,7 @@ int rt__walkn4(const rt_accel *a, const rr_ray *rays, int nr, double tmin, doubl
  * rt__walkN with any != 0, without ordering the children (rt_wide.h). */
 int rt__occl4(const rt_accel *a, rr_ray ray, double tmin, double tmax);
 /* The packet any-hit walks (rt_accel_occluded_n): nr <= RT_PACKET_MAX rays,
- * occ[r] = rt__occlN's answer for ray r (rt_packet.h). */
+ * occ[r] = rt__occlN's answer for ray r (rt_packet_occl.h). */
 int rt__occln4(const rt_accel *a, const rr_ray *rays, int nr, double tmin, double tmax, unsigned char *occ);
 #if RT_HAVE_W8
 int rt__walk8(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_hit *hit, int mode);

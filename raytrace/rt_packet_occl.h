@@ -20,7 +20,7 @@
  * untested inner children, possibly more; an exact hit lies in every box
  * around it, which the single walk's conservative box test enters), and
  * the lanes are tested by RT_OCCL's own code (rt__lane_any): the same
- * answer as rt_accel_occluded for every ray (test_bvh checks it).
+ * answer as rt_accel_occluded for every ray (test_packet checks it).
  *
  * On 16-wide nodes a packet takes the frustum path of RT_WALKN when its
  * rays share their origin (a point light's rays to surface points), or
