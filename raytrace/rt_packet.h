@@ -24,7 +24,7 @@
  * Each ray therefore meets every leaf whose boxes down from the root it
  * enters within its best hit, as in RT_WALK, and keeps the best hit by the
  * same tie rules, which do not depend on the order the leaves are met in:
- * the same hit as RT_WALK for every ray, bit for bit (test_bvh checks it).
+ * the same hit as RT_WALK for every ray, bit for bit (test_packet checks it).
  * What it saves: a node's box planes are loaded once per packet instead of
  * once per ray, and the rays' tests are independent of each other, so the
  * processor overlaps them (one ray's walk is a chain of dependent loads). It
