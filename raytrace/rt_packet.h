@@ -138,7 +138,7 @@ static inline unsigned rt__box_frustum(const rt_wn *n, const rt_frustum *f, floa
  * vertices from the origin, the watertight test's edge functions are
  * U = d.(c x b) / |d_kz|, V = d.(a x c) / |d_kz|, W = d.(b x a) / |d_kz|
  * exactly (the shear and the axis swap for d_kz < 0 cancel; checked
- * numerically, and by test_bvh through the walk), so their signs are
+ * numerically, and by test_packet through the walk), so their signs are
  * those of T = d.n for the three edge normals n, computed once per triangle
  * in double and rounded to float. A ray is dropped for a triangle, as
  * rt__pk_cand drops it, when one T is below -E and another above E, or all
