@@ -317,6 +317,17 @@ static inline int rt__pkt_normals(const rt_accel *a, const rt_pk *k, double px, 
 }
 #endif
 
+/* A leaf takes the 16-ray test only for more than this many active rays:
+ * for fewer, each triangle's normals in double cost more than the per-ray
+ * float test of its packet saves (bunny-1m's packets meet a leaf with about
+ * 5 rays). `bench/bench-pair.sh 3 --threads 1`, 8 against 0: packets /
+ * primary up 21 % on bunny-1m and 10 % on mesh-1m, shadowpk / shadow up
+ * 4 % and 3 %; 16 against 8 on bunny-1m: packets the same, shadowpk 8 %
+ * down. */
+#ifndef RT_PKT_TRI16_MIN
+#define RT_PKT_TRI16_MIN 8
+#endif
+
 /* ---- the packet walks' shared set-up ---- */
 
 /* Each ray's box set-up (rt_boxops) and walk state; returns the rays whose
@@ -567,7 +578,7 @@ int RT_WALKN(const rt_accel *a, const rr_ray *rays, int nr, double tmin, double 
         } else {
             const rt_pk *k = &a->pks[cur & ~RT_LEAF];
 #if RT_BOX_SIMD == 3
-            if (so) {
+            if (so && __builtin_popcountll(act) > RT_PKT_TRI16_MIN) {
                 const double ox = rays[0].o.x, oy = rays[0].o.y, oz = rays[0].o.z;
                 for (;; k++) {
                     float nf[9][4], e0[4];

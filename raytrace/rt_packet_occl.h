@@ -214,7 +214,7 @@ int RT_OCCLN(const rt_accel *a, const rr_ray *rays, int nr, double tmin, double 
             int c = __builtin_ctz(leaves);
             const rt_pk *k0 = &a->pks[n->child[c] & ~RT_LEAF];
 #if RT_BOX_SIMD == 3
-            if (tri16) {
+            if (tri16 && __builtin_popcountll(in[c] & ~done) > RT_PKT_TRI16_MIN) {
                 /* 16 rays per triangle, then the exact test for the rays kept. */
                 for (const rt_pk *k = k0;; k++) {
                     float nf[9][4], e0[4];

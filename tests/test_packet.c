@@ -192,11 +192,107 @@ static void packet_occluded_matches_single(void **state)
     }
 }
 
+/* A flat n x n grid of small triangles in z = 0 (vertices jittered in x and
+ * y, so they are doubles), double-sided, centred on the origin. */
+static char *grid_scene(int n, rr_rng *rng)
+{
+    size_t nv = (size_t)(n + 1) * (n + 1), cap = nv * 80 + (size_t)n * n * 48 + 1024, len = 0;
+    char *buf = malloc(cap);
+    len += (size_t)snprintf(buf + len, cap - len,
+                            "{\"format\":\"radray-scene/1\",\"camera\":{\"type\":\"lecture\",\"E\":[0,0,5],"
+                            "\"O\":[0,0,4],\"U\":[0,1,0],\"s\":0.1,\"w\":2,\"h\":2},"
+                            "\"materials\":{\"a\":{\"diffuse\":[0.5,0.5,0.5]}},\"objects\":["
+                            "{\"type\":\"triangles\",\"material\":\"a\",\"cull\":false,\"vertices\":[");
+    for (int i = 0; i <= n; i++)
+        for (int j = 0; j <= n; j++) {
+            double x = -1 + 2.0 * j / n + 0.3 / n * (rr_rng_uniform(rng) - 0.5);
+            double y = -1 + 2.0 * i / n + 0.3 / n * (rr_rng_uniform(rng) - 0.5);
+            len += (size_t)snprintf(buf + len, cap - len, "%s[%.17g,%.17g,0]", i || j ? "," : "", x, y);
+        }
+    len += (size_t)snprintf(buf + len, cap - len, "],\"indices\":[");
+    for (int i = 0; i < n; i++)
+        for (int j = 0; j < n; j++) {
+            int v = i * (n + 1) + j;
+            len += (size_t)snprintf(buf + len, cap - len, "%s[%d,%d,%d],[%d,%d,%d]", i || j ? "," : "", v, v + 1,
+                                    v + n + 2, v, v + n + 2, v + n + 1);
+        }
+    snprintf(buf + len, cap - len, "]}]}");
+    return buf;
+}
+
+/* The 16-ray leaf test's bound, where any-hit answers hang on it: shadow
+ * rays from below a flat grid to one end point above it, each through an
+ * inner vertex or an edge's midpoint of the grid, the only surface on the
+ * segment. The watertight test gives exactly one of the triangles around
+ * such a point the hit, so a triangle the 16-ray test drops wrongly turns
+ * an occluded ray clear. Grids at the world origin and 1000 units from it
+ * (double vertices). */
+static void packet_occluded_through_vertices(void **state)
+{
+    (void)state;
+    rr_error err;
+    int ws[3], nw = widths_available(ws);
+    enum { N = 24, MAXN = 64 };
+    for (int pass = 0; pass < 2; pass++) {
+        rr_rng rng = rr_rng_make(95, (uint64_t)pass);
+        char *json = grid_scene(N, &rng);
+        scene *s = NULL;
+        assert_int_equal(scene_load_string(json, "grid", "", NULL, &s, &err), RR_OK);
+        free(json);
+        const rr_vec3 off = pass ? rr_v3(1000.0, -500.0, 250.0) : rr_v3(0, 0, 0);
+        move_scene(s, off);
+        for (int wi = 0; wi < nw; wi++) {
+            rt_accel *a = NULL;
+            assert_int_equal(rt__accel_build_width(s, ws[wi], &a, &err), RR_OK);
+            long occl = 0, rays = 0;
+            for (int q = 0; q < 300; q++) {
+                int n = q % 3 == 0 ? 16 : MAXN;
+                rr_ray r[MAXN];
+                unsigned char f[MAXN];
+                /* The end point above the grid, the points near each other
+                 * (a tile's worth) or anywhere. */
+                rr_vec3 p = rr_v3_add(off, rr_v3(rr_rng_uniform(&rng) - 0.5, rr_rng_uniform(&rng) - 0.5,
+                                                 0.3 + 2.0 * rr_rng_uniform(&rng)));
+                int ci = 1 + (int)rr_rng_below(&rng, N - 2), cj = 1 + (int)rr_rng_below(&rng, N - 2);
+                int span = q % 2 ? 2 : N - 2;
+                for (int i = 0; i < n; i++) {
+                    int vi = ci + (int)rr_rng_below(&rng, (uint32_t)span), vj = cj + (int)rr_rng_below(&rng, (uint32_t)span);
+                    vi = vi < 1 ? 1 : vi > N - 1 ? N - 1 : vi;
+                    vj = vj < 1 ? 1 : vj > N - 1 ? N - 1 : vj;
+                    rr_vec3 v = s->verts[(size_t)vi * (N + 1) + (size_t)vj];
+                    if (i % 3 == 1) /* an edge's midpoint */
+                        v = rr_v3_scale(rr_v3_add(v, s->verts[(size_t)vi * (N + 1) + (size_t)vj + 1]), 0.5);
+                    else if (i % 3 == 2) /* a diagonal's */
+                        v = rr_v3_scale(rr_v3_add(v, s->verts[(size_t)(vi + 1) * (N + 1) + (size_t)vj + 1]), 0.5);
+                    r[i].o = rr_v3_add(v, rr_v3_scale(rr_v3_sub(v, p), 0.5));
+                    r[i].d = rr_v3_sub(p, r[i].o);
+                }
+                int no = rt_accel_occluded_n(a, r, n, 0.0, RT_SHADOW_END, f), count = 0;
+                for (int i = 0; i < n; i++) {
+                    int g = rt_accel_occluded(a, r[i], 0.0, RT_SHADOW_END);
+                    if (f[i] != g)
+                        fprintf(stderr, "grid pass %d width %d packet %d ray %d: %d %d\n", pass, ws[wi], q, i, f[i], g);
+                    assert_int_equal(f[i], g);
+                    count += g;
+                }
+                assert_int_equal(no, count);
+                occl += count;
+                rays += n;
+            }
+            /* The grid is the only surface and every segment crosses it. */
+            assert_true(occl == rays);
+            rt_accel_destroy(a);
+        }
+        scene_destroy(s);
+    }
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(packet_walk_matches_single),
         cmocka_unit_test(packet_occluded_matches_single),
+        cmocka_unit_test(packet_occluded_through_vertices),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
