@@ -46,18 +46,24 @@ static inline rr_vec3 rr_v3_norm(rr_vec3 a)
     double l = rr_v3_len(a);
     return l > 0.0 ? rr_v3_scale(a, 1.0 / l) : a;
 }
+/* fmax and fmin with their rule for NaN (the other operand) inlined: in
+ * this build (no -ffinite-math-only) fmax is a call into libm, on every
+ * material test of the shading (rr_rgb_max) and every bound of the BVH
+ * build. Of two equal operands (+0 and -0 too) the first. */
+static inline double rr_max(double a, double b) { return a >= b || b != b ? a : b; }
+static inline double rr_min(double a, double b) { return a <= b || b != b ? a : b; }
 /* The same for any finite a, however large or small its components (scaled by
  * the largest first, so the squared length cannot overflow or underflow); the
  * zero vector (and a non-finite one) gives zero. For input, not hot paths. */
 static inline rr_vec3 rr_v3_unit(rr_vec3 a)
 {
-    double m = fmax(fabs(a.x), fmax(fabs(a.y), fabs(a.z)));
+    double m = rr_max(fabs(a.x), rr_max(fabs(a.y), fabs(a.z)));
     if (!(m > 0.0) || !isfinite(m))
         return rr_v3(0.0, 0.0, 0.0);
     return rr_v3_norm(rr_v3_scale(a, 1.0 / m));
 }
-static inline rr_vec3 rr_v3_min(rr_vec3 a, rr_vec3 b) { return rr_v3(fmin(a.x, b.x), fmin(a.y, b.y), fmin(a.z, b.z)); }
-static inline rr_vec3 rr_v3_max(rr_vec3 a, rr_vec3 b) { return rr_v3(fmax(a.x, b.x), fmax(a.y, b.y), fmax(a.z, b.z)); }
+static inline rr_vec3 rr_v3_min(rr_vec3 a, rr_vec3 b) { return rr_v3(rr_min(a.x, b.x), rr_min(a.y, b.y), rr_min(a.z, b.z)); }
+static inline rr_vec3 rr_v3_max(rr_vec3 a, rr_vec3 b) { return rr_v3(rr_max(a.x, b.x), rr_max(a.y, b.y), rr_max(a.z, b.z)); }
 static inline double rr_v3_get(rr_vec3 a, int axis) { return axis == 0 ? a.x : (axis == 1 ? a.y : a.z); }
 static inline int rr_v3_isfinite(rr_vec3 a) { return isfinite(a.x) && isfinite(a.y) && isfinite(a.z); }
 static inline rr_vec3 rr_ray_at(rr_ray r, double t) { return rr_v3_madd(r.o, r.d, t); }
@@ -66,7 +72,7 @@ static inline rr_rgb rr_rgb_make(double r, double g, double b) { rr_rgb c = {r, 
 static inline rr_rgb rr_rgb_add(rr_rgb a, rr_rgb b) { return rr_rgb_make(a.r + b.r, a.g + b.g, a.b + b.b); }
 static inline rr_rgb rr_rgb_mul(rr_rgb a, rr_rgb b) { return rr_rgb_make(a.r * b.r, a.g * b.g, a.b * b.b); }
 static inline rr_rgb rr_rgb_scale(rr_rgb a, double s) { return rr_rgb_make(a.r * s, a.g * s, a.b * s); }
-static inline double rr_rgb_max(rr_rgb a) { return fmax(a.r, fmax(a.g, a.b)); }
+static inline double rr_rgb_max(rr_rgb a) { return rr_max(a.r, rr_max(a.g, a.b)); }
 static inline double rr_rgb_mean(rr_rgb a) { return (a.r + a.g + a.b) / 3.0; }
 static inline int rr_rgb_isfinite(rr_rgb a) { return isfinite(a.r) && isfinite(a.g) && isfinite(a.b); }
 
