@@ -418,6 +418,24 @@ static inline double rt__pkt_dirs(const rr_ray *rays, int nr, float *dx, float *
 }
 #endif
 
+#if RT_BOX_SIMD == 3
+/* The rays of act that lane i of leaf packet k may hit: the 16-ray test's
+ * (normals nf, bound e0 from rt__pkt_normals), or for a lane it cannot take
+ * (slow) the per-ray float test's (lanes, from rt__pkt_slow_lanes). */
+static inline uint64_t rt__pkt_lane_cand(const rt_pk *k, int i, unsigned slow, const uint64_t *lanes,
+                                         const float nf[9][4], const float *e0, uint64_t act, const float *dx,
+                                         const float *dy, const float *dz)
+{
+    if (slow >> i & 1)
+        return act & lanes[i];
+    float n9[9];
+    for (int c = 0; c < 9; c++)
+        n9[c] = nf[c][i];
+    return rt__pkt_tri_cand(n9, e0[i], (k->ref[i] & RT_REF_CULL) != 0, act, dx, dy, dz);
+}
+
+#endif
+
 typedef struct rt_pkt_entry {
     uint64_t rays;
     uint32_t ref;
@@ -591,15 +609,7 @@ int RT_WALKN(const rt_accel *a, const rr_ray *rays, int nr, double tmin, double 
                         uint32_t fl = k->ref[i];
                         if (!fl)
                             continue;
-                        uint64_t cand;
-                        if (slow >> i & 1) {
-                            cand = lanes[i];
-                        } else {
-                            float n9[9];
-                            for (int c = 0; c < 9; c++)
-                                n9[c] = nf[c][i];
-                            cand = rt__pkt_tri_cand(n9, e0[i], (fl & RT_REF_CULL) != 0, act, dxs, dys, dzs);
-                        }
+                        uint64_t cand = rt__pkt_lane_cand(k, i, slow, lanes, nf, e0, act, dxs, dys, dzs);
                         for (; cand; cand &= cand - 1) {
                             int r = __builtin_ctzll(cand);
                             rt_pkt_ray *s = &st[r];

@@ -228,14 +228,7 @@ int RT_OCCLN(const rt_accel *a, const rr_ray *rays, int nr, double tmin, double 
                         uint64_t cand = in[c] & ~done;
                         if (!fl || !cand)
                             continue;
-                        if (slow >> i & 1) {
-                            cand &= lanes[i];
-                        } else {
-                            float n9[9];
-                            for (int q = 0; q < 9; q++)
-                                n9[q] = nf[q][i];
-                            cand = rt__pkt_tri_cand(n9, e0[i], (fl & RT_REF_CULL) != 0, cand, dxs, dys, dzs);
-                        }
+                        cand = rt__pkt_lane_cand(k, i, slow, lanes, nf, e0, cand, dxs, dys, dzs);
                         for (; cand; cand &= cand - 1) {
                             int r = __builtin_ctzll(cand);
                             rt_pkt_ray *s = &st[r];
