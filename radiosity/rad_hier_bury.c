@@ -48,6 +48,7 @@ static void el_probe(hctx *c, uint32_t x)
         open += !rad__ff_point_buried(c->s, c->a, r, ns, bury);
     }
     e->open = (double)open / PROBES;
+    e->nbur = e->open < 1.0 ? rad__hier_near_buried(c, e) : 0;
     e->probed = 1;
 }
 

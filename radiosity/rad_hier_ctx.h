@@ -18,6 +18,7 @@ typedef struct hel {
     int probed;     /* its burial probes are done (open, bur) */
     double open;    /* the open share of its area: not buried under another surface (rad.h: buried parts) */
     unsigned bur;   /* bit k: its fixed point k_pts[k] is buried */
+    uint64_t nbur;  /* bit k: near-pair quadrature point k is buried (rad__hier_near_buried) */
     int fresh;      /* leaf data (first shot, closedness) still to compute */
     double spread;  /* leaf: the first shot's largest difference between its points */
     rr_rgb B, src, H, E, H0;
@@ -77,6 +78,7 @@ typedef struct hctx {
     int unit;       /* the sources are B = 1 (rad__hier_sources): gathers read hlink.ga */
     double ext, plane_tol;
     uint64_t seed;
+    uint64_t draw;  /* which shadow rays the links draw: 0 while refining, ESTIMATE_DRAW for the estimate */
     const volatile sig_atomic_t *interrupt;
 } hctx;
 
@@ -141,6 +143,11 @@ int rad__hier_point_buried(const hctx *c, const hel *e, rr_vec3 x);
 void rad__hier_probe_new(hctx *c);
 
 /* ---- element links (rad_hier_link.c) ---- */
+
+/* Which of element e's near-pair quadrature points are buried (bit k for
+ * point k): probed once per partly buried element (rad__hier_probe_new), not
+ * once per near link (they were a fifth of room.json's pass time). */
+uint64_t rad__hier_near_buried(const hctx *c, const hel *e);
 
 /* Element l->r <- element l->s: the factor (l->g, l->ga), visibility
  * (l->vis, l->partial) and the factor's spread over r (l->dF), drawing the

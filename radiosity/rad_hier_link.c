@@ -33,6 +33,17 @@ static int quad_points(int near, double (*b)[3])
     return n;
 }
 
+uint64_t rad__hier_near_buried(const hctx *c, const hel *e)
+{
+    double b[NEAR_N][3];
+    int np = quad_points(1, b);
+    uint64_t m = 0;
+    for (int k = 0; k < np; k++)
+        if (rad__hier_point_buried(c, e, tri_at(e->c, b[k][0], b[k][1], b[k][2])))
+            m |= (uint64_t)1 << k;
+    return m;
+}
+
 /* Element <- element: the mean over r's quadrature points x of the exact
  * point-to-polygon factor of s clipped to r's front (Lambert's contour
  * integral), times the visibility. Pairs closer than twice their radii
@@ -46,7 +57,9 @@ static int quad_points(int near, double (*b)[3])
  * r's open points only (a buried point gathers nothing that r's open part
  * gets: shelf boards under books were +20..41 %), and one that ends on a
  * buried part of s does not pass (s's cover hides it). *dF is the largest
- * minus the smallest point factor; v counts the rays cast, passed, and cast
+ * minus the smallest point factor without visibility (the refinement's
+ * tests must not read the rays that the transport is estimated from: see
+ * rad_hier.c, "Decide, then estimate"); v counts the rays cast, passed, and cast
  * to open parts of s (which alone decide the partial-visibility split, as
  * for clusters: rad_hier_cluster.c, visibility). */
 typedef struct vis_count {
@@ -90,15 +103,15 @@ static double side_ff(const hctx *c, uint32_t xi, uint32_t yi, int near, rr_rng 
     double sum = 0.0, lo = INFINITY, hi = 0.0;
     for (int k = 0; k < np; k++) {
         rr_vec3 x = tri_at(ex->c, b[k][0], b[k][1], b[k][2]);
-        if (near ? ex->open < 1.0 && rad__hier_point_buried(c, ex, x) : (ex->bur & (1u << k)) != 0)
+        if (near ? (ex->nbur >> k) & 1 : (ex->bur >> k) & 1)
             continue; /* a buried point of r gathers nothing that its open part gets */
         nopen++;
         double f = rr_v3_dot(ny, rr_v3_sub(x, ey->ctr)) > c->plane_tol ? rad_ff_point_polygon(x, nx, poly, nv) : 0.0;
+        lo = fmin(lo, f); /* the spread of the unoccluded factor: what the uneven test reads */
+        hi = fmax(hi, f);
         if (!near && f > 0.0 && !shadow_passes(c, ex, ey, x, poly, nv, (uint32_t)k, rng, v))
             f = 0.0;
         sum += f;
-        lo = fmin(lo, f);
-        hi = fmax(hi, f);
     }
     *dF = nopen ? hi - lo : 0.0;
     double F = nopen ? sum / nopen : 0.0;
