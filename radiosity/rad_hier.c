@@ -47,8 +47,8 @@
  * split otherwise), and a room that is a closed furnace (every surface
  * E = 0.5, rho = 0.5, so B = 1 everywhere) came out 2.6 % dark on average,
  * 5 % at the 10th percentile of its pixels. Once the refinement has settled,
- * every link is evaluated again with rays drawn afresh (estimate(), the
- * stream seed ^ ESTIMATE_DRAW), and the last solve reads those: -1.4 %.
+ * every link's visibility is drawn again (estimate(), the stream seed ^
+ * ESTIMATE_DRAW), and the last solve reads those: -1.4 %.
  * The split tests read nothing else of the rays: the uneven test reads the
  * factor's spread without visibility. (Re-drawing only the links whose power
  * reaches the partial test's threshold recovered two thirds of it.)
@@ -291,7 +291,7 @@ static void link_add(hctx *c, uint32_t r, uint32_t s)
     memset(l, 0, sizeof *l);
     l->r = r;
     l->s = s;
-    l->g = NAN; /* evaluated later (eval_links) */
+    l->f = NAN; /* evaluated later (eval_link) */
 }
 
 static void refine(hctx *c, uint32_t r, uint32_t s);
@@ -372,6 +372,17 @@ static void eval_link(const hctx *c, hlink *l)
         rad__hier_eval_cluster(c, l, &rng);
     else
         rad__hier_eval_ee(c, l, &rng);
+}
+
+/* The link's visibility drawn again (its geometry kept where it is held
+ * without visibility). */
+static void revis_link(const hctx *c, hlink *l)
+{
+    rr_rng rng = rr_rng_make(c->seed ^ c->draw, ((uint64_t)l->r << 32) | l->s);
+    if (l->s & CLB)
+        rad__hier_revis_cluster(c, l, &rng);
+    else
+        rad__hier_revis_ee(c, l, &rng);
 }
 
 /* ---- leaf data: first shot and closedness ---- */
@@ -475,7 +486,7 @@ static rr_status settle(hctx *c, void (*progress)(void *, size_t, size_t), void 
         for (long i = (long)lo; i < (long)old_end; i++) {
             const hlink *l = &c->ln[i];
             want[i - (long)lo] = uneven(c, l) || unrepresented(c, l->r) ||
-                                 (l->vis > 0 && l->vis < 1 && link_power(c, l->r, l->s) > VIS_SHARE * c->eps);
+                                 (l->vis > 0 && l->vis < VIS_ONE && link_power(c, l->r, l->s) > VIS_SHARE * c->eps);
         }
         for (size_t i = lo; i < old_end && !c->nomem; i++) {
             hlink l = c->ln[i];
@@ -498,9 +509,10 @@ static rr_status settle(hctx *c, void (*progress)(void *, size_t, size_t), void 
     return RR_OK;
 }
 
-/* Decide, then estimate: every link evaluated again with shadow rays drawn
- * afresh (ESTIMATE_DRAW), for the current sources, once the refinement
- * has settled (rad_hier.c's header). */
+/* Decide, then estimate: every link's visibility drawn afresh
+ * (ESTIMATE_DRAW) once the refinement has settled (rad_hier.c's header);
+ * the geometry is kept where it is held without visibility (cluster links,
+ * near pairs: a far pair is evaluated whole). */
 static rr_status estimate(hctx *c, void (*progress)(void *, size_t, size_t), void *user, rr_error *err)
 {
     c->draw = ESTIMATE_DRAW;
@@ -509,7 +521,7 @@ static rr_status estimate(hctx *c, void (*progress)(void *, size_t, size_t), voi
     for (long i = 0; i < (long)n; i++) {
         if (interrupted(c))
             continue;
-        eval_link(c, &c->ln[i]);
+        revis_link(c, &c->ln[i]);
         size_t d;
 #pragma omp atomic capture
         d = ++done;
@@ -554,7 +566,7 @@ static int relink(hctx *c)
         else if (link_power(c, l->r, l->s) > c->eps)
             split[i] = 1;
         else if (uneven(c, l) || unrepresented(c, l->r) ||
-                 (l->vis > 0 && l->vis < 1 && link_power(c, l->r, l->s) > VIS_SHARE * c->eps))
+                 (l->vis > 0 && l->vis < VIS_ONE && link_power(c, l->r, l->s) > VIS_SHARE * c->eps))
             split[i] = 2;
     }
     for (size_t i = 0; i < n; i++)

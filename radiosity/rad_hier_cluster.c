@@ -173,11 +173,12 @@ static int node_sample(const hctx *c, uint32_t x, int k, int fixed, int by_power
     return !fixed && e->open < 1.0 && rad__hier_buried(c, e, *xs, *ns);
 }
 
-/* Visibility between an element r and a cluster s by VIS_RAYS shadow rays:
- * *Vp, that of s's power (what the link carries), the share that passes of
- * the 3 rays drawn by the power s sends r; *Va, that of its area (what the
- * row sums, B = 1, read), of the one drawn by the area s shows r; *partial
- * when some of the rays passed and some not. One estimate for both lost a
+/* Visibility between an element r and a cluster s by VIS_RAYS shadow rays
+ * (counts added to what the arguments hold, zero on entry): pass[1], that of
+ * s's power (what the link carries), of the 3 rays drawn by the power s
+ * sends r; pass[0], that of its area (what the row sums, B = 1, read), of
+ * the one drawn by the area s shows r; *partial when some of the rays passed
+ * and some not. One estimate for both lost a
  * third of a room's lamp light (the ceiling above the lamp, hidden by it and
  * in its clusters, took half the area-drawn rays) or, by power alone, scaled
  * every leaf down 10 % (the row sums counted that hidden ceiling as seen).
@@ -188,15 +189,15 @@ static int node_sample(const hctx *c, uint32_t x, int k, int fixed, int by_power
  * of s (rad__hier_buried) does not pass, but the partial-visibility split
  * reads only those to open parts: a cover's shadow does not move with r, and
  * re-drawing it for r's children kept mostly the links whose rays missed it
- * (a window pane under its glazing bars sent +7 %). Returns that share. */
-static double visibility(const hctx *c, uint32_t r, uint32_t s, rr_rng *rng, double *Vp, double *Va, int *partial)
+ * (a window pane under its glazing bars sent +7 %): *open_p power rays
+ * ended in the open, *pass_p of them passed. */
+static void visibility(const hctx *c, uint32_t r, uint32_t s, rr_rng *rng, int pass[2], int *open_p, int *pass_p,
+                       int *partial)
 {
     enum { NA = 1, NP = VIS_RAYS - 1 }; /* rays drawn by area, by power */
-    int pass[2] = {0, 0}, n[2] = {NA, NP}, open_p = 0, pass_p = 0, nopen = 0;
-    *Vp = *Va = 0.0;
-    *partial = 0;
+    int nopen = 0;
     if (open_pt(&c->el[r], 0) < 0)
-        return 0.0; /* every fixed point of r is buried: it gathers nothing */
+        return; /* every fixed point of r is buried: it gathers nothing */
     rr_vec3 u = rr_v3_norm(rr_v3_sub(node_ctr(c, s), node_ctr(c, r))); /* from r towards s */
     for (int k = 0; k < NA + NP; k++) {
         int by_power = k >= NA;
@@ -210,13 +211,10 @@ static double visibility(const hctx *c, uint32_t r, uint32_t s, rr_rng *rng, dou
         int passed = !rt_accel_occluded(c->a, ray, 0.0, RT_SHADOW_END);
         pass[by_power] += passed;
         nopen++;
-        open_p += by_power;
-        pass_p += by_power && passed;
+        *open_p += by_power;
+        *pass_p += by_power && passed;
     }
-    *Vp = (double)pass[1] / n[1];
-    *Va = (double)pass[0] / n[0];
     *partial = pass[0] + pass[1] > 0 && pass[0] + pass[1] < nopen;
-    return open_p ? (double)pass_p / open_p : 0.0;
 }
 
 /* ---- geometry ---- */
@@ -349,22 +347,32 @@ static void cluster_geo(const hctx *c, uint32_t r, uint32_t s, double *geo, doub
     *spread = p0 > 0 ? (hi - lo) / p0 : 0.0;
 }
 
+static void cluster_vis(const hctx *c, hlink *l, rr_rng *rng)
+{
+    int pass[2] = {0, 0}, open_p = 0, pass_p = 0, partial = 0;
+    if (l->f > 0.0f || l->fa > 0.0f)
+        visibility(c, l->r, l->s, rng, pass, &open_p, &pass_p, &partial);
+    l->v = vis_twelfths(pass[1], VIS_RAYS - 1);
+    l->va = vis_twelfths(pass[0], 1);
+    l->vis = vis_twelfths(pass_p, open_p);
+    l->partial = (unsigned char)partial;
+}
+
 void rad__hier_eval_cluster(const hctx *c, hlink *l, rr_rng *rng)
 {
-    double geo, geo_a, spread, Vp = 0.0, Va = 0.0;
+    double geo, geo_a, spread;
     cluster_geo(c, l->r, l->s, &geo, &geo_a, &spread);
-    int partial = 0;
-    l->vis = geo > 0 || geo_a > 0 ? (float)visibility(c, l->r, l->s, rng, &Vp, &Va, &partial) : 0.0f;
-    l->partial = (unsigned char)partial;
-    l->vp = (float)Vp;
-    l->g = (float)(geo * Vp);
-    l->ga = (float)(geo_a * Va);
+    l->f = (float)geo;
+    l->fa = (float)geo_a;
+    cluster_vis(c, l, rng);
     /* How much the factor per unit radiosity of s (geo_a A_s) varies over r,
      * without visibility (rad_hier.c, "Decide, then estimate"), for the
      * uneven test: without it, links from clusters were never split for a
      * gradient across r. */
     l->dF = (float)(geo_a * c->cl[CL(l->s)].area * spread);
 }
+
+void rad__hier_revis_cluster(const hctx *c, hlink *l, rr_rng *rng) { cluster_vis(c, l, rng); }
 
 /* The kept cluster links' geometry for the sources as solved (their
  * visibility stays): read with the power of the round that made them, a
@@ -375,11 +383,10 @@ void rad__hier_regeo(hctx *c)
 #pragma omp parallel for schedule(dynamic, 1024)
     for (long i = 0; i < (long)c->nln; i++) {
         hlink *l = &c->ln[i];
-        if (!(l->s & CLB) || isnan(l->g))
+        if (!(l->s & CLB) || isnan(l->f))
             continue;
         double geo, geo_a, spread;
         cluster_geo(c, l->r, l->s, &geo, &geo_a, &spread);
-        l->g = (float)(geo * l->vp);
+        l->f = (float)geo;
     }
 }
-

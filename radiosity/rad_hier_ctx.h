@@ -48,15 +48,25 @@ static inline void axis_split(rr_vec3 n, double w[6])
     }
 }
 
+/* Visibilities are held in twelfths: every share of 1 to 4 shadow rays is
+ * a whole number of them. */
+#define VIS_ONE 12
+
 typedef struct hlink {
-    uint32_t r, s; /* receiver (an element), source (element or cluster) */
-    float g;       /* the transport coefficient (rad_hier.c, "Transport") */
-    float ga;      /* the same with the visibility of the source's area (cluster sources), for B = 1 */
-    float vis;     /* share of the shadow rays that passed */
-    float vp;      /* cluster sources: the visibility of its power (g = geometry x vp) */
-    float dF;      /* how much the factor varies over r */
+    uint32_t r, s;  /* receiver (an element), source (element or cluster) */
+    float f;        /* the transport's geometry: g = f v / VIS_ONE (rad_hier.c, "Transport") */
+    float fa;       /* the same for B = 1 with the visibility va (cluster sources: of the source's area) */
+    float dF;       /* how much the factor varies over r, without visibility */
+    unsigned char v, va; /* the visibilities of g and of the B = 1 gather, in twelfths */
+    unsigned char vis;   /* share of the shadow rays to open parts that passed (the partial test), in twelfths */
     unsigned char partial; /* some of its shadow rays passed, some not */
 } hlink;
+
+/* The transport coefficient of a link, and the same for B = 1. */
+static inline float link_g(const hlink *l) { return l->f * (float)l->v * (1.0f / VIS_ONE); }
+static inline float link_ga(const hlink *l) { return l->fa * (float)l->va * (1.0f / VIS_ONE); }
+/* A share k / n of n <= 4 rays in twelfths. */
+static inline unsigned char vis_twelfths(int k, int n) { return (unsigned char)(n > 0 ? k * (VIS_ONE / n) : 0); }
 
 typedef struct hctx {
     const scene *s;
@@ -149,10 +159,15 @@ void rad__hier_probe_new(hctx *c);
  * once per near link (they were a fifth of room.json's pass time). */
 uint64_t rad__hier_near_buried(const hctx *c, const hel *e);
 
-/* Element l->r <- element l->s: the factor (l->g, l->ga), visibility
- * (l->vis, l->partial) and the factor's spread over r (l->dF), drawing the
- * shadow rays' ends from rng. */
+/* Element l->r <- element l->s: the factor (l->f, l->fa), visibility
+ * (l->v, l->va, l->vis, l->partial) and the factor's spread over r (l->dF),
+ * drawing the shadow rays' ends from rng. */
 void rad__hier_eval_ee(const hctx *c, hlink *l, rr_rng *rng);
+/* The same link's visibility drawn again from rng, the factor kept where it
+ * is held without visibility (near pairs; a far pair's 4 points each count
+ * only if their ray passes, so it is evaluated whole): the same rays and
+ * values as rad__hier_eval_ee from that stream. */
+void rad__hier_revis_ee(const hctx *c, hlink *l, rr_rng *rng);
 
 /* ---- clusters (rad_hier_cluster.c) ---- */
 
@@ -162,6 +177,8 @@ uint32_t rad__hier_clusters(hctx *c);
 /* Element l->r <- cluster l->s: geometry and visibility (rad_hier.c's header,
  * "Transport"), drawing from rng. */
 void rad__hier_eval_cluster(const hctx *c, hlink *l, rr_rng *rng);
+/* Its visibility drawn again from rng, the geometry kept. */
+void rad__hier_revis_cluster(const hctx *c, hlink *l, rr_rng *rng);
 /* The evaluated cluster links' geometry again for the current sources. */
 void rad__hier_regeo(hctx *c);
 

@@ -114,27 +114,62 @@ static double side_ff(const hctx *c, uint32_t xi, uint32_t yi, int near, rr_rng 
         sum += f;
     }
     *dF = nopen ? hi - lo : 0.0;
-    double F = nopen ? sum / nopen : 0.0;
-    if (near && F > 0.0) {
-        for (int k = 0; k < VIS_RAYS; k++) {
-            rr_vec3 x = tri_at(ex->c, k_pts[k][0], k_pts[k][1], k_pts[k][2]);
-            if (!(ex->bur & (1u << k)) && rr_v3_dot(ny, rr_v3_sub(x, ey->ctr)) > c->plane_tol)
-                shadow_passes(c, ex, ey, x, poly, nv, (uint32_t)k, rng, v);
-        }
-        F = v->seen ? F * (double)v->pass / (double)v->seen : F;
+    return nopen ? sum / nopen : 0.0;
+}
+
+/* A near pair's visibility: one shadow ray from each of r's 4 open fixed
+ * points in front of s, to a point of s clipped to r's front. */
+static void near_vis(const hctx *c, uint32_t xi, uint32_t yi, rr_rng *rng, vis_count *v)
+{
+    const hel *ex = &c->el[xi], *ey = &c->el[yi];
+    rr_vec3 nx = el_normal(c, xi), ny = el_normal(c, yi), poly[4];
+    int nv = rad__clip_front(ey->c, nx, ex->ctr, c->plane_tol, poly);
+    if (nv < 3)
+        return;
+    for (int k = 0; k < VIS_RAYS; k++) {
+        rr_vec3 x = tri_at(ex->c, k_pts[k][0], k_pts[k][1], k_pts[k][2]);
+        if (!(ex->bur & (1u << k)) && rr_v3_dot(ny, rr_v3_sub(x, ey->ctr)) > c->plane_tol)
+            shadow_passes(c, ex, ey, x, poly, nv, (uint32_t)k, rng, v);
     }
-    return F;
+}
+
+static int is_near(const hctx *c, const hlink *l)
+{
+    const hel *er = &c->el[l->r], *es = &c->el[l->s];
+    return rr_v3_len(rr_v3_sub(er->ctr, es->ctr)) < 2.0 * (er->radius + es->radius);
+}
+
+static void set_vis(hlink *l, int near, const vis_count *v)
+{
+    /* near: the factor is held without visibility, times the share of the
+     * rays that passed; far: each point's factor counted only if its ray
+     * passed (l->f holds that). */
+    l->v = l->va = near && v->seen ? vis_twelfths(v->pass, v->seen) : VIS_ONE;
+    l->vis = v->open ? vis_twelfths(v->pass, v->open) : (v->seen ? 0 : VIS_ONE);
+    l->partial = v->pass > 0 && v->pass < v->open;
 }
 
 void rad__hier_eval_ee(const hctx *c, hlink *l, rr_rng *rng)
 {
-    const hel *er = &c->el[l->r], *es = &c->el[l->s];
-    int near = rr_v3_len(rr_v3_sub(er->ctr, es->ctr)) < 2.0 * (er->radius + es->radius);
+    int near = is_near(c, l);
     vis_count v = {0, 0, 0};
     double dF;
     double F = side_ff(c, l->r, l->s, near, rng, &dF, &v);
-    l->g = l->ga = (float)F;
-    l->vis = v.open ? (float)v.pass / (float)v.open : (v.seen ? 0.0f : 1.0f);
-    l->partial = v.pass > 0 && v.pass < v.open;
+    if (near && F > 0.0)
+        near_vis(c, l->r, l->s, rng, &v);
+    l->f = l->fa = (float)F;
+    set_vis(l, near, &v);
     l->dF = (float)dF; /* how much the factor varies over r */
+}
+
+void rad__hier_revis_ee(const hctx *c, hlink *l, rr_rng *rng)
+{
+    if (!is_near(c, l)) {
+        rad__hier_eval_ee(c, l, rng);
+        return;
+    }
+    vis_count v = {0, 0, 0};
+    if (l->f > 0.0f)
+        near_vis(c, l->r, l->s, rng, &v);
+    set_vis(l, 1, &v);
 }

@@ -153,7 +153,7 @@ void rad__hier_gather(hctx *c, const size_t *grp, size_t ngrp)
             const hlink *l = &c->ln[j];
             partial |= l->partial;
             rr_rgb v = l->s & CLB ? c->cl[CL(l->s)].P : c->el[l->s].src;
-            H = rr_rgb_add(H, rr_rgb_scale(v, c->unit ? l->ga : l->g));
+            H = rr_rgb_add(H, rr_rgb_scale(v, c->unit ? link_ga(l) : link_g(l)));
         }
         c->el[c->ln[grp[gi]].r].H = H;
         if (c->unit)
