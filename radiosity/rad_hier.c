@@ -70,6 +70,18 @@
  *                       node, the disc formula for an element): the lamp
  *                       of a cluster that also holds the ceiling around it
  *                       is read where it is.
+ * Shape. A link at an interior receiver gave all of its leaves its mean
+ * factor: along a concave edge a leaf took its ancestors' mean of the far
+ * sources, too much at the edge and too little inside (an empty furnace
+ * cube without the row-sum scale: +8 % along its edges, -2 % inside), and
+ * Cornell's walls came out in steps. The factor is known at points in each
+ * of the receiver's four children (a near pair's 36 points, 9 in each; the
+ * 4 fixed points, the children's centroids, otherwise; for a cluster source
+ * its whole-cluster term at those points), so a link keeps how its factor,
+ * without visibility, is shared among them (hlink.sh), and the gather gives
+ * each child that share (hel.Hs) before the even push-down further on.
+ * Cornell at 128 px against 2048 spp: radiosity display block median / p90
+ * 2.6 / 12.0 % -> 1.7 / 8.2 %, hybrid 2.0 / 8.6 % -> 1.2 / 5.2 %.
  * Interior nodes shoot the area mean of their leaves' current B (src): read
  * from the B they had when split, links from split elements never refined.
  * A cluster's shadow rays end on its surfaces, 3 drawn by the power they

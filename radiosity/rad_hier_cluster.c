@@ -267,7 +267,8 @@ static double geo_term(const hctx *c, rr_vec3 x, uint32_t r, rr_vec3 p, double A
 #define CL_THETA 0.15  /* and deeper where a node's radius exceeds this share of its distance */
 #define CL_NODES 32    /* the most nodes it reads */
 
-static void cluster_geo(const hctx *c, uint32_t r, uint32_t s, double *geo, double *geo_a, double *spread)
+static void cluster_geo(const hctx *c, uint32_t r, uint32_t s, double *geo, double *geo_a, double *spread,
+                        double fk[4])
 {
     const hcl *k = &c->cl[CL(s)];
     rr_vec3 xr = c->el[r].ctr;
@@ -330,7 +331,9 @@ static void cluster_geo(const hctx *c, uint32_t r, uint32_t s, double *geo, doub
         if (c->el[r].bur & (1u << q))
             continue; /* over r's open points */
         rr_vec3 xq = tri_at(c->el[r].c, k_pts[q][0], k_pts[q][1], k_pts[q][2]);
-        mp += geo_term(c, xq, r, k->pc, A);
+        double gq = geo_term(c, xq, r, k->pc, A);
+        fk[q == 0 ? 3 : q - 1] = gq; /* k_pts[q]: the centroid of child q - 1, k_pts[0] of the middle one */
+        mp += gq;
         ma += geo_term(c, xq, r, k->ac, A);
         nq++;
     }
@@ -360,10 +363,14 @@ static void cluster_vis(const hctx *c, hlink *l, rr_rng *rng)
 
 void rad__hier_eval_cluster(const hctx *c, hlink *l, rr_rng *rng)
 {
-    double geo, geo_a, spread;
-    cluster_geo(c, l->r, l->s, &geo, &geo_a, &spread);
+    double geo, geo_a, spread, fk[4];
+    cluster_geo(c, l->r, l->s, &geo, &geo_a, &spread, fk);
     l->f = (float)geo;
     l->fa = (float)geo_a;
+    if (c->el[l->r].bur == 0)
+        set_shape(l, fk);
+    else
+        memset(l->sh, 0, sizeof l->sh);
     cluster_vis(c, l, rng);
     /* How much the factor per unit radiosity of s (geo_a A_s) varies over r,
      * without visibility (rad_hier.c, "Decide, then estimate"), for the
@@ -385,8 +392,10 @@ void rad__hier_regeo(hctx *c)
         hlink *l = &c->ln[i];
         if (!(l->s & CLB) || isnan(l->f))
             continue;
-        double geo, geo_a, spread;
-        cluster_geo(c, l->r, l->s, &geo, &geo_a, &spread);
+        double geo, geo_a, spread, fk[4];
+        cluster_geo(c, l->r, l->s, &geo, &geo_a, &spread, fk);
         l->f = (float)geo;
+        if (c->el[l->r].bur == 0)
+            set_shape(l, fk);
     }
 }

@@ -22,6 +22,7 @@ typedef struct hel {
     int fresh;      /* leaf data (first shot, closedness) still to compute */
     double spread;  /* leaf: the first shot's largest difference between its points */
     rr_rgb B, src, H, E, H0;
+    rr_rgb Hs;      /* what its parent's links send it beyond their mean (hlink.sh), gathered with H */
     double k;       /* leaf: row-sum scale */
     int partial;    /* it has a partly visible link (rad__hier_gather of B = 1) */
 } hel;
@@ -60,7 +61,29 @@ typedef struct hlink {
     unsigned char v, va; /* the visibilities of g and of the B = 1 gather, in twelfths */
     unsigned char vis;   /* share of the shadow rays to open parts that passed (the partial test), in twelfths */
     unsigned char partial; /* some of its shadow rays passed, some not */
+    unsigned char sh[4];   /* how the factor is shared among r's children (el_split's order), sh[k] / mean(sh);
+                              all 0: evenly */
 } hlink;
+
+/* The shape of a factor over the four children of a receiver: each child's
+ * mean factor against the receiver's, quantized (their mean is 1 once read
+ * back by link_shape). */
+static inline void set_shape(hlink *l, const double fk[4])
+{
+    double m = 0.25 * (fk[0] + fk[1] + fk[2] + fk[3]);
+    for (int k = 0; k < 4; k++)
+        l->sh[k] = m > 0 ? (unsigned char)lround(fmin(4.0, fmax(0.0, fk[k] / m)) * 63.75) : 0;
+}
+/* The shares back, mean 1; 0 when the link has no shape (even). */
+static inline int link_shape(const hlink *l, float s[4])
+{
+    int t = l->sh[0] + l->sh[1] + l->sh[2] + l->sh[3];
+    if (t == 0)
+        return 0;
+    for (int k = 0; k < 4; k++)
+        s[k] = (float)l->sh[k] * 4.0f / (float)t;
+    return 1;
+}
 
 /* The transport coefficient of a link, and the same for B = 1. */
 static inline float link_g(const hlink *l) { return l->f * (float)l->v * (1.0f / VIS_ONE); }

@@ -88,8 +88,14 @@ static int shadow_passes(const hctx *c, const hel *ex, const hel *ey, rr_vec3 x,
     return passed;
 }
 
-static double side_ff(const hctx *c, uint32_t xi, uint32_t yi, int near, rr_rng *rng, double *dF, vis_count *v)
+/* Which child of an element (el_split's order: the corners A, B, C, then
+ * the middle) holds the point of barycentrics b. */
+static int child_of(const double b[3]) { return b[0] > 0.5 ? 0 : b[1] > 0.5 ? 1 : b[2] > 0.5 ? 2 : 3; }
+
+static double side_ff(const hctx *c, uint32_t xi, uint32_t yi, int near, rr_rng *rng, double *dF, vis_count *v,
+                      double fk[4])
 {
+    fk[0] = fk[1] = fk[2] = fk[3] = 0.0;
     const hel *ex = &c->el[xi], *ey = &c->el[yi];
     rr_vec3 nx = el_normal(c, xi), ny = el_normal(c, yi), poly[4];
     int nv = rad__clip_front(ey->c, nx, ex->ctr, c->plane_tol, poly);
@@ -109,6 +115,7 @@ static double side_ff(const hctx *c, uint32_t xi, uint32_t yi, int near, rr_rng 
         double f = rr_v3_dot(ny, rr_v3_sub(x, ey->ctr)) > c->plane_tol ? rad_ff_point_polygon(x, nx, poly, nv) : 0.0;
         lo = fmin(lo, f); /* the spread of the unoccluded factor: what the uneven test reads */
         hi = fmax(hi, f);
+        fk[child_of(b[k])] += f; /* near: 9 of the 36 points in each child; far: k_pts, one in each */
         if (!near && f > 0.0 && !shadow_passes(c, ex, ey, x, poly, nv, (uint32_t)k, rng, v))
             f = 0.0;
         sum += f;
@@ -153,11 +160,17 @@ void rad__hier_eval_ee(const hctx *c, hlink *l, rr_rng *rng)
 {
     int near = is_near(c, l);
     vis_count v = {0, 0, 0};
-    double dF;
-    double F = side_ff(c, l->r, l->s, near, rng, &dF, &v);
+    double dF, fk[4];
+    double F = side_ff(c, l->r, l->s, near, rng, &dF, &v, fk);
     if (near && F > 0.0)
         near_vis(c, l->r, l->s, rng, &v);
     l->f = l->fa = (float)F;
+    /* The factor without visibility shared among r's children as its points
+     * fall in them (where none is buried). */
+    if (near ? c->el[l->r].nbur == 0 : c->el[l->r].bur == 0)
+        set_shape(l, fk);
+    else
+        memset(l->sh, 0, sizeof l->sh);
     set_vis(l, near, &v);
     l->dF = (float)dF; /* how much the factor varies over r */
 }

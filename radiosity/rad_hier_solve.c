@@ -141,21 +141,29 @@ void rad__hier_gather(hctx *c, const size_t *grp, size_t ngrp)
 {
 #pragma omp parallel for schedule(static)
     for (long i = 0; i < (long)c->nel; i++) {
-        c->el[i].H = rr_rgb_make(0, 0, 0);
+        c->el[i].H = c->el[i].Hs = rr_rgb_make(0, 0, 0);
         if (c->unit)
             c->el[i].partial = 0;
     }
 #pragma omp parallel for schedule(dynamic, 64)
     for (long gi = 0; gi < (long)ngrp; gi++) {
-        rr_rgb H = rr_rgb_make(0, 0, 0);
+        rr_rgb H = rr_rgb_make(0, 0, 0), Hk[4] = {{0, 0, 0}, {0, 0, 0}, {0, 0, 0}, {0, 0, 0}};
         int partial = 0;
+        hel *e = &c->el[c->ln[grp[gi]].r];
         for (size_t j = grp[gi]; j < grp[gi + 1]; j++) {
             const hlink *l = &c->ln[j];
             partial |= l->partial;
-            rr_rgb v = l->s & CLB ? c->cl[CL(l->s)].P : c->el[l->s].src;
-            H = rr_rgb_add(H, rr_rgb_scale(v, c->unit ? link_ga(l) : link_g(l)));
+            rr_rgb v = rr_rgb_scale(l->s & CLB ? c->cl[CL(l->s)].P : c->el[l->s].src, c->unit ? link_ga(l) : link_g(l));
+            H = rr_rgb_add(H, v);
+            float sh[4];
+            if (e->child != NONE && link_shape(l, sh))
+                for (int k = 0; k < 4; k++)
+                    Hk[k] = rr_rgb_add(Hk[k], rr_rgb_scale(v, sh[k] - 1.0f));
         }
-        c->el[c->ln[grp[gi]].r].H = H;
+        e->H = H;
+        if (e->child != NONE) /* each child has one parent: no other group writes there */
+            for (uint32_t k = 0; k < 4; k++)
+                c->el[e->child + k].Hs = Hk[k];
         if (c->unit)
             c->el[c->ln[grp[gi]].r].partial = partial;
     }
@@ -164,7 +172,7 @@ void rad__hier_gather(hctx *c, const size_t *grp, size_t ngrp)
 static double push_el(hctx *c, uint32_t x, rr_rgb Hin, int partial, push_mode mode)
 {
     hel *e = &c->el[x];
-    rr_rgb H = rr_rgb_add(Hin, e->H);
+    rr_rgb H = rr_rgb_add(Hin, rr_rgb_add(e->H, e->Hs));
     partial |= e->partial;
     if (e->child != NONE) {
         double m = 0.0;

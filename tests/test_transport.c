@@ -559,6 +559,88 @@ static void test_integrators_write_their_layers(void **state)
     world_free(&w);
 }
 
+/* The blocks' error of image t against r, as radray-exr-error states it
+ * (bench/exr_error.c): per 4 x 4 block the mean over its pixels and
+ * channels, |t - r| / r over the blocks whose reference is above 1 % of the
+ * image mean; their median and 90th percentile. */
+static int cmp_dbl(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return x < y ? -1 : x > y;
+}
+
+static void block_error(const rr_image *t, const rr_image *r, double *median, double *p90)
+{
+    int bw = r->width / 4, bh = r->height / 4;
+    double *e = malloc((size_t)bw * (size_t)bh * sizeof *e), mean = 0.0;
+    assert_non_null(e);
+    for (size_t i = 0; i < 3 * (size_t)r->width * (size_t)r->height; i++)
+        mean += r->px[i];
+    mean /= 3.0 * r->width * r->height;
+    size_t n = 0;
+    for (int by = 0; by < bh; by++)
+        for (int bx = 0; bx < bw; bx++) {
+            double st = 0.0, sr = 0.0;
+            for (int y = 4 * by; y < 4 * by + 4; y++)
+                for (int x = 4 * bx; x < 4 * bx + 4; x++) {
+                    rr_rgb a = px(t, x, y), b = px(r, x, y);
+                    st += a.r + a.g + a.b;
+                    sr += b.r + b.g + b.b;
+                }
+            if (sr / 48.0 > 0.01 * mean)
+                e[n++] = fabs(st - sr) / sr;
+        }
+    assert_true(n > 0);
+    qsort(e, n, sizeof *e, cmp_dbl);
+    *median = e[n / 2];
+    *p90 = e[(9 * n) / 10];
+    free(e);
+}
+
+/* The hierarchical pass on scenes/cornell.json at 64 px against secondary
+ * rays at 1024 spp, block by block (the issue's measure): the radiosity
+ * display and the hybrid, 16 spp each. Measured: radiosity block median
+ * 1.8 %, p90 5.1 %; hybrid 1.2 % and 3.9 %. Before the links' factors were
+ * shared among their receivers' children by shape (rad_hier.c, "Shape"):
+ * 2.2 / 9.2 % and 1.7 / 6.4 %. The reference's own noise is about 1 % per
+ * block. */
+static void test_hierarchical_cornell_blocks(void **state)
+{
+    (void)state;
+    char path[512];
+    snprintf(path, sizeof path, "%s/scenes/cornell.json", RR_SOURCE_DIR);
+    const char *over[] = {"radiosity.method=hierarchical"};
+    scene_load_opts lo;
+    memset(&lo, 0, sizeof lo);
+    lo.overrides = over;
+    lo.noverrides = 1;
+    scene *s = NULL;
+    rr_error err;
+    rr_view v;
+    if (scene_load(path, &lo, &s, &err) != RR_OK || rr_view_resize(&s->view, 64, &v, &err) != RR_OK)
+        fail_msg("%s", err.msg);
+    s->view = v;
+    world w;
+    world_open(&w, s);
+    rt_film ref, fr, fh;
+    world_render(&w, mode("secondary"), 1024, &ref);
+    world_render(&w, mode("radiosity"), 16, &fr);
+    world_render(&w, mode("hybrid"), 16, &fh);
+    double med_r, p90_r, med_h, p90_h;
+    block_error(&fr.beauty, &ref.beauty, &med_r, &p90_r);
+    block_error(&fh.beauty, &ref.beauty, &med_h, &p90_h);
+    print_message("cornell, hierarchical: radiosity block median %.2f %%, p90 %.2f %%; hybrid %.2f %%, %.2f %%\n",
+                  100 * med_r, 100 * p90_r, 100 * med_h, 100 * p90_h);
+    assert_true(med_r < 0.02);
+    assert_true(p90_r < 0.07);
+    assert_true(med_h < 0.014);
+    assert_true(p90_h < 0.05);
+    rt_film_free(&ref);
+    rt_film_free(&fr);
+    rt_film_free(&fh);
+    world_free(&w);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -569,6 +651,7 @@ int main(void)
         cmocka_unit_test(test_two_mirror_walls),
         cmocka_unit_test(test_room_with_mirror),
         cmocka_unit_test(test_cubby_of_touching_boxes),
+        cmocka_unit_test(test_hierarchical_cornell_blocks),
         cmocka_unit_test(test_max_depth_bounds_mirror_reflections),
         cmocka_unit_test(test_scene_emits_through_csg_leaf),
         cmocka_unit_test(test_integrators_write_their_layers),
