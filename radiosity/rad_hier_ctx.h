@@ -4,6 +4,8 @@
 #ifndef RAD_HIER_CTX_H
 #define RAD_HIER_CTX_H
 
+#include <string.h>
+
 #include "rad.h"
 
 #define NONE UINT32_MAX
@@ -61,27 +63,39 @@ typedef struct hlink {
     unsigned char v, va; /* the visibilities of g and of the B = 1 gather, in twelfths */
     unsigned char vis;   /* share of the shadow rays to open parts that passed (the partial test), in twelfths */
     unsigned char partial; /* some of its shadow rays passed, some not */
-    unsigned char sh[4];   /* how the factor is shared among r's children (el_split's order), sh[k] / mean(sh);
-                              all 0: evenly */
+    unsigned char sh[4];   /* how the factor is shared among r's children (el_split's order), in 255ths
+                              (set_shape); all 0: evenly */
 } hlink;
 
 /* The shape of a factor over the four children of a receiver: each child's
- * mean factor against the receiver's, quantized (their mean is 1 once read
- * back by link_shape). */
+ * share of their sum, in 255ths that add up to 255 (so the shares read back
+ * by link_shape have mean 1 exactly: no power made or lost); all 0 (even)
+ * where no child's share is 1 % off the mean, which the gather skips. */
 static inline void set_shape(hlink *l, const double fk[4])
 {
-    double m = 0.25 * (fk[0] + fk[1] + fk[2] + fk[3]);
+    double t = fk[0] + fk[1] + fk[2] + fk[3], dev = 0.0;
     for (int k = 0; k < 4; k++)
-        l->sh[k] = m > 0 ? (unsigned char)lround(fmin(4.0, fmax(0.0, fk[k] / m)) * 63.75) : 0;
+        dev = t > 0 ? fmax(dev, fabs(4.0 * fk[k] / t - 1.0)) : 0.0;
+    if (!(dev > 0.01)) {
+        memset(l->sh, 0, sizeof l->sh);
+        return;
+    }
+    int left = 255;
+    for (int k = 0; k < 3; k++) {
+        int q = (int)lround(255.0 * fmax(0.0, fk[k]) / t);
+        q = q < left ? q : left;
+        l->sh[k] = (unsigned char)q;
+        left -= q;
+    }
+    l->sh[3] = (unsigned char)left;
 }
-/* The shares back, mean 1; 0 when the link has no shape (even). */
+/* The shares back (mean 1); 0 when the link is even. */
 static inline int link_shape(const hlink *l, float s[4])
 {
-    int t = l->sh[0] + l->sh[1] + l->sh[2] + l->sh[3];
-    if (t == 0)
+    if ((l->sh[0] | l->sh[1] | l->sh[2] | l->sh[3]) == 0)
         return 0;
     for (int k = 0; k < 4; k++)
-        s[k] = (float)l->sh[k] * 4.0f / (float)t;
+        s[k] = (float)l->sh[k] * (4.0f / 255.0f);
     return 1;
 }
 
