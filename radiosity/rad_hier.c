@@ -77,11 +77,14 @@
  * Cornell's walls came out in steps. The factor is known at points in each
  * of the receiver's four children (a near pair's 36 points, 9 in each; the
  * 4 fixed points, the children's centroids, otherwise; for a cluster source
- * its whole-cluster term at those points), so a link keeps how its factor,
- * without visibility, is shared among them (hlink.sh), and the gather gives
- * each child that share (hel.Hs) before the even push-down further on.
+ * its whole-cluster term at those points), so a link keeps the linear field
+ * (in barycentrics, without visibility) that meets the corner children's
+ * means (hlink.sh, set_shape), the gather sums each receiver's fields at its
+ * corners (hel.Hc), and the push-down carries the field to every level
+ * below, interpolated at the children's corners; a leaf takes its mean.
  * Cornell at 128 px against 2048 spp: radiosity display block median / p90
- * 2.6 / 12.0 % -> 1.7 / 8.2 %, hybrid 2.0 / 8.6 % -> 1.2 / 5.2 %.
+ * 2.6 / 12.0 % -> 1.6 / 7.4 %, hybrid 2.0 / 8.6 % -> 1.1 / 4.8 % (a share
+ * per child at one level only: 1.7 / 8.2 % and 1.2 / 5.2 %).
  * Interior nodes shoot the area mean of their leaves' current B (src): read
  * from the B they had when split, links from split elements never refined.
  * A cluster's shadow rays end on its surfaces, 3 drawn by the power they

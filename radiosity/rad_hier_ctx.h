@@ -24,7 +24,7 @@ typedef struct hel {
     int fresh;      /* leaf data (first shot, closedness) still to compute */
     double spread;  /* leaf: the first shot's largest difference between its points */
     rr_rgb B, src, H, E, H0;
-    rr_rgb Hs;      /* what its parent's links send it beyond their mean (hlink.sh), gathered with H */
+    rr_rgb Hc[3];   /* what its links send its corners beyond their mean (hlink.sh): a linear field, gathered with H */
     double k;       /* leaf: row-sum scale */
     int partial;    /* it has a partly visible link (rad__hier_gather of B = 1) */
 } hel;
@@ -63,39 +63,40 @@ typedef struct hlink {
     unsigned char v, va; /* the visibilities of g and of the B = 1 gather, in twelfths */
     unsigned char vis;   /* share of the shadow rays to open parts that passed (the partial test), in twelfths */
     unsigned char partial; /* some of its shadow rays passed, some not */
-    unsigned char sh[4];   /* how the factor is shared among r's children (el_split's order), in 255ths
-                              (set_shape); all 0: evenly */
+    unsigned char sh[4];   /* how the factor is spread over r, a linear field (set_shape); all 0: evenly */
 } hlink;
 
-/* The shape of a factor over the four children of a receiver: each child's
- * share of their sum, in 255ths that add up to 255 (so the shares read back
- * by link_shape have mean 1 exactly: no power made or lost); all 0 (even)
- * where no child's share is 1 % off the mean, which the gather skips. */
+/* The shape of a factor over its receiver: a linear field in barycentrics,
+ * mean 1, from the factor fk[k] in each of the receiver's children (el_split's
+ * order: the corners A, B, C, then the middle; the corner children's means
+ * are met exactly, the middle one reads the mean). Stored as each corner's
+ * departure from the mean, d in [-1, 2], in 85ths from -1 (sh[0..2]; they
+ * add up to 0 once read back), sh[3] = 1; all 0 (even) where no corner is
+ * 1 % off, which the gather skips. */
 static inline void set_shape(hlink *l, const double fk[4])
 {
-    double t = fk[0] + fk[1] + fk[2] + fk[3], dev = 0.0;
-    for (int k = 0; k < 4; k++)
-        dev = t > 0 ? fmax(dev, fabs(4.0 * fk[k] / t - 1.0)) : 0.0;
-    if (!(dev > 0.01)) {
-        memset(l->sh, 0, sizeof l->sh);
-        return;
-    }
-    int left = 255;
+    double m = (fk[0] + fk[1] + fk[2]) / 3.0, dev = 0.0, d[3];
     for (int k = 0; k < 3; k++) {
-        int q = (int)lround(255.0 * fmax(0.0, fk[k]) / t);
-        q = q < left ? q : left;
-        l->sh[k] = (unsigned char)q;
-        left -= q;
+        d[k] = m > 0 ? fmin(2.0, fmax(-1.0, 2.0 * (fk[k] - m) / m)) : 0.0;
+        dev = fmax(dev, fabs(d[k]));
     }
-    l->sh[3] = (unsigned char)left;
+    memset(l->sh, 0, sizeof l->sh);
+    if (!(dev > 0.01))
+        return;
+    for (int k = 0; k < 3; k++)
+        l->sh[k] = (unsigned char)lround((d[k] + 1.0) * 85.0);
+    l->sh[3] = 1;
 }
-/* The shares back (mean 1); 0 when the link is even. */
-static inline int link_shape(const hlink *l, float s[4])
+/* The corners' departures back (adding up to 0); 0 when the link is even. */
+static inline int link_shape(const hlink *l, float d[3])
 {
-    if ((l->sh[0] | l->sh[1] | l->sh[2] | l->sh[3]) == 0)
+    if (!l->sh[3])
         return 0;
-    for (int k = 0; k < 4; k++)
-        s[k] = (float)l->sh[k] * (4.0f / 255.0f);
+    for (int k = 0; k < 3; k++)
+        d[k] = (float)l->sh[k] * (1.0f / 85.0f) - 1.0f;
+    float mean = (d[0] + d[1] + d[2]) * (1.0f / 3.0f);
+    for (int k = 0; k < 3; k++)
+        d[k] -= mean;
     return 1;
 }
 

@@ -141,13 +141,13 @@ void rad__hier_gather(hctx *c, const size_t *grp, size_t ngrp)
 {
 #pragma omp parallel for schedule(static)
     for (long i = 0; i < (long)c->nel; i++) {
-        c->el[i].H = c->el[i].Hs = rr_rgb_make(0, 0, 0);
+        c->el[i].H = c->el[i].Hc[0] = c->el[i].Hc[1] = c->el[i].Hc[2] = rr_rgb_make(0, 0, 0);
         if (c->unit)
             c->el[i].partial = 0;
     }
 #pragma omp parallel for schedule(dynamic, 64)
     for (long gi = 0; gi < (long)ngrp; gi++) {
-        rr_rgb H = rr_rgb_make(0, 0, 0), Hk[4] = {{0, 0, 0}, {0, 0, 0}, {0, 0, 0}, {0, 0, 0}};
+        rr_rgb H = rr_rgb_make(0, 0, 0), Hc[3] = {{0, 0, 0}, {0, 0, 0}, {0, 0, 0}};
         int partial = 0;
         hel *e = &c->el[c->ln[grp[gi]].r];
         for (size_t j = grp[gi]; j < grp[gi + 1]; j++) {
@@ -155,31 +155,41 @@ void rad__hier_gather(hctx *c, const size_t *grp, size_t ngrp)
             partial |= l->partial;
             rr_rgb v = rr_rgb_scale(l->s & CLB ? c->cl[CL(l->s)].P : c->el[l->s].src, c->unit ? link_ga(l) : link_g(l));
             H = rr_rgb_add(H, v);
-            float sh[4];
-            if (e->child != NONE && link_shape(l, sh))
-                for (int k = 0; k < 4; k++)
-                    Hk[k] = rr_rgb_add(Hk[k], rr_rgb_scale(v, sh[k] - 1.0f));
+            float d[3];
+            if (e->child != NONE && link_shape(l, d))
+                for (int k = 0; k < 3; k++)
+                    Hc[k] = rr_rgb_add(Hc[k], rr_rgb_scale(v, d[k]));
         }
         e->H = H;
-        if (e->child != NONE) /* each child has one parent: no other group writes there */
-            for (uint32_t k = 0; k < 4; k++)
-                c->el[e->child + k].Hs = Hk[k];
+        memcpy(e->Hc, Hc, sizeof Hc);
         if (c->unit)
             c->el[c->ln[grp[gi]].r].partial = partial;
     }
 }
 
-static double push_el(hctx *c, uint32_t x, rr_rgb Hin, int partial, push_mode mode)
+static rr_rgb mid(rr_rgb a, rr_rgb b) { return rr_rgb_scale(rr_rgb_add(a, b), 0.5); }
+
+/* Hin: the even irradiance from above; D[3]: the linear field's departure
+ * from it at x's corners. */
+static double push_el(hctx *c, uint32_t x, rr_rgb Hin, const rr_rgb Din[3], int partial, push_mode mode)
 {
     hel *e = &c->el[x];
-    rr_rgb H = rr_rgb_add(Hin, rr_rgb_add(e->H, e->Hs));
+    rr_rgb H = rr_rgb_add(Hin, e->H), D[3];
+    for (int k = 0; k < 3; k++)
+        D[k] = rr_rgb_add(Din[k], e->Hc[k]);
     partial |= e->partial;
     if (e->child != NONE) {
+        /* the children's corners (el_split): A, ab, ca; ab, B, bc; ca, bc, C; bc, ca, ab */
+        rr_rgb ab = mid(D[0], D[1]), bc = mid(D[1], D[2]), ca = mid(D[2], D[0]);
+        const rr_rgb ch[4][3] = {{D[0], ab, ca}, {ab, D[1], bc}, {ca, bc, D[2]}, {bc, ca, ab}};
         double m = 0.0;
         for (uint32_t k = 0; k < 4; k++)
-            m = fmax(m, push_el(c, e->child + k, H, partial, mode));
+            m = fmax(m, push_el(c, e->child + k, H, ch[k], partial, mode));
         return m;
     }
+    /* a leaf: the field's mean over it */
+    H = rr_rgb_add(H, rr_rgb_scale(rr_rgb_add(D[0], rr_rgb_add(D[1], D[2])), 1.0 / 3.0));
+    H = rr_rgb_make(fmax(H.r, 0.0), fmax(H.g, 0.0), fmax(H.b, 0.0));
     if (mode == PUSH_SIGMA) {
         /* Only where every link was wholly visible or wholly hidden: there
          * the row sum's error is the quadrature's, which k removes; a few
@@ -206,7 +216,8 @@ double rad__hier_push(hctx *c, push_mode mode)
     double m = 0.0;
 #pragma omp parallel for schedule(dynamic, 64) reduction(max : m)
     for (long r = 0; r < (long)nr; r++) {
-        double d = push_el(c, (uint32_t)r, rr_rgb_make(0, 0, 0), 0, mode);
+        const rr_rgb zero[3] = {{0, 0, 0}, {0, 0, 0}, {0, 0, 0}};
+        double d = push_el(c, (uint32_t)r, rr_rgb_make(0, 0, 0), zero, 0, mode);
         m = d > m ? d : m;
     }
     return m;

@@ -600,10 +600,9 @@ static void block_error(const rr_image *t, const rr_image *r, double *median, do
 /* The hierarchical pass on scenes/cornell.json at 64 px against secondary
  * rays at 1024 spp, block by block (the issue's measure): the radiosity
  * display and the hybrid, 16 spp each. Measured: radiosity block median
- * 1.8 %, p90 5.1 %; hybrid 1.2 % and 3.9 %. Before the links' factors were
- * shared among their receivers' children by shape (rad_hier.c, "Shape"):
- * 2.2 / 9.2 % and 1.7 / 6.4 %. The reference's own noise is about 1 % per
- * block. */
+ * 1.6 %, p90 4.8 %; hybrid 1.0 % and 3.2 %. Before the links' factors were
+ * spread over their receivers by shape (rad_hier.c, "Shape"): 2.2 / 9.2 %
+ * and 1.7 / 6.4 %. The reference's own noise is about 1 % per block. */
 static void test_hierarchical_cornell_blocks(void **state)
 {
     (void)state;
