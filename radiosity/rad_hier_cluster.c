@@ -220,9 +220,8 @@ static void visibility(const hctx *c, uint32_t r, uint32_t s, rr_rng *rng, int p
 /* ---- geometry ---- */
 
 /* The cosine at x (normal nr) towards p, and their distance *L. */
-static inline double node_cos(const hctx *c, rr_vec3 x, rr_vec3 nr, rr_vec3 p, double *L)
+static inline double node_cos(rr_vec3 x, rr_vec3 nr, rr_vec3 p, double *L)
 {
-    (void)c;
     rr_vec3 d = rr_v3_sub(p, x);
     *L = rr_v3_len(d);
     return *L > 0 ? rr_v3_dot(nr, d) / *L : 0.0;
@@ -304,22 +303,18 @@ static void cluster_geo(const hctx *c, uint32_t r, uint32_t s, double *geo, doub
         uint32_t n = fr[i];
         rr_vec3 cp = n & CLB ? c->cl[CL(n)].pc : c->el[n].ctr, ca = n & CLB ? c->cl[CL(n)].ac : c->el[n].ctr;
         double Ap, Pp, Aa, Pa, Lp, Lr;
-        double cp_r = node_cos(c, xr, nr, cp, &Lp), ca_r = n & CLB ? node_cos(c, xr, nr, ca, &Lr) : cp_r;
-        if (!(n & CLB))
-            Lr = Lp; /* an element's centroids are one point */
+        /* an element's two centroids are one point; the disc's saturation,
+         * A / pi, for flat nodes (elements) only */
+        double cp_r = node_cos(xr, nr, cp, &Lp), ca_r = n & CLB ? node_cos(xr, nr, ca, &Lr) : cp_r;
         if (cp_r > 0.0) {
             node_proj(c, n, rr_v3_scale(rr_v3_sub(xr, cp), 1.0 / Lp), &Ap, &Pp);
-            /* the disc's saturation, A / pi, for flat nodes only */
             Tp += cp_r / (Lp * Lp + (n & CLB ? 0.0 : Ap / RR_PI)) * Pp / RR_PI;
         }
-        if (ca_r > 0.0) {
-            if (n & CLB)
-                node_proj(c, n, rr_v3_scale(rr_v3_sub(xr, ca), 1.0 / Lr), &Aa, &Pa);
-            else if (cp_r > 0.0)
-                Aa = Ap;
-            else
-                node_proj(c, n, rr_v3_scale(rr_v3_sub(xr, ca), 1.0 / Lr), &Aa, &Pa);
-            Ta += ca_r / (Lr * Lr + (n & CLB ? 0.0 : Aa / RR_PI)) * Aa / RR_PI;
+        if (ca_r > 0.0 && (n & CLB)) {
+            node_proj(c, n, rr_v3_scale(rr_v3_sub(xr, ca), 1.0 / Lr), &Aa, &Pa);
+            Ta += ca_r / (Lr * Lr) * Aa / RR_PI;
+        } else if (ca_r > 0.0) {
+            Ta += ca_r / (Lp * Lp + Ap / RR_PI) * Ap / RR_PI;
         }
     }
     /* Over the receiver: its 4 points against its centre, and its corners

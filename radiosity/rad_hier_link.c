@@ -14,6 +14,8 @@
  * for near pairs the centroids of the NEAR_M^2 similar sub-triangles. */
 #define NEAR_M 6
 #define NEAR_N (NEAR_M * NEAR_M)
+_Static_assert(NEAR_N <= 64, "hel.nbur holds a bit per near-pair point");
+_Static_assert(NEAR_M % 2 == 0, "each child of an element holds a quarter of the near-pair points");
 static int quad_points(int near, double (*b)[3])
 {
     if (!near) {
