@@ -302,7 +302,7 @@ static void cluster_geo(const hctx *c, uint32_t r, uint32_t s, double *geo, doub
     for (int i = 0; i < nf; i++) {
         uint32_t n = fr[i];
         rr_vec3 cp = n & CLB ? c->cl[CL(n)].pc : c->el[n].ctr, ca = n & CLB ? c->cl[CL(n)].ac : c->el[n].ctr;
-        double Ap, Pp, Aa, Pa, Lp, Lr;
+        double Ap = 0.0, Pp = 0.0, Aa = 0.0, Pa = 0.0, Lp = 0.0, Lr = 0.0;
         /* an element's two centroids are one point; the disc's saturation,
          * A / pi, for flat nodes (elements) only */
         double cp_r = node_cos(xr, nr, cp, &Lp), ca_r = n & CLB ? node_cos(xr, nr, ca, &Lr) : cp_r;
