@@ -380,24 +380,35 @@ static void refine(hctx *c, uint32_t r, uint32_t s)
  * draw 0 while refining, this one for the transport's estimate. */
 #define ESTIMATE_DRAW 0xa0761d6478bd642fULL
 
-static void eval_link(const hctx *c, hlink *l)
+/* Link l evaluated whole, or (revis) its visibility drawn again, the
+ * geometry kept where it is held without visibility. */
+static void eval_link(const hctx *c, hlink *l, int revis)
 {
     rr_rng rng = rr_rng_make(c->seed ^ c->draw, ((uint64_t)l->r << 32) | l->s);
     if (l->s & CLB)
-        rad__hier_eval_cluster(c, l, &rng);
+        (revis ? rad__hier_revis_cluster : rad__hier_eval_cluster)(c, l, &rng);
     else
-        rad__hier_eval_ee(c, l, &rng);
+        (revis ? rad__hier_revis_ee : rad__hier_eval_ee)(c, l, &rng);
 }
 
-/* The link's visibility drawn again (its geometry kept where it is held
- * without visibility). */
-static void revis_link(const hctx *c, hlink *l)
+/* Links lo .. hi - 1 evaluated in parallel, with progress (links evaluated
+ * of those made so far, from one thread); stops early when interrupted. */
+static void eval_links(hctx *c, size_t lo, size_t hi, int revis, void (*progress)(void *, size_t, size_t),
+                       void *user)
 {
-    rr_rng rng = rr_rng_make(c->seed ^ c->draw, ((uint64_t)l->r << 32) | l->s);
-    if (l->s & CLB)
-        rad__hier_revis_cluster(c, l, &rng);
-    else
-        rad__hier_revis_ee(c, l, &rng);
+    size_t done = 0;
+#pragma omp parallel for schedule(dynamic, 256)
+    for (long i = (long)lo; i < (long)hi; i++) {
+        if (interrupted(c))
+            continue;
+        eval_link(c, &c->ln[i], revis);
+        size_t d;
+#pragma omp atomic capture
+        d = ++done;
+        if (progress && omp_get_thread_num() == 0 && (d & 4095) == 0)
+            progress(user, c->evaluated + d, c->evaluated + (hi - lo));
+    }
+    c->evaluated += hi - lo;
 }
 
 /* ---- leaf data: first shot and closedness ---- */
@@ -450,21 +461,9 @@ static int unrepresented(const hctx *c, uint32_t r)
 static rr_status settle(hctx *c, void (*progress)(void *, size_t, size_t), void *user, rr_error *err)
 {
     for (int pass = 0; pass < 32; pass++) {
-        size_t lo = c->first_new, hi = c->nln, done = 0;
+        size_t lo = c->first_new;
         rad__hier_probe_new(c); /* the links read their ends' burial */
-        /* Progress: links evaluated of those made so far, from one thread. */
-#pragma omp parallel for schedule(dynamic, 256)
-        for (long i = (long)lo; i < (long)hi; i++) {
-            if (interrupted(c))
-                continue;
-            eval_link(c, &c->ln[i]);
-            size_t d;
-#pragma omp atomic capture
-            d = ++done;
-            if (progress && omp_get_thread_num() == 0 && (d & 4095) == 0)
-                progress(user, c->evaluated + d, c->evaluated + (hi - lo));
-        }
-        c->evaluated += hi - lo;
+        eval_links(c, lo, c->nln, 0, progress, user);
         size_t ne = c->nel;
 #pragma omp parallel for schedule(dynamic, 64)
         for (long i = 0; i < (long)ne; i++)
@@ -531,19 +530,7 @@ static rr_status settle(hctx *c, void (*progress)(void *, size_t, size_t), void 
 static rr_status estimate(hctx *c, void (*progress)(void *, size_t, size_t), void *user, rr_error *err)
 {
     c->draw = ESTIMATE_DRAW;
-    size_t n = c->nln, done = 0;
-#pragma omp parallel for schedule(dynamic, 256)
-    for (long i = 0; i < (long)n; i++) {
-        if (interrupted(c))
-            continue;
-        revis_link(c, &c->ln[i]);
-        size_t d;
-#pragma omp atomic capture
-        d = ++done;
-        if (progress && omp_get_thread_num() == 0 && (d & 4095) == 0)
-            progress(user, c->evaluated + d, c->evaluated + n);
-    }
-    c->evaluated += n;
+    eval_links(c, 0, c->nln, 1, progress, user);
     if (interrupted(c))
         return rr_error_set(err, RR_ERR_INTERRUPTED, "%s: radiosity: interrupted", c->s->path);
     if (progress)
