@@ -92,11 +92,13 @@ static inline int link_shape(const hlink *l, float d[3])
 {
     if (!l->sh[3])
         return 0;
-    for (int k = 0; k < 3; k++)
-        d[k] = (float)l->sh[k] * (1.0f / 85.0f) - 1.0f;
-    float mean = (d[0] + d[1] + d[2]) * (1.0f / 3.0f);
-    for (int k = 0; k < 3; k++)
-        d[k] -= mean;
+    /* written out (no loops), so that d stays in registers in the gather */
+    float d0 = (float)l->sh[0] * (1.0f / 85.0f) - 1.0f, d1 = (float)l->sh[1] * (1.0f / 85.0f) - 1.0f,
+          d2 = (float)l->sh[2] * (1.0f / 85.0f) - 1.0f;
+    float mean = (d0 + d1 + d2) * (1.0f / 3.0f);
+    d[0] = d0 - mean;
+    d[1] = d1 - mean;
+    d[2] = d2 - mean;
     return 1;
 }
 
@@ -119,6 +121,8 @@ typedef struct hctx {
     uint32_t top;
     hlink *ln;
     size_t nln, capln, first_new;
+    rr_rgb *sv;       /* the gather's source values, elements then clusters (rad__hier_gather) */
+    size_t capsv;
     size_t evaluated; /* links evaluated so far (progress) */
     double eps, min_area;
     size_t max_links;
@@ -234,8 +238,9 @@ void rad__hier_sources(hctx *c, int unit, int indirect);
 /* Receiver groups of the links sorted by receiver: grp[0..ngrp] (one past
  * the end); NULL when out of memory (free() it). */
 size_t *rad__hier_groups(const hctx *c, size_t *ngrp);
-/* Every link's transport into its receiver's H (receivers are elements). */
-void rad__hier_gather(hctx *c, const size_t *grp, size_t ngrp);
+/* Every link's transport into its receiver's H (receivers are elements);
+ * -1 when out of memory. */
+int rad__hier_gather(hctx *c, const size_t *grp, size_t ngrp);
 /* Irradiance down to the leaves; at the leaves per mode. */
 double rad__hier_push(hctx *c, push_mode mode);
 /* Sorts the links, sets the row-sum scales k, then Jacobi sweeps (sources,
