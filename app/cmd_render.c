@@ -530,6 +530,14 @@ static void print_stats(const ig_session *ses, const render_stats *rs)
     const rad_solution *sol = ses->sol;
     if (sol && ses->sol_cached)
         printf("radiosity  %zu patches, read from %s (%.2f s)\n", sol->P->n, ses->cache_path, ses->seconds_pass);
+    else if (sol && sol->links)
+        printf("radiosity  %zu leaves, %zu links; refinement %.2f s (%.4g M rays, %.3g Mrays/s), solves %.2f s "
+               "(Jacobi, %d sweep(s) in the last)\n",
+               sol->P->n, sol->links, sol->seconds_ff, ((double)sol->ff_rays.closest + (double)sol->ff_rays.occluded) * 1e-6,
+               sol->seconds_ff > 0
+                   ? ((double)sol->ff_rays.closest + (double)sol->ff_rays.occluded) * 1e-6 / sol->seconds_ff
+                   : 0.0,
+               sol->seconds_solve, sol->stats.iterations);
     else if (sol)
         printf("radiosity  %zu patches, %zu form factors; patches %.2f s, form factors %.2f s (%.4g M rays), "
                "solve %.2f s (%s, %d iteration(s))\n",
@@ -567,13 +575,16 @@ static int write_stats(const char *path, const render_args *A, const scene *sc, 
                 ? ((double)rs->rays.closest + (double)rs->rays.occluded) * 1e-6 / rs->seconds_render
                 : 0.0,
             rs->peak_bytes);
+    /* hierarchical (hierarchical_links > 0): "patches" are its leaves,
+     * "form_factors" its links, "seconds_form_factors" the refinement's */
     if (sol)
         fprintf(f, "\"patches\": %zu, \"form_factors\": %zu, \"radiosity_cached\": %s, "
                    "\"seconds_radiosity\": %.6g, \"seconds_patches\": %.6g, \"seconds_form_factors\": %.6g, "
-                   "\"seconds_solve\": %.6g, \"solver_iterations\": %d, \"form_factor_rays\": %llu}\n",
+                   "\"seconds_solve\": %.6g, \"solver_iterations\": %d, \"form_factor_rays\": %llu, "
+                   "\"hierarchical_links\": %zu}\n",
                 sol->P->n, sol->nnz, ses->sol_cached ? "true" : "false", ses->seconds_pass, sol->seconds_patches,
                 sol->seconds_ff, sol->seconds_solve, sol->stats.iterations,
-                (unsigned long long)(sol->ff_rays.closest + sol->ff_rays.occluded));
+                (unsigned long long)(sol->ff_rays.closest + sol->ff_rays.occluded), sol->links);
     else
         fprintf(f, "\"patches\": 0}\n");
     int bad = ferror(f);

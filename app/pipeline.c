@@ -147,6 +147,12 @@ rr_status app_session_field(ig_session *s, int quiet, rr_error *err)
     const rad_solution *sol = s->sol;
     if (s->sol_cached && !quiet)
         fprintf(stderr, "radiosity: %zu patches, solution read from %s\n", sol->P->n, s->cache_path);
+    else if (!quiet && sol->links)
+        fprintf(stderr,
+                "radiosity: %zu leaves, %zu links (hierarchical, %d rounds; refinement %.2f s), Jacobi %d sweep(s) in "
+                "the last solve, residual %.2g (solves %.2f s)\n",
+                sol->P->n, sol->links, sol->refine_rounds, sol->seconds_ff, sol->stats.iterations, sol->stats.residual,
+                sol->seconds_solve);
     else if (!quiet)
         fprintf(stderr,
                 "radiosity: %zu patches, %zu form factors (%.2f s), %s solver %d iteration(s), residual %.2g (%.2f s)\n",

@@ -21,7 +21,7 @@ for k in "$@"; do
     line=$(grep '^radiosity ' "$out/log")
     leaves=$(echo "$line" | awk '{ print $2 }')
     links=$(echo "$line" | awk '{ print $4 }')
-    secs=$(echo "$line" | sed 's/.*form factors \([0-9.]*\) s.*/\1/')
+    secs=$(echo "$line" | sed 's/.*refinement \([0-9.]*\) s.*solves \([0-9.]*\) s.*/\1 \2/' | awk '{ print $1 + $2 }')
     mem=$(awk '{ printf "%.0f", $1 / 1024 }' "$out/mem")
     printf '%8s %10s %12s %9s %9s\n' "$k" "$leaves" "$links" "$secs" "$mem"
     echo "$leaves $links" >>"$out/fit"

@@ -342,9 +342,12 @@ typedef struct rad_solution {
     rr_rgb *vertex_Hind; /* per vertex: indirect irradiance, sum_j F_ij (B_j - emitted_j), area-weighted and
                           * back-projected (RAD_HIND_SWEEPS) */
     rad_solve_stats stats;
+    /* hierarchical: seconds_ff is the refinement's (linking, the estimate,
+     * the output), seconds_solve the Jacobi sweeps of every round */
     double seconds_patches, seconds_ff, seconds_solve;
-    size_t nnz;          /* stored form factors */
-    rt_ray_counts ff_rays; /* rays the form factors traced (0 when read from a cache) */
+    size_t nnz;          /* stored form factors (hierarchical: links) */
+    rt_ray_counts ff_rays; /* rays the form factors traced (hierarchical: the refinement's, all but the output's
+                              first shots); 0 when read from a cache */
     /* Hierarchical solutions (P->roots set): per leaf, the irradiance gathered
      * from other surfaces (H, without the first shot) and the effective row sum
      * (the share of what leaves it that lands on surfaces), for the ledger in

@@ -397,16 +397,21 @@ static void eval_links(hctx *c, size_t lo, size_t hi, int revis, void (*progress
                        void *user)
 {
     size_t done = 0;
-#pragma omp parallel for schedule(dynamic, 256)
-    for (long i = (long)lo; i < (long)hi; i++) {
-        if (interrupted(c))
-            continue;
-        eval_link(c, &c->ln[i], revis);
-        size_t d;
+#pragma omp parallel
+    {
+        rt_ray_counts before = rt_ray_counts_of_thread();
+#pragma omp for schedule(dynamic, 256)
+        for (long i = (long)lo; i < (long)hi; i++) {
+            if (interrupted(c))
+                continue;
+            eval_link(c, &c->ln[i], revis);
+            size_t d;
 #pragma omp atomic capture
-        d = ++done;
-        if (progress && omp_get_thread_num() == 0 && (d & 4095) == 0)
-            progress(user, c->evaluated + d, c->evaluated + (hi - lo));
+            d = ++done;
+            if (progress && omp_get_thread_num() == 0 && (d & 4095) == 0)
+                progress(user, c->evaluated + d, c->evaluated + (hi - lo));
+        }
+        rt_ray_counts_add_since(&c->rays, before);
     }
     c->evaluated += hi - lo;
 }
@@ -434,6 +439,20 @@ static void leaf_data(const hctx *c, uint32_t x)
         e->closed = rt_accel_closest(c->a, ray, 0.0, INFINITY, &h) && h.front;
     }
     e->fresh = 0;
+}
+
+/* leaf_data of the fresh leaves among elements 0 .. ne - 1, in parallel. */
+static void leaves_data(hctx *c, size_t ne)
+{
+#pragma omp parallel
+    {
+        rt_ray_counts before = rt_ray_counts_of_thread();
+#pragma omp for schedule(dynamic, 64)
+        for (long i = 0; i < (long)ne; i++)
+            if (c->el[i].fresh && c->el[i].child == NONE && !interrupted(c))
+                leaf_data(c, (uint32_t)i);
+        rt_ray_counts_add_since(&c->rays, before);
+    }
 }
 
 /* ---- the rounds ---- */
@@ -465,10 +484,7 @@ static rr_status settle(hctx *c, void (*progress)(void *, size_t, size_t), void 
         rad__hier_probe_new(c); /* the links read their ends' burial */
         eval_links(c, lo, c->nln, 0, progress, user);
         size_t ne = c->nel;
-#pragma omp parallel for schedule(dynamic, 64)
-        for (long i = 0; i < (long)ne; i++)
-            if (c->el[i].fresh && c->el[i].child == NONE && !interrupted(c))
-                leaf_data(c, (uint32_t)i);
+        leaves_data(c, ne);
         if (interrupted(c))
             return rr_error_set(err, RR_ERR_INTERRUPTED, "%s: radiosity: interrupted", c->s->path);
         if (progress)
@@ -714,6 +730,15 @@ static double emitted_power(const hctx *c)
 
 static rr_status hier_run(const scene *s, const rt_accel *a, const rad_pass_opts *o, rad_solution *sol, rr_error *err);
 
+/* rad__hier_solve, its time added to *seconds. */
+static rr_status timed_solve(hctx *c, const rad_solve_opts *so, rad_solution *sol, double *seconds, rr_error *err)
+{
+    double t = rr_now_seconds();
+    rr_status st = rad__hier_solve(c, so, &sol->stats, err);
+    *seconds += rr_now_seconds() - t;
+    return st;
+}
+
 rr_status rad__hier_run(const scene *s, const rt_accel *a, const rad_pass_opts *o, rad_solution *sol, rr_error *err)
 {
     /* ff.threads for every parallel region of the pass (0: OpenMP's default);
@@ -728,7 +753,7 @@ rr_status rad__hier_run(const scene *s, const rt_accel *a, const rad_pass_opts *
 
 static rr_status hier_run(const scene *s, const rt_accel *a, const rad_pass_opts *o, rad_solution *sol, rr_error *err)
 {
-    double t0 = rr_now_seconds();
+    double t0 = rr_now_seconds(), t_solve = 0.0;
     hctx c;
     memset(&c, 0, sizeof c);
     c.s = s;
@@ -789,11 +814,11 @@ static rr_status hier_run(const scene *s, const rt_accel *a, const rad_pass_opts
     if (!so.interrupt)
         so.interrupt = o->ff.interrupt;
     /* The roots' data, their radiosity E to start from, and eps. */
-#pragma omp parallel for schedule(dynamic, 64)
-    for (long i = 0; i < (long)nr; i++)
-        leaf_data(&c, (uint32_t)i);
+    leaves_data(&c, nr); /* the roots, all fresh leaves */
     for (size_t i = 0; i < c.nel; i++)
         c.el[i].B = c.el[i].E;
+    if (st == RR_OK && interrupted(&c))
+        st = rr_error_set(err, RR_ERR_INTERRUPTED, "%s: radiosity: interrupted", s->path);
     double power = st == RR_OK ? emitted_power(&c) : 0.0;
     if (st == RR_OK && !(power > 0))
         st = rr_error_set(err, RR_ERR_INVALID, "%s: radiosity: nothing emits light", s->path);
@@ -816,7 +841,7 @@ static rr_status hier_run(const scene *s, const rt_accel *a, const rad_pass_opts
         if (so.tolerance < ROUND_TOL)
             ro.tolerance = ROUND_TOL;
         if (st == RR_OK)
-            st = rad__hier_solve(&c, &ro, &sol->stats, err);
+            st = timed_solve(&c, &ro, sol, &t_solve, err);
         sol->refine_rounds = round + 1;
     }
     if (st == RR_OK) {
@@ -824,12 +849,12 @@ static rr_status hier_run(const scene *s, const rt_accel *a, const rad_pass_opts
         st = estimate(&c, o->ff.progress, o->ff.progress_user, err);
     }
     if (st == RR_OK)
-        st = rad__hier_solve(&c, &so, &sol->stats, err);
-    double t1 = rr_now_seconds();
+        st = timed_solve(&c, &so, sol, &t_solve, err);
     if (st == RR_OK && c.capped)
         rr_warn(&o->warn, "%s: radiosity: refinement stopped at %zu links (radiosity.max_links): the solution is "
                           "coarser than radiosity.refine_tolerance asks",
                 s->path, c.max_links);
+    sol->ff_rays = c.rays;
     sol->links = c.nln;
     sol->elements = c.nel + c.ncl;
     sol->nnz = c.nln;
@@ -845,8 +870,10 @@ static rr_status hier_run(const scene *s, const rt_accel *a, const rad_pass_opts
     free(c.sv);
     free(c.rn6);
     sol->stats.used = RAD_SOLVER_ITERATIVE;
+    /* the refinement (linking, estimates, output) as the form factors' time;
+     * the Jacobi solves of every round as the solve's */
     sol->seconds_patches = 0.0;
-    sol->seconds_ff = t1 - t0;
-    sol->seconds_solve = rr_now_seconds() - t1;
+    sol->seconds_solve = t_solve;
+    sol->seconds_ff = rr_now_seconds() - t0 - t_solve;
     return st;
 }

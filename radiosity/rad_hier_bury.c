@@ -54,8 +54,13 @@ static void el_probe(hctx *c, uint32_t x)
 
 void rad__hier_probe_new(hctx *c)
 {
-#pragma omp parallel for schedule(dynamic, 64)
-    for (long i = 0; i < (long)c->nel; i++)
-        if (!c->el[i].probed && !interrupted(c))
-            el_probe(c, (uint32_t)i);
+#pragma omp parallel
+    {
+        rt_ray_counts before = rt_ray_counts_of_thread();
+#pragma omp for schedule(dynamic, 64)
+        for (long i = 0; i < (long)c->nel; i++)
+            if (!c->el[i].probed && !interrupted(c))
+                el_probe(c, (uint32_t)i);
+        rt_ray_counts_add_since(&c->rays, before);
+    }
 }

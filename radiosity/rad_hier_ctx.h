@@ -124,6 +124,7 @@ typedef struct hctx {
     rr_rgb *sv;       /* the gather's source values, elements then clusters (rad__hier_gather) */
     size_t capsv;
     size_t evaluated; /* links evaluated so far (progress) */
+    rt_ray_counts rays; /* rays traced while linking (sol->ff_rays): every parallel region that traces adds its own */
     double eps, min_area;
     size_t max_links;
     int capped, nomem;

@@ -460,6 +460,24 @@ static void aovs_and_metadata(void **state)
     free(text);
     assert_true(patches > 100);
     assert_int_equal(rays, patches * 512);
+    /* The hierarchical pass counts its rays too (links' shadow rays, burial
+     * probes, closedness, first shots; it printed 0 before), the same for
+     * any thread count, and reports its links. */
+    long long hrays[2];
+    for (int t = 0; t < 2; t++) {
+        const char *h[] = {"render", lit, "-o", out, "--stats", st, "-q", "--threads", t ? "2" : "1",
+                           "--set", "radiosity.method=hierarchical", NULL};
+        assert_int_equal(run(h), 0);
+        assert_int_equal(rr_file_read_all(st, &text, &len, NULL), RR_OK);
+        const char *hr = strstr(text, "\"form_factor_rays\": "), *hl = strstr(text, "\"hierarchical_links\": ");
+        assert_non_null(hr);
+        assert_non_null(hl);
+        hrays[t] = atoll(hr + strlen("\"form_factor_rays\": "));
+        assert_true(atoll(hl + strlen("\"hierarchical_links\": ")) > 0);
+        free(text);
+    }
+    assert_true(hrays[0] > 0);
+    assert_true(hrays[0] == hrays[1]);
     /* An unknown AOV: exit 2 naming it, nothing written. */
     char bad[256];
     snprintf(bad, sizeof bad, "%s/bad.exr", g_dir);
