@@ -192,6 +192,13 @@ static int node_sample(const hctx *c, uint32_t x, int k, int fixed, int by_power
  * re-drawing it for r's children kept mostly the links whose rays missed it
  * (a window pane under its glazing bars sent +7 %): *open_p power rays
  * ended in the open, *pass_p of them passed. */
+/* Draws of a cluster's shadow-ray end until it lies on a surface facing the
+ * receiver (visibility below). Measured (48 px, radiosity display against
+ * the direct light): the floor under a sphere lamp -2.7 -> -0.1 % at the
+ * default patch area, -12.3 -> -3.2 % at patch_area 0.0005, whose sphere has
+ * ~100 facets in its clusters; the furnace room's mean 0.9927 -> 0.9948. */
+#define BACK_DRAWS 4
+
 static void visibility(const hctx *c, uint32_t r, uint32_t s, rr_rng *rng, int pass[2], int *open_p, int *pass_p,
                        int *partial)
 {
@@ -204,7 +211,17 @@ static void visibility(const hctx *c, uint32_t r, uint32_t s, rr_rng *rng, int p
         int by_power = k >= NA;
         rr_vec3 x, nx, y, ny;
         node_sample(c, r, open_pt(&c->el[r], k), 1, 0, u, rng, &x, &nx);
-        if (node_sample(c, s, k % 4, 0, by_power, rr_v3_neg(u), rng, &y, &ny))
+        /* The six-direction split gives power towards r to surfaces turned
+         * away from it too (a tilted face's share along an axis it faces
+         * away from): an end on such a surface, behind the source's own
+         * silhouette, is drawn again (BACK_DRAWS times at most) */
+        int buried = 0;
+        for (int t = 0; t < BACK_DRAWS; t++) {
+            buried = node_sample(c, s, k % 4, 0, by_power, rr_v3_neg(u), rng, &y, &ny);
+            if (rr_v3_dot(ny, rr_v3_sub(x, y)) > 0.0)
+                break;
+        }
+        if (buried)
             continue; /* ends under a cover: blocked */
         rr_vec3 d = rr_v3_sub(y, x);
         rr_vec3 o = rt_offset_origin(c->ext, x, nx, d), t = rt_offset_origin(c->ext, y, ny, rr_v3_neg(d));
