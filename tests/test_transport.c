@@ -167,8 +167,10 @@ static void floor_under_sphere_lamp(scene_rad_method method)
         double got = object_mean(&w, &f.beauty, floor, &cnt);
         assert_int_equal(cnt, n);
         /* Radiosity: Gouraud over patches of ~0.018 (scene area / 2000), a
-         * percent or two from the smooth closed form. */
-        expect_rel(label, ig->name, got, want, ig->shows_field ? 0.03 : 0.02);
+         * percent from the smooth closed form: measured +0.86 % (flat) and
+         * +0.27 % (hierarchical; -2.74 % while its cluster shadow rays could
+         * end behind the sphere's own silhouette, rad_hier_cluster.c). */
+        expect_rel(label, ig->name, got, want, ig->shows_field ? 0.015 : 0.02);
         rt_film_free(&f);
     }
     world_free(&w);
