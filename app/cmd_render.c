@@ -528,21 +528,18 @@ static void print_stats(const ig_session *ses, const render_stats *rs)
            n * 1e-6, (double)rs->rays.closest * 1e-6, (double)rs->rays.occluded * 1e-6,
            rs->seconds_render > 0 ? n * 1e-6 / rs->seconds_render : 0.0, rs->seconds_render);
     const rad_solution *sol = ses->sol;
+    double mff = sol ? ((double)sol->ff_rays.closest + (double)sol->ff_rays.occluded) * 1e-6 : 0.0;
     if (sol && ses->sol_cached)
         printf("radiosity  %zu patches, read from %s (%.2f s)\n", sol->P->n, ses->cache_path, ses->seconds_pass);
     else if (sol && sol->links)
         printf("radiosity  %zu leaves, %zu links; refinement %.2f s (%.4g M rays, %.3g Mrays/s), solves %.2f s "
                "(Jacobi, %d sweep(s) in the last)\n",
-               sol->P->n, sol->links, sol->seconds_ff, ((double)sol->ff_rays.closest + (double)sol->ff_rays.occluded) * 1e-6,
-               sol->seconds_ff > 0
-                   ? ((double)sol->ff_rays.closest + (double)sol->ff_rays.occluded) * 1e-6 / sol->seconds_ff
-                   : 0.0,
+               sol->P->n, sol->links, sol->seconds_ff, mff, sol->seconds_ff > 0 ? mff / sol->seconds_ff : 0.0,
                sol->seconds_solve, sol->stats.iterations);
     else if (sol)
         printf("radiosity  %zu patches, %zu form factors; patches %.2f s, form factors %.2f s (%.4g M rays), "
                "solve %.2f s (%s, %d iteration(s))\n",
-               sol->P->n, sol->nnz, sol->seconds_patches, sol->seconds_ff,
-               ((double)sol->ff_rays.closest + (double)sol->ff_rays.occluded) * 1e-6, sol->seconds_solve,
+               sol->P->n, sol->nnz, sol->seconds_patches, sol->seconds_ff, mff, sol->seconds_solve,
                sol->stats.used == RAD_SOLVER_DIRECT ? "direct" : "iterative", sol->stats.iterations);
     printf("total      %.2f s, peak memory %s\n", rs->seconds, rr_size_text(rs->peak_bytes, peak, sizeof peak));
     if (app_mpi_ranks() > 1) {

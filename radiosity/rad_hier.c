@@ -669,7 +669,6 @@ static rr_status make_output(hctx *c, rad_patches *roots, rad_solution *sol, rr_
         free(Hind);
         return rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory", c->s->path);
     }
-    /* (the gathers' array has its size from the solve's, so they cannot fail) */
     rad__hier_sources(c, 0, 0);
     rad__hier_gather(c, grp, ngrp);
     rad__hier_push(c, PUSH_KEEP);

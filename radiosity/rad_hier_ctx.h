@@ -240,8 +240,8 @@ void rad__hier_sources(hctx *c, int unit, int indirect);
  * the end); NULL when out of memory (free() it). */
 size_t *rad__hier_groups(const hctx *c, size_t *ngrp);
 /* Every link's transport into its receiver's H (receivers are elements);
- * -1 when out of memory. */
-int rad__hier_gather(hctx *c, const size_t *grp, size_t ngrp);
+ * after a rad__hier_solve of the same hierarchy (which sizes c->sv). */
+void rad__hier_gather(hctx *c, const size_t *grp, size_t ngrp);
 /* Irradiance down to the leaves; at the leaves per mode. */
 double rad__hier_push(hctx *c, push_mode mode);
 /* Sorts the links, sets the row-sum scales k, then Jacobi sweeps (sources,

@@ -136,21 +136,28 @@ void rad__hier_sources(hctx *c, int unit, int indirect)
     pull_cl(c, c->top, D);
 }
 
-/* Every link's transport into its receiver (links sorted by receiver). The
- * sources' values are copied first into one dense array (c->sv: elements,
- * then clusters): read through the links from the ~370-byte elements, every
- * link's source was a cache miss of its own (the gather was 13 % of
- * room.json's pass). The same values, so the same bits. */
-int rad__hier_gather(hctx *c, const size_t *grp, size_t ngrp)
+/* Room in c->sv for every node's source value; -1 when out of memory. */
+static int reserve_sources(hctx *c)
 {
     size_t nsv = c->nel + c->ncl;
-    if (nsv > c->capsv) {
-        rr_rgb *sv = realloc(c->sv, nsv * sizeof *sv);
-        if (!sv)
-            return -1;
-        c->sv = sv;
-        c->capsv = nsv;
-    }
+    if (nsv <= c->capsv)
+        return 0;
+    rr_rgb *sv = realloc(c->sv, nsv * sizeof *sv);
+    if (!sv)
+        return -1;
+    c->sv = sv;
+    c->capsv = nsv;
+    return 0;
+}
+
+/* Every link's transport into its receiver (links sorted by receiver). The
+ * sources' values are copied first into one dense array (c->sv: elements,
+ * then clusters, sized by rad__hier_solve): read through the links from the
+ * ~370-byte elements, every link's source was a cache miss of its own (the
+ * gather was 13 % of room.json's pass). The same values, so the same bits. */
+void rad__hier_gather(hctx *c, const size_t *grp, size_t ngrp)
+{
+    RR_CHECK(c->capsv >= c->nel + c->ncl);
     rr_rgb *sv = c->sv, *svc = c->sv + c->nel;
 #pragma omp parallel for schedule(static)
     for (long i = 0; i < (long)c->nel; i++) {
@@ -184,7 +191,6 @@ int rad__hier_gather(hctx *c, const size_t *grp, size_t ngrp)
         if (c->unit)
             e->partial = partial;
     }
-    return 0;
 }
 
 static rr_rgb mid(rr_rgb a, rr_rgb b) { return rr_rgb_scale(rr_rgb_add(a, b), 0.5); }
@@ -269,17 +275,14 @@ static double leaves_max_B(const hctx *c)
 /* Row sums (k), then Jacobi sweeps to the tolerance. */
 rr_status rad__hier_solve(hctx *c, const rad_solve_opts *so, rad_solve_stats *st, rr_error *err)
 {
-    if (sort_links(c) != 0)
+    if (sort_links(c) != 0 || reserve_sources(c) != 0)
         return rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory", c->s->path);
     size_t ngrp;
     size_t *grp = rad__hier_groups(c, &ngrp);
     if (!grp)
         return rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory", c->s->path);
     rad__hier_sources(c, 1, 0);
-    if (rad__hier_gather(c, grp, ngrp) != 0) {
-        free(grp);
-        return rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory", c->s->path);
-    }
+    rad__hier_gather(c, grp, ngrp);
     rad__hier_push(c, PUSH_SIGMA);
     int maxit = so->max_iterations > 0 ? so->max_iterations : 10000;
     double tol = so->tolerance > 0 ? so->tolerance : 1e-9;
@@ -290,7 +293,7 @@ rr_status rad__hier_solve(hctx *c, const rad_solve_opts *so, rad_solve_stats *st
             return rr_error_set(err, RR_ERR_INTERRUPTED, "%s: radiosity: interrupted", c->s->path);
         }
         rad__hier_sources(c, 0, 0);
-        rad__hier_gather(c, grp, ngrp); /* the array has its size from the first gather */
+        rad__hier_gather(c, grp, ngrp);
         double d = rad__hier_push(c, PUSH_SOLVE), bmax = leaves_max_B(c);
         st->iterations = it + 1;
         st->residual = bmax > 0 ? d / bmax : 0.0;
