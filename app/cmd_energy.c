@@ -262,10 +262,13 @@ static void print_text(const energy_result *R)
         printf("all agree (largest |difference| %.2g SE)\n", worst_z);
     for (size_t i = 0; i < R->ncmp; i++) {
         const rad_energy_cmp *c = &R->cmp[i];
-        if (c->checked && !c->pass)
+        if (c->checked && !c->pass && c->part != 0.0)
             printf("  %-18s %-8s radiosity %.5g, light tracing %.5g +- %.2g: %+.2f %%, %.1f SE\n", c->name,
-                   column_name(c->column), c->rad, c->part, c->se,
-                   100.0 * (c->rad - c->part) / fmax(fabs(c->part), 1e-300), c->z);
+                   column_name(c->column), c->rad, c->part, c->se, 100.0 * (c->rad - c->part) / fabs(c->part), c->z);
+        else if (c->checked && !c->pass) /* nothing to be relative to: say it against the emitted power */
+            printf("  %-18s %-8s radiosity %.5g, light tracing 0 +- %.2g: %+.3g %% of the emitted power\n", c->name,
+                   column_name(c->column), c->rad, c->se,
+                   100.0 * c->rad / fmax(rr_rgb_mean(R->rows[R->nrows - 1].emitted), 1e-300));
     }
     if (R->created)
         printf("  power created: the radiosity ledger's escaped power is below 0\n");

@@ -779,15 +779,6 @@ static rr_status hier_run(const scene *s, const rt_accel *a, const rad_pass_opts
         return st;
     }
     c.R = roots;
-    c.rn6 = malloc((roots->n ? roots->n : 1) * sizeof *c.rn6);
-    for (size_t i = 0; i < roots->n && c.rn6; i++) {
-        double l1 = 0.0;
-        axis_split(roots->p[i].normal, c.rn6[i]);
-        for (int q = 0; q < 6; q++)
-            l1 += c.rn6[i][q];
-        for (int q = 0; q < 6; q++)
-            c.rn6[i][q] = l1 > 0 ? c.rn6[i][q] / l1 : 0.0;
-    }
     c.L = rt_lights_delta_count(L) ? L : NULL;
     size_t nr = roots->n;
     c.cl = malloc((nr ? nr : 1) * sizeof *c.cl);
@@ -796,10 +787,9 @@ static rr_status hier_run(const scene *s, const rt_accel *a, const rad_pass_opts
         rr_vec3 v[3] = {roots->verts[p->v[0]], roots->verts[p->v[1]], roots->verts[p->v[2]]};
         el_add(&c, v, (uint32_t)i, 0);
     }
-    if (c.cl && c.rn6 && !c.nomem)
+    if (c.cl && !c.nomem)
         rad__hier_probe_new(&c); /* the roots' burial, which their leaf data reads */
-    if (!c.cl || !c.rn6 || c.nomem || nr == 0 || (c.top = rad__hier_clusters(&c)) == NONE) {
-        free(c.rn6);
+    if (!c.cl || c.nomem || nr == 0 || (c.top = rad__hier_clusters(&c)) == NONE) {
         free(c.cl);
         free(c.el);
         rt_lights_destroy(L);
@@ -867,7 +857,6 @@ static rr_status hier_run(const scene *s, const rt_accel *a, const rad_pass_opts
     free(c.cl);
     free(c.ln);
     free(c.sv);
-    free(c.rn6);
     sol->stats.used = RAD_SOLVER_ITERATIVE;
     /* the refinement (linking, estimates, output) as the form factors' time;
      * the Jacobi solves of every round as the solve's */

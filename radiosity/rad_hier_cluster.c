@@ -8,63 +8,52 @@
 
 #include "rad_hier_ctx.h"
 
-/* Node x's area split over the six axis directions as its power is
- * (pull_cl): a surface of normal n puts A n_a^+- / |n|_1 into each. */
-static void node_axis_area(const hctx *c, uint32_t x, double w[6])
-{
-    if (x & CLB) {
-        memcpy(w, c->cl[CL(x)].A6, sizeof c->cl[CL(x)].A6);
-        return;
-    }
-    const double *n6 = c->rn6[c->el[x].root];
-    for (int q = 0; q < 6; q++)
-        w[q] = n6[q] * c->el[x].area;
-}
-
-static double axis_dot(const double w[6], const double v[6])
-{
-    double p = 0.0;
-    for (int a = 0; a < 6; a++)
-        p += w[a] * v[a];
-    return p;
-}
-
-/* Node x's area as seen from the direction whose axis split is w (towards
- * the viewer), by the six-direction split: what a cluster shows of itself
- * that way. */
-static double node_proj_area(const hctx *c, uint32_t x, const double w[6])
+/* Node x's area as seen from direction u (towards the viewer): what a
+ * cluster shows of itself that way, by its normal buckets (normal_bucket),
+ * an element's exactly. */
+static double node_proj_area(const hctx *c, uint32_t x, rr_vec3 u)
 {
     if (x & CLB)
-        return axis_dot(w, c->cl[CL(x)].A6);
-    return axis_dot(w, c->rn6[c->el[x].root]) * c->el[x].area;
+        return bucket_proj(c->cl[CL(x)].An, u);
+    return fmax(0.0, rr_v3_dot(el_normal(c, x), u)) * c->el[x].area;
 }
 
-/* The power node x sends towards the direction whose axis split is w (by
- * its current sources, the six-direction split, all channels): what a
- * cluster's shadow rays are drawn by, so that its visibility is that of its
- * power. */
-static double node_proj_power(const hctx *c, uint32_t x, const double w[6])
+/* The power node x sends towards u (by its current sources, all channels):
+ * what a cluster's shadow rays are drawn by, so that its visibility is that
+ * of its power. */
+static double node_proj_power(const hctx *c, uint32_t x, rr_vec3 u)
 {
     if (x & CLB)
-        return axis_dot(w, c->cl[CL(x)].D6);
+        return bucket_proj(c->cl[CL(x)].Dn, u);
     const hel *e = &c->el[x];
-    return axis_dot(w, c->rn6[e->root]) * (e->src.r + e->src.g + e->src.b) * e->area;
+    return node_proj_area(c, x, u) * (e->src.r + e->src.g + e->src.b);
 }
 
-/* Both at once, from one axis split of u: the area node x shows towards u
- * (node_proj_area) and the power it sends that way (node_proj_power). */
+/* Both at once: the area node x shows towards u (node_proj_area) and the
+ * power it sends that way (node_proj_power). */
 static void node_proj(const hctx *c, uint32_t x, rr_vec3 u, double *area, double *power)
 {
-    double w[6];
-    axis_split(u, w);
     if (x & CLB) {
-        *area = axis_dot(w, c->cl[CL(x)].A6);
-        *power = axis_dot(w, c->cl[CL(x)].D6);
+        *area = bucket_proj(c->cl[CL(x)].An, u);
+        *power = bucket_proj(c->cl[CL(x)].Dn, u);
         return;
     }
     const hel *e = &c->el[x];
-    *area = axis_dot(w, c->rn6[e->root]) * e->area;
+    *area = node_proj_area(c, x, u);
     *power = *area * (e->src.r + e->src.g + e->src.b);
+}
+
+/* Node x's area times normal per normal bucket, added to V. */
+static void node_area_vec(const hctx *c, uint32_t x, rr_vec3 V[6])
+{
+    if (x & CLB) {
+        for (int b = 0; b < 6; b++)
+            V[b] = rr_v3_add(V[b], c->cl[CL(x)].An[b]);
+        return;
+    }
+    rr_vec3 n = el_normal(c, x);
+    int b = normal_bucket(n);
+    V[b] = rr_v3_add(V[b], rr_v3_scale(n, c->el[x].area));
 }
 
 typedef struct ritem {
@@ -113,11 +102,14 @@ static uint32_t cluster_build(hctx *c, ritem *it, size_t n)
                         : k->ctr;
     k->pc = k->ac;
     k->rho_max = fmax(node_rho(c, a), node_rho(c, b));
-    double wa[6], wb[6];
-    node_axis_area(c, a, wa);
-    node_axis_area(c, b, wb);
     for (int q = 0; q < 6; q++)
-        k->A6[q] = wa[q] + wb[q];
+        k->An[q] = rr_v3(0, 0, 0);
+    node_area_vec(c, a, k->An);
+    node_area_vec(c, b, k->An);
+    double m = 0.0;
+    for (int q = 0; q < 6; q++)
+        m += rr_v3_len(k->An[q]);
+    k->flat = k->area > 0 ? m / k->area : 1.0;
     return id | CLB;
 }
 
@@ -147,20 +139,18 @@ uint32_t rad__hier_clusters(hctx *c)
  * faces halved its light). xs on the true surface, ns its normal. Returns
  * whether a random point lies on a buried part of its element. */
 static int node_sample(const hctx *c, uint32_t x, int k, int fixed, int by_power, rr_vec3 u, rr_rng *rng,
-                       rr_vec3 *xs, rr_vec3 *ns)
+                       rr_vec3 *xs, rr_vec3 *ns, uint32_t *root)
 {
-    double w[6];
-    axis_split(u, w); /* one split for the whole walk */
     while (x & CLB) {
         const hcl *q = &c->cl[CL(x)];
         double a0 = 0.0, a1 = 0.0;
         if (by_power) {
-            a0 = node_proj_power(c, q->child[0], w);
-            a1 = node_proj_power(c, q->child[1], w);
+            a0 = node_proj_power(c, q->child[0], u);
+            a1 = node_proj_power(c, q->child[1], u);
         }
         if (!(a0 + a1 > 0)) { /* no power towards u (or by area): by the area shown */
-            a0 = node_proj_area(c, q->child[0], w);
-            a1 = node_proj_area(c, q->child[1], w);
+            a0 = node_proj_area(c, q->child[0], u);
+            a1 = node_proj_area(c, q->child[1], u);
         }
         if (!(a0 + a1 > 0)) { /* nothing faces u: by area */
             a0 = node_area(c, q->child[0]);
@@ -171,6 +161,7 @@ static int node_sample(const hctx *c, uint32_t x, int k, int fixed, int by_power
     const hel *e = &c->el[x];
     rr_vec3 p = fixed ? tri_at(e->c, k_pts[k][0], k_pts[k][1], k_pts[k][2]) : tri_random(e->c, rng);
     rad_patch_surface(c->R, c->s, c->a, e->root, p, xs, ns);
+    *root = e->root;
     return !fixed && e->open < 1.0 && rad__hier_buried(c, e, *xs, *ns);
 }
 
@@ -210,19 +201,21 @@ static void visibility(const hctx *c, uint32_t r, uint32_t s, rr_rng *rng, int p
     for (int k = 0; k < NA + NP; k++) {
         int by_power = k >= NA;
         rr_vec3 x, nx, y, ny;
-        node_sample(c, r, open_pt(&c->el[r], k), 1, 0, u, rng, &x, &nx);
+        uint32_t xroot, yroot;
+        node_sample(c, r, open_pt(&c->el[r], k), 1, 0, u, rng, &x, &nx, &xroot);
         /* The six-direction split gives power towards r to surfaces turned
          * away from it too (a tilted face's share along an axis it faces
          * away from): an end on such a surface, behind the source's own
          * silhouette, is drawn again (BACK_DRAWS times at most) */
         int buried = 0;
         for (int t = 0; t < BACK_DRAWS; t++) {
-            buried = node_sample(c, s, k % 4, 0, by_power, rr_v3_neg(u), rng, &y, &ny);
+            buried = node_sample(c, s, k % 4, 0, by_power, rr_v3_neg(u), rng, &y, &ny, &yroot);
             if (rr_v3_dot(ny, rr_v3_sub(x, y)) > 0.0)
                 break;
         }
         if (buried)
             continue; /* ends under a cover: blocked */
+        rad__hier_sphere_ends(c, xroot, yroot, &x, &nx, &y, &ny);
         rr_vec3 d = rr_v3_sub(y, x);
         rr_vec3 o = rt_offset_origin(c->ext, x, nx, d), t = rt_offset_origin(c->ext, y, ny, rr_v3_neg(d));
         rr_ray ray = {o, rr_v3_sub(t, o)};
@@ -286,6 +279,7 @@ static double geo_term(const hctx *c, rr_vec3 x, uint32_t r, rr_vec3 p, double A
 #define CL_LEVELS 3    /* levels of its tree that every cluster link reads */
 #define CL_THETA 0.15  /* and deeper where a node's radius exceeds this share of its distance */
 #define CL_NODES 32    /* the most nodes it reads */
+#define CL_FLAT 0.99   /* and deeper where a node's normal buckets lose more than 1 % of its area (hcl.flat) */
 
 static void cluster_geo(const hctx *c, uint32_t r, uint32_t s, int area_too, double *geo, double *geo_a,
                         double *spread, double fk[4])
@@ -307,7 +301,8 @@ static void cluster_geo(const hctx *c, uint32_t r, uint32_t s, int area_too, dou
             if (n & CLB) {
                 rr_vec3 d = rr_v3_sub(node_ctr(c, n), xr);
                 double R = node_radius(c, n);
-                wide = lev < CL_LEVELS || R > CL_THETA * rr_v3_len(d) || fabs(rr_v3_dot(el_normal(c, r), d)) < R;
+                wide = lev < CL_LEVELS || R > CL_THETA * rr_v3_len(d) || fabs(rr_v3_dot(el_normal(c, r), d)) < R ||
+                       c->cl[CL(n)].flat < CL_FLAT;
             }
             if (wide && nn + (nf - i) + 1 <= CL_NODES) {
                 nx[nn++] = c->cl[CL(n)].child[0];

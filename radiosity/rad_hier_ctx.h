@@ -33,22 +33,38 @@ typedef struct hcl {
     rr_vec3 lo, hi, ctr;
     double radius, area, rho_max;
     uint32_t child[2]; /* node references */
-    double A6[6];      /* its area split over the six axis directions by normals (node_axis_area) */
+    rr_vec3 An[6];     /* its surfaces' area times normal, summed per normal bucket (normal_bucket) */
+    double flat;       /* sum over the buckets of |An| over its area: 1 where the buckets model it exactly */
     rr_rgb P;          /* power of the current source values */
     rr_vec3 ac, pc;    /* centroids of its area and of that power (ac where it has none) */
-    double D[3][6];    /* per channel, that power split over the six axis directions
-                          (+x, -x, +y, -y, +z, -z) by its surfaces' normals (axis_split) */
-    double D6[6];      /* D summed over the channels */
+    rr_vec3 Dn[6];     /* its surfaces' power (all channels) times normal, summed per normal bucket */
 } hcl;
 
-/* A unit vector's six axis weights: w[2a] = max(0, n_a), w[2a+1] = max(0, -n_a). */
-static inline void axis_split(rr_vec3 n, double w[6])
+/* The bucket of a normal: the face of the cube it points to (+x, -x, +y,
+ * -y, +z, -z; ties to the first axis). A node shows and sends towards u
+ * sum over its buckets of max(0, V_b . u), V_b its surfaces' area (power)
+ * times normal summed per bucket (bucket_proj): exact for one flat surface,
+ * for coplanar ones, and for surfaces facing along the axes (a room's
+ * clusters); below the truth where a bucket holds normals on both sides of
+ * u's horizon (a curved cluster: |V_b| < the sum, see hcl.flat). */
+static inline int normal_bucket(rr_vec3 n)
 {
-    double v[3] = {n.x, n.y, n.z};
-    for (int a = 0; a < 3; a++) {
-        w[2 * a] = v[a] > 0 ? v[a] : 0.0;
-        w[2 * a + 1] = v[a] < 0 ? -v[a] : 0.0;
+    double ax = fabs(n.x), ay = fabs(n.y), az = fabs(n.z);
+    if (ax >= ay && ax >= az)
+        return n.x < 0;
+    if (ay >= az)
+        return 2 + (n.y < 0);
+    return 4 + (n.z < 0);
+}
+
+static inline double bucket_proj(const rr_vec3 V[6], rr_vec3 u)
+{
+    double p = 0.0;
+    for (int b = 0; b < 6; b++) {
+        double d = V[b].x * u.x + V[b].y * u.y + V[b].z * u.z;
+        p += d > 0 ? d : 0.0;
     }
+    return p;
 }
 
 /* Visibilities are held in twelfths: every share of 1 to 4 shadow rays is
@@ -112,7 +128,6 @@ typedef struct hctx {
     const scene *s;
     const rt_accel *a;
     const rad_patches *R;
-    double (*rn6)[6]; /* per root: its normal's axis weights over their sum (node_axis_area) */
     const rt_lights *L;
     hel *el;
     size_t nel, capel;
@@ -196,6 +211,17 @@ int rad__hier_point_buried(const hctx *c, const hel *e, rr_vec3 x);
 void rad__hier_probe_new(hctx *c);
 
 /* ---- element links (rad_hier_link.c) ---- */
+
+/* A shadow ray's ends x (on root xr, normal nx) and y (on root yr) where
+ * either lies on an analytic sphere seen from outside: a facet of the sphere
+ * (a chord) faces the other end while part of the cap over it, where the
+ * ray starts or ends on the true surface, does not, and the ray would cross
+ * the sphere itself. x moves to where the segment leaves its own sphere, y
+ * to where it first meets its sphere: a sphere does not shadow the light it
+ * sends or gathers through its own facets. Measured: the floor under a
+ * sphere lamp received 1.7 % too little (the light tracer's incident power;
+ * -2.9 % right under it), now within 0.1 %. */
+void rad__hier_sphere_ends(const hctx *c, uint32_t xr, uint32_t yr, rr_vec3 *x, rr_vec3 *nx, rr_vec3 *y, rr_vec3 *ny);
 
 /* Which of element e's near-pair quadrature points are buried (bit k for
  * point k): probed once per partly buried element (rad__hier_probe_new), not

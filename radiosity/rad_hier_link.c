@@ -68,6 +68,46 @@ typedef struct vis_count {
     int seen, pass, open;
 } vis_count;
 
+/* The sphere a root lies on, when its patch faces out of it (an analytic
+ * sphere seen from outside); NULL otherwise. */
+static const scene_object *outward_sphere(const hctx *c, uint32_t root, rr_vec3 xs, rr_vec3 ns)
+{
+    const rad_patch *p = &c->R->p[root];
+    if (p->tri >= 0 || rt_prim_kind_of(c->s, p->object) != RT_PRIM_SPHERE)
+        return NULL;
+    const scene_object *ob = &c->s->objects[p->object];
+    return rr_v3_dot(ns, rr_v3_sub(xs, ob->center)) > 0 ? ob : NULL;
+}
+
+/* The parameters u0 <= u1 where x + u d meets sphere ob; 0 when it misses. */
+static int sphere_meets(const scene_object *ob, rr_vec3 x, rr_vec3 d, double *u0, double *u1)
+{
+    rr_vec3 m = rr_v3_sub(x, ob->center);
+    double a = rr_v3_len2(d), b = rr_v3_dot(m, d), cc = rr_v3_len2(m) - ob->radius * ob->radius;
+    double disc = b * b - a * cc;
+    if (!(a > 0) || !(disc > 0))
+        return 0;
+    *u0 = (-b - sqrt(disc)) / a;
+    *u1 = (-b + sqrt(disc)) / a;
+    return 1;
+}
+
+void rad__hier_sphere_ends(const hctx *c, uint32_t xr, uint32_t yr, rr_vec3 *x, rr_vec3 *nx, rr_vec3 *y, rr_vec3 *ny)
+{
+    double u0, u1;
+    const scene_object *ox = outward_sphere(c, xr, *x, *nx), *oy = outward_sphere(c, yr, *y, *ny);
+    rr_vec3 d = rr_v3_sub(*y, *x);
+    if (ox && sphere_meets(ox, *x, d, &u0, &u1) && u1 > 0 && u1 < 1) { /* leaves its own sphere there */
+        *x = rr_v3_madd(*x, d, u1);
+        *nx = rr_v3_norm(rr_v3_sub(*x, ox->center));
+        d = rr_v3_sub(*y, *x);
+    }
+    if (oy && sphere_meets(oy, *x, d, &u0, &u1) && u0 > 0 && u0 < 1) { /* meets the source's sphere first there */
+        *y = rr_v3_madd(*x, d, u0);
+        *ny = rr_v3_norm(rr_v3_sub(*y, oy->center));
+    }
+}
+
 static int shadow_passes(const hctx *c, const hel *ex, const hel *ey, rr_vec3 x, const rr_vec3 *poly, int nv,
                          uint32_t k, rr_rng *rng, vis_count *v)
 {
@@ -83,6 +123,7 @@ static int shadow_passes(const hctx *c, const hel *ex, const hel *ey, rr_vec3 x,
         return 0;
     v->open++;
     rad_patch_surface(c->R, c->s, c->a, ex->root, x, &xs, &xn);
+    rad__hier_sphere_ends(c, ex->root, ey->root, &xs, &xn, &ys, &yn);
     rr_vec3 o = rt_offset_origin(c->ext, xs, xn, xn), t = rt_offset_origin(c->ext, ys, yn, yn);
     rr_ray ray = {o, rr_v3_sub(t, o)};
     int passed = !rt_accel_occluded(c->a, ray, 0.0, RT_SHADOW_END);

@@ -64,41 +64,30 @@ static rr_rgb pull_el(hctx *c, uint32_t x)
     return e->src;
 }
 
-/* Power, directional power and power centroid (pc) of node x's current
- * sources into P, D. A surface of normal n shoots its power over the axis
- * directions in the proportions n_a^+- / |n|_1, so a cluster's intensity
- * towards u, I(u) = (1/pi) sum_a |u_a| D[a, sign u_a], integrates to its
- * power over the sphere and is exact for surfaces facing along the axes. */
-static rr_rgb pull_cl(hctx *c, uint32_t x, double D[3][6])
+/* Power, directional power (per normal bucket, rad_hier_ctx.h) and power
+ * centroid (pc) of node x's current sources; an element's power times
+ * normal added to Dn. */
+static rr_rgb pull_cl(hctx *c, uint32_t x, rr_vec3 Dn[6])
 {
     if (!(x & CLB)) {
         rr_rgb P = rr_rgb_scale(c->el[x].src, c->el[x].area);
-        double w[6], l1 = 0.0;
-        axis_split(el_normal(c, x), w);
-        for (int a = 0; a < 6; a++)
-            l1 += w[a];
-        double ch[3] = {P.r, P.g, P.b};
-        for (int q = 0; q < 3; q++)
-            for (int a = 0; a < 6; a++)
-                D[q][a] = l1 > 0 ? ch[q] * w[a] / l1 : 0.0;
+        rr_vec3 n = el_normal(c, x);
+        int b = normal_bucket(n);
+        Dn[b] = rr_v3_add(Dn[b], rr_v3_scale(n, P.r + P.g + P.b));
         return P;
     }
     hcl *k = &c->cl[CL(x)];
-    double D0[3][6], D1[3][6];
-    rr_rgb P0 = pull_cl(c, k->child[0], D0), P1 = pull_cl(c, k->child[1], D1);
+    for (int b = 0; b < 6; b++)
+        k->Dn[b] = rr_v3(0, 0, 0);
+    rr_rgb P0 = pull_cl(c, k->child[0], k->Dn), P1 = pull_cl(c, k->child[1], k->Dn);
     k->P = rr_rgb_add(P0, P1);
     /* The power centroid (the area centroid where there is no power). */
     double w0 = P0.r + P0.g + P0.b, w1 = P1.r + P1.g + P1.b;
     rr_vec3 c0 = k->child[0] & CLB ? c->cl[CL(k->child[0])].pc : c->el[k->child[0]].ctr;
     rr_vec3 c1 = k->child[1] & CLB ? c->cl[CL(k->child[1])].pc : c->el[k->child[1]].ctr;
     k->pc = w0 + w1 > 0 ? rr_v3_scale(rr_v3_add(rr_v3_scale(c0, w0), rr_v3_scale(c1, w1)), 1.0 / (w0 + w1)) : k->ac;
-    for (int a = 0; a < 6; a++)
-        k->D6[a] = 0.0;
-    for (int q = 0; q < 3; q++)
-        for (int a = 0; a < 6; a++) {
-            k->D[q][a] = D[q][a] = D0[q][a] + D1[q][a];
-            k->D6[a] += D[q][a];
-        }
+    for (int b = 0; b < 6; b++)
+        Dn[b] = rr_v3_add(Dn[b], k->Dn[b]);
     return k->P;
 }
 
@@ -132,8 +121,8 @@ void rad__hier_sources(hctx *c, int unit, int indirect)
         set_src(c, unit, indirect, (uint32_t)r);
         pull_el(c, (uint32_t)r);
     }
-    double D[3][6];
-    pull_cl(c, c->top, D);
+    rr_vec3 Dn[6] = {{0}};
+    pull_cl(c, c->top, Dn);
 }
 
 /* Room in c->sv for every node's source value; -1 when out of memory. */
