@@ -167,13 +167,34 @@ rr_status rad__first_shots(const scene *s, const rt_accel *a, rad_solution *sol,
     return RR_OK;
 }
 
+/* Whether a surface of the scene (a triangle, a sphere, a solid's leaf)
+ * has material m: a mirror material that nothing uses is no mirror. */
+static int material_used(const scene *s, uint32_t m)
+{
+    for (size_t i = 0; i < s->ntris; i++)
+        if (s->tris[i].material == m)
+            return 1;
+    for (size_t i = 0; i < s->nobjects; i++)
+        if (s->objects[i].kind == SCENE_OBJ_SPHERE && s->objects[i].material == m)
+            return 1;
+    for (size_t i = 0; i < s->ncsg; i++)
+        if (s->csg[i].op == SCENE_CSG_LEAF && s->csg[i].material == m)
+            return 1;
+    return 0;
+}
+
+static int mirror_material(const scene *s, size_t i)
+{
+    return rr_rgb_max(s->materials[i].mirror) > 0 && material_used(s, (uint32_t)i);
+}
+
 /* Says what the pass does not carry of this scene's mirrors. */
 static void mirror_warnings(const scene *s, const rad_ff_opts *fo, const rr_warn_sink *warn)
 {
     int any = 0, coloured = 0;
     for (size_t i = 0; i < s->nmaterials; i++) {
         rr_rgb m = s->materials[i].mirror;
-        if (rr_rgb_max(m) > 0) {
+        if (mirror_material(s, i)) {
             any = 1;
             coloured |= m.r != m.g || m.g != m.b;
         }
@@ -191,7 +212,7 @@ static void mirror_warnings(const scene *s, const rad_ff_opts *fo, const rr_warn
 static int scene_has_mirrors(const scene *s)
 {
     for (size_t i = 0; i < s->nmaterials; i++)
-        if (rr_rgb_max(s->materials[i].mirror) > 0)
+        if (mirror_material(s, i))
             return 1;
     return 0;
 }
