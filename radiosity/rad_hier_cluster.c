@@ -1,6 +1,6 @@
 /* rad_hier_cluster.c - the clusters of the hierarchical pass (rad_hier.c):
  * their bounding-volume hierarchy over the roots, what a cluster shows and
- * sends towards a direction (the six-direction split), the shadow rays
+ * sends towards a direction (by normal buckets), the shadow rays
  * between an element and a cluster, and the geometry of a link from a
  * cluster (rad_hier.c's header has the formulas and why). */
 #include <stdlib.h>
@@ -187,7 +187,8 @@ static int node_sample(const hctx *c, uint32_t x, int k, int fixed, int by_power
  * receiver (visibility below). Measured (48 px, radiosity display against
  * the direct light): the floor under a sphere lamp -2.7 -> -0.1 % at the
  * default patch area, -12.3 -> -3.2 % at patch_area 0.0005, whose sphere has
- * ~100 facets in its clusters; the furnace room's mean 0.9927 -> 0.9948. */
+ * ~100 facets in its clusters; the furnace room's mean 0.9927 -> 0.9948 (with
+ * the six-direction split that the normal buckets replaced). */
 #define BACK_DRAWS 4
 
 static void visibility(const hctx *c, uint32_t r, uint32_t s, rr_rng *rng, int pass[2], int *open_p, int *pass_p,
@@ -203,10 +204,10 @@ static void visibility(const hctx *c, uint32_t r, uint32_t s, rr_rng *rng, int p
         rr_vec3 x, nx, y, ny;
         uint32_t xroot, yroot;
         node_sample(c, r, open_pt(&c->el[r], k), 1, 0, u, rng, &x, &nx, &xroot);
-        /* The six-direction split gives power towards r to surfaces turned
-         * away from it too (a tilted face's share along an axis it faces
-         * away from): an end on such a surface, behind the source's own
-         * silhouette, is drawn again (BACK_DRAWS times at most) */
+        /* A cluster's bucket can give power towards r to surfaces turned
+         * away from it (a curved cluster's), and a walk that finds no child
+         * facing r draws by area: an end on such a surface, behind the
+         * source's own silhouette, is drawn again (BACK_DRAWS times at most) */
         int buried = 0;
         for (int t = 0; t < BACK_DRAWS; t++) {
             buried = node_sample(c, s, k % 4, 0, by_power, rr_v3_neg(u), rng, &y, &ny, &yroot);
