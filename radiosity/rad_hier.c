@@ -10,12 +10,12 @@
  *
  * Clusters. A binary bounding-volume hierarchy over the roots (median split
  * of the centroids on the longest axis). A cluster shoots with the intensity
- * I(u) = (1/pi) sum_b max(0, D_b . u), D_b its surfaces' power times normal
- * summed per normal bucket (the cube face a normal points to; rad_hier_ctx.h,
- * normal_bucket), an element with (1/pi) P max(0, n . u): exact for one flat
- * surface, coplanar ones and surfaces facing along the axes, below the truth
- * for curved clusters, which a link reads deeper (rad_hier_cluster.c,
- * CL_FLAT). The six-direction split it replaces (power over the axes in the
+ * I(u) = (1/pi) sum_b max(0, D_b . u) (plus, for a curved cluster, what its
+ * buckets miss put back away from their mean normals), D_b its surfaces'
+ * power times normal summed per normal bucket (the cube face a normal points
+ * to; rad_hier_ctx.h, nbuckets), an element with (1/pi) P max(0, n . u):
+ * exact for one flat surface, coplanar ones and surfaces facing along the
+ * axes. The six-direction split it replaces (power over the axes in the
  * proportions n_a / |n|_1) was 33 % low along the axes for a sphere and 29 %
  * off for a facet at 45 degrees: a sphere lamp in a closed box came out 10 %
  * dark. Clusters

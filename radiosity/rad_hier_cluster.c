@@ -8,13 +8,17 @@
 
 #include "rad_hier_ctx.h"
 
+/* A cluster whose hcl.flat is this close to 1 has no curved bucket: nb_proj
+ * skips the shortfall's square roots. */
+#define CL_FLAT_EXACT (1.0 - 1e-12)
+
 /* Node x's area as seen from direction u (towards the viewer): what a
  * cluster shows of itself that way, by its normal buckets (normal_bucket),
  * an element's exactly. */
 static double node_proj_area(const hctx *c, uint32_t x, rr_vec3 u)
 {
     if (x & CLB)
-        return bucket_proj(c->cl[CL(x)].An, u);
+        return nb_proj(&c->cl[CL(x)].An, u, c->cl[CL(x)].flat >= CL_FLAT_EXACT);
     return fmax(0.0, rr_v3_dot(el_normal(c, x), u)) * c->el[x].area;
 }
 
@@ -24,7 +28,7 @@ static double node_proj_area(const hctx *c, uint32_t x, rr_vec3 u)
 static double node_proj_power(const hctx *c, uint32_t x, rr_vec3 u)
 {
     if (x & CLB)
-        return bucket_proj(c->cl[CL(x)].Dn, u);
+        return nb_proj(&c->cl[CL(x)].Dn, u, c->cl[CL(x)].flat >= CL_FLAT_EXACT);
     const hel *e = &c->el[x];
     return node_proj_area(c, x, u) * (e->src.r + e->src.g + e->src.b);
 }
@@ -34,8 +38,9 @@ static double node_proj_power(const hctx *c, uint32_t x, rr_vec3 u)
 static void node_proj(const hctx *c, uint32_t x, rr_vec3 u, double *area, double *power)
 {
     if (x & CLB) {
-        *area = bucket_proj(c->cl[CL(x)].An, u);
-        *power = bucket_proj(c->cl[CL(x)].Dn, u);
+        const hcl *k = &c->cl[CL(x)];
+        *area = nb_proj(&k->An, u, k->flat >= CL_FLAT_EXACT);
+        *power = nb_proj(&k->Dn, u, k->flat >= CL_FLAT_EXACT);
         return;
     }
     const hel *e = &c->el[x];
@@ -43,17 +48,13 @@ static void node_proj(const hctx *c, uint32_t x, rr_vec3 u, double *area, double
     *power = *area * (e->src.r + e->src.g + e->src.b);
 }
 
-/* Node x's area times normal per normal bucket, added to V. */
-static void node_area_vec(const hctx *c, uint32_t x, rr_vec3 V[6])
+/* Node x's area by normal bucket, added to nb. */
+static void node_area_nb(const hctx *c, uint32_t x, nbuckets *nb)
 {
-    if (x & CLB) {
-        for (int b = 0; b < 6; b++)
-            V[b] = rr_v3_add(V[b], c->cl[CL(x)].An[b]);
-        return;
-    }
-    rr_vec3 n = el_normal(c, x);
-    int b = normal_bucket(n);
-    V[b] = rr_v3_add(V[b], rr_v3_scale(n, c->el[x].area));
+    if (x & CLB)
+        nb_add(nb, &c->cl[CL(x)].An);
+    else
+        nb_add_surface(nb, el_normal(c, x), c->el[x].area);
 }
 
 typedef struct ritem {
@@ -102,13 +103,12 @@ static uint32_t cluster_build(hctx *c, ritem *it, size_t n)
                         : k->ctr;
     k->pc = k->ac;
     k->rho_max = fmax(node_rho(c, a), node_rho(c, b));
-    for (int q = 0; q < 6; q++)
-        k->An[q] = rr_v3(0, 0, 0);
-    node_area_vec(c, a, k->An);
-    node_area_vec(c, b, k->An);
+    memset(&k->An, 0, sizeof k->An);
+    node_area_nb(c, a, &k->An);
+    node_area_nb(c, b, &k->An);
     double m = 0.0;
     for (int q = 0; q < 6; q++)
-        m += rr_v3_len(k->An[q]);
+        m += rr_v3_len(k->An.v[q]);
     k->flat = k->area > 0 ? m / k->area : 1.0;
     return id | CLB;
 }
@@ -280,7 +280,6 @@ static double geo_term(const hctx *c, rr_vec3 x, uint32_t r, rr_vec3 p, double A
 #define CL_LEVELS 3    /* levels of its tree that every cluster link reads */
 #define CL_THETA 0.15  /* and deeper where a node's radius exceeds this share of its distance */
 #define CL_NODES 32    /* the most nodes it reads */
-#define CL_FLAT 0.99   /* and deeper where a node's normal buckets lose more than 1 % of its area (hcl.flat) */
 
 static void cluster_geo(const hctx *c, uint32_t r, uint32_t s, int area_too, double *geo, double *geo_a,
                         double *spread, double fk[4])
@@ -302,8 +301,7 @@ static void cluster_geo(const hctx *c, uint32_t r, uint32_t s, int area_too, dou
             if (n & CLB) {
                 rr_vec3 d = rr_v3_sub(node_ctr(c, n), xr);
                 double R = node_radius(c, n);
-                wide = lev < CL_LEVELS || R > CL_THETA * rr_v3_len(d) || fabs(rr_v3_dot(el_normal(c, r), d)) < R ||
-                       c->cl[CL(n)].flat < CL_FLAT;
+                wide = lev < CL_LEVELS || R > CL_THETA * rr_v3_len(d) || fabs(rr_v3_dot(el_normal(c, r), d)) < R;
             }
             if (wide && nn + (nf - i) + 1 <= CL_NODES) {
                 nx[nn++] = c->cl[CL(n)].child[0];

@@ -29,24 +29,31 @@ typedef struct hel {
     int partial;    /* it has a partly visible link (rad__hier_gather of B = 1) */
 } hel;
 
-typedef struct hcl {
-    rr_vec3 lo, hi, ctr;
-    double radius, area, rho_max;
-    uint32_t child[2]; /* node references */
-    rr_vec3 An[6];     /* its surfaces' area times normal, summed per normal bucket (normal_bucket) */
-    double flat;       /* sum over the buckets of |An| over its area: 1 where the buckets model it exactly */
-    rr_rgb P;          /* power of the current source values */
-    rr_vec3 ac, pc;    /* centroids of its area and of that power (ac where it has none) */
-    rr_vec3 Dn[6];     /* its surfaces' power (all channels) times normal, summed per normal bucket */
-} hcl;
+/* Normal buckets: what a node shows and sends towards a direction. A
+ * normal's bucket is the face of the cube it points to (+x, -x, +y, -y, +z,
+ * -z; ties to the first axis); a node keeps per bucket its surfaces' weight
+ * times normal summed (v, the weight area or power) and their weight (s).
+ * Towards u it sends, per bucket, max(0, v . u): exact for one flat surface,
+ * for coplanar ones and for surfaces facing along the axes (a room's
+ * clusters), but below the truth where the bucket holds normals on both
+ * sides of u's horizon, and by s - |v| in total over the sphere of
+ * directions (a curved node's). That shortfall is put back as (s - |v|) / 2
+ * (1 - |cos|), cos between u and v: it integrates to what is missing and
+ * sits away from the bucket's mean normal, where the normals on the far
+ * side of the horizon send it. On a model of a 96-facet sphere (a throwaway
+ * numpy script, the nodes as the cluster tree splits them), against the
+ * exact sum of A max(0, n . u) over 1500 directions: one node -16.8 % on
+ * average (rms 18.8 %) without it, 0.0 % (rms 6.8 %) with it; 8 nodes -4.0
+ * % (4.4 %) and 0.0 % (1.6 %); 32 nodes -2.2 % (2.5 %) and 0.0 % (1.1 %).
+ * Spreading it evenly over the sphere, or over v's hemisphere, was as
+ * unbiased with a larger rms. The six-direction split these replace (power
+ * over the axes in the proportions n_a / |n|_1) was 33 % low along the
+ * axes for a sphere at any depth and 29 % off for a facet at 45 degrees. */
+typedef struct nbuckets {
+    rr_vec3 v[6];
+    double s[6];
+} nbuckets;
 
-/* The bucket of a normal: the face of the cube it points to (+x, -x, +y,
- * -y, +z, -z; ties to the first axis). A node shows and sends towards u
- * sum over its buckets of max(0, V_b . u), V_b its surfaces' area (power)
- * times normal summed per bucket (bucket_proj): exact for one flat surface,
- * for coplanar ones, and for surfaces facing along the axes (a room's
- * clusters); below the truth where a bucket holds normals on both sides of
- * u's horizon (a curved cluster: |V_b| < the sum, see hcl.flat). */
 static inline int normal_bucket(rr_vec3 n)
 {
     double ax = fabs(n.x), ay = fabs(n.y), az = fabs(n.z);
@@ -57,15 +64,51 @@ static inline int normal_bucket(rr_vec3 n)
     return 4 + (n.z < 0);
 }
 
-static inline double bucket_proj(const rr_vec3 V[6], rr_vec3 u)
+static inline void nb_add_surface(nbuckets *nb, rr_vec3 n, double w)
+{
+    int b = normal_bucket(n);
+    nb->v[b] = rr_v3_add(nb->v[b], rr_v3_scale(n, w));
+    nb->s[b] += w;
+}
+
+static inline void nb_add(nbuckets *nb, const nbuckets *o)
+{
+    for (int b = 0; b < 6; b++) {
+        nb->v[b] = rr_v3_add(nb->v[b], o->v[b]);
+        nb->s[b] += o->s[b];
+    }
+}
+
+/* What nb sends towards unit direction u; flat: every bucket's normals are
+ * parallel (hcl.flat is 1), so nothing is missing. */
+static inline double nb_proj(const nbuckets *nb, rr_vec3 u, int flat)
 {
     double p = 0.0;
     for (int b = 0; b < 6; b++) {
-        double d = V[b].x * u.x + V[b].y * u.y + V[b].z * u.z;
+        if (!(nb->s[b] > 0))
+            continue;
+        rr_vec3 v = nb->v[b];
+        double d = v.x * u.x + v.y * u.y + v.z * u.z;
         p += d > 0 ? d : 0.0;
+        if (flat)
+            continue;
+        double L = sqrt(v.x * v.x + v.y * v.y + v.z * v.z), miss = nb->s[b] - L;
+        if (miss > 1e-12 * nb->s[b])
+            p += L > 1e-9 * nb->s[b] ? 0.5 * miss * (1.0 - fabs(d) / L) : 0.25 * miss;
     }
     return p;
 }
+
+typedef struct hcl {
+    rr_vec3 lo, hi, ctr;
+    double radius, area, rho_max;
+    uint32_t child[2]; /* node references */
+    nbuckets An;       /* its surfaces' area by normal bucket (nbuckets) */
+    double flat;       /* sum over the buckets of |An.v| over its area: 1 where no bucket is curved */
+    rr_rgb P;          /* power of the current source values */
+    rr_vec3 ac, pc;    /* centroids of its area and of that power (ac where it has none) */
+    nbuckets Dn;       /* its surfaces' power (all channels) by normal bucket */
+} hcl;
 
 /* Visibilities are held in twelfths: every share of 1 to 4 shadow rays is
  * a whole number of them. */

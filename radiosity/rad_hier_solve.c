@@ -67,27 +67,23 @@ static rr_rgb pull_el(hctx *c, uint32_t x)
 /* Power, directional power (per normal bucket, rad_hier_ctx.h) and power
  * centroid (pc) of node x's current sources; an element's power times
  * normal added to Dn. */
-static rr_rgb pull_cl(hctx *c, uint32_t x, rr_vec3 Dn[6])
+static rr_rgb pull_cl(hctx *c, uint32_t x, nbuckets *Dn)
 {
     if (!(x & CLB)) {
         rr_rgb P = rr_rgb_scale(c->el[x].src, c->el[x].area);
-        rr_vec3 n = el_normal(c, x);
-        int b = normal_bucket(n);
-        Dn[b] = rr_v3_add(Dn[b], rr_v3_scale(n, P.r + P.g + P.b));
+        nb_add_surface(Dn, el_normal(c, x), P.r + P.g + P.b);
         return P;
     }
     hcl *k = &c->cl[CL(x)];
-    for (int b = 0; b < 6; b++)
-        k->Dn[b] = rr_v3(0, 0, 0);
-    rr_rgb P0 = pull_cl(c, k->child[0], k->Dn), P1 = pull_cl(c, k->child[1], k->Dn);
+    memset(&k->Dn, 0, sizeof k->Dn);
+    rr_rgb P0 = pull_cl(c, k->child[0], &k->Dn), P1 = pull_cl(c, k->child[1], &k->Dn);
     k->P = rr_rgb_add(P0, P1);
     /* The power centroid (the area centroid where there is no power). */
     double w0 = P0.r + P0.g + P0.b, w1 = P1.r + P1.g + P1.b;
     rr_vec3 c0 = k->child[0] & CLB ? c->cl[CL(k->child[0])].pc : c->el[k->child[0]].ctr;
     rr_vec3 c1 = k->child[1] & CLB ? c->cl[CL(k->child[1])].pc : c->el[k->child[1]].ctr;
     k->pc = w0 + w1 > 0 ? rr_v3_scale(rr_v3_add(rr_v3_scale(c0, w0), rr_v3_scale(c1, w1)), 1.0 / (w0 + w1)) : k->ac;
-    for (int b = 0; b < 6; b++)
-        Dn[b] = rr_v3_add(Dn[b], k->Dn[b]);
+    nb_add(Dn, &k->Dn);
     return k->P;
 }
 
@@ -121,8 +117,9 @@ void rad__hier_sources(hctx *c, int unit, int indirect)
         set_src(c, unit, indirect, (uint32_t)r);
         pull_el(c, (uint32_t)r);
     }
-    rr_vec3 Dn[6] = {{0}};
-    pull_cl(c, c->top, Dn);
+    nbuckets Dn;
+    memset(&Dn, 0, sizeof Dn);
+    pull_cl(c, c->top, &Dn);
 }
 
 /* Room in c->sv for every node's source value; -1 when out of memory. */
