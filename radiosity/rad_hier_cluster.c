@@ -136,7 +136,8 @@ uint32_t rad__hier_clusters(hctx *c)
  * (node_proj_power) when by_power, else by the area it shows that way
  * (node_proj_area; surfaces facing away, whose share the cluster's intensity
  * already leaves out, are not drawn: drawn by plain area, a solid block's far
- * faces halved its light). xs on the true surface, ns its normal. Returns
+ * faces halved its light). xs on the true surface, ns its normal, *root its
+ * element's root (when root is not NULL). Returns
  * whether a random point lies on a buried part of its element. */
 static int node_sample(const hctx *c, uint32_t x, int k, int fixed, int by_power, rr_vec3 u, rr_rng *rng,
                        rr_vec3 *xs, rr_vec3 *ns, uint32_t *root)
@@ -161,7 +162,8 @@ static int node_sample(const hctx *c, uint32_t x, int k, int fixed, int by_power
     const hel *e = &c->el[x];
     rr_vec3 p = fixed ? tri_at(e->c, k_pts[k][0], k_pts[k][1], k_pts[k][2]) : tri_random(e->c, rng);
     rad_patch_surface(c->R, c->s, c->a, e->root, p, xs, ns);
-    *root = e->root;
+    if (root)
+        *root = e->root;
     return !fixed && e->open < 1.0 && rad__hier_buried(c, e, *xs, *ns);
 }
 
@@ -202,8 +204,8 @@ static void visibility(const hctx *c, uint32_t r, uint32_t s, rr_rng *rng, int p
     for (int k = 0; k < NA + NP; k++) {
         int by_power = k >= NA;
         rr_vec3 x, nx, y, ny;
-        uint32_t xroot, yroot;
-        node_sample(c, r, open_pt(&c->el[r], k), 1, 0, u, rng, &x, &nx, &xroot);
+        uint32_t yroot;
+        node_sample(c, r, open_pt(&c->el[r], k), 1, 0, u, rng, &x, &nx, NULL);
         /* A cluster's bucket can give power towards r to surfaces turned
          * away from it (a curved cluster's), and a walk that finds no child
          * facing r draws by area: an end on such a surface, behind the
@@ -216,7 +218,7 @@ static void visibility(const hctx *c, uint32_t r, uint32_t s, rr_rng *rng, int p
         }
         if (buried)
             continue; /* ends under a cover: blocked */
-        rad__hier_sphere_ends(c, xroot, yroot, &x, &nx, &y, &ny);
+        rad__hier_sphere_end(c, yroot, x, &y, &ny);
         rr_vec3 d = rr_v3_sub(y, x);
         rr_vec3 o = rt_offset_origin(c->ext, x, nx, d), t = rt_offset_origin(c->ext, y, ny, rr_v3_neg(d));
         rr_ray ray = {o, rr_v3_sub(t, o)};

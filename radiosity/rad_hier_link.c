@@ -92,18 +92,13 @@ static int sphere_meets(const scene_object *ob, rr_vec3 x, rr_vec3 d, double *u0
     return 1;
 }
 
-void rad__hier_sphere_ends(const hctx *c, uint32_t xr, uint32_t yr, rr_vec3 *x, rr_vec3 *nx, rr_vec3 *y, rr_vec3 *ny)
+void rad__hier_sphere_end(const hctx *c, uint32_t yr, rr_vec3 x, rr_vec3 *y, rr_vec3 *ny)
 {
     double u0, u1;
-    const scene_object *ox = outward_sphere(c, xr, *x, *nx), *oy = outward_sphere(c, yr, *y, *ny);
-    rr_vec3 d = rr_v3_sub(*y, *x);
-    if (ox && sphere_meets(ox, *x, d, &u0, &u1) && u1 > 0 && u1 < 1) { /* leaves its own sphere there */
-        *x = rr_v3_madd(*x, d, u1);
-        *nx = rr_v3_norm(rr_v3_sub(*x, ox->center));
-        d = rr_v3_sub(*y, *x);
-    }
-    if (oy && sphere_meets(oy, *x, d, &u0, &u1) && u0 > 0 && u0 < 1) { /* meets the source's sphere first there */
-        *y = rr_v3_madd(*x, d, u0);
+    const scene_object *oy = outward_sphere(c, yr, *y, *ny);
+    rr_vec3 d = rr_v3_sub(*y, x);
+    if (oy && sphere_meets(oy, x, d, &u0, &u1) && u0 > 0 && u0 < 1) { /* meets the source's sphere first there */
+        *y = rr_v3_madd(x, d, u0);
         *ny = rr_v3_norm(rr_v3_sub(*y, oy->center));
     }
 }
@@ -123,7 +118,7 @@ static int shadow_passes(const hctx *c, const hel *ex, const hel *ey, rr_vec3 x,
         return 0;
     v->open++;
     rad_patch_surface(c->R, c->s, c->a, ex->root, x, &xs, &xn);
-    rad__hier_sphere_ends(c, ex->root, ey->root, &xs, &xn, &ys, &yn);
+    rad__hier_sphere_end(c, ey->root, xs, &ys, &yn);
     rr_vec3 o = rt_offset_origin(c->ext, xs, xn, xn), t = rt_offset_origin(c->ext, ys, yn, yn);
     rr_ray ray = {o, rr_v3_sub(t, o)};
     int passed = !rt_accel_occluded(c->a, ray, 0.0, RT_SHADOW_END);
