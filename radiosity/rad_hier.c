@@ -561,22 +561,20 @@ static rr_status estimate(hctx *c, void (*progress)(void *, size_t, size_t), voi
 }
 
 /* Re-tests every link with the solved radiosity; those that now carry too
- * much are replaced by refined ones. Returns whether anything changed. */
+ * much are replaced by refined ones. Returns whether anything changed. The
+ * links kept move to the front in place and only the ends of those to split
+ * are set aside (a copy of every link held them twice, as the sort did). */
+typedef struct split_end {
+    uint32_t r, s;
+    unsigned char how;
+} split_end;
+
 static int relink(hctx *c)
 {
-    size_t n = c->nln, keep = 0;
-    hlink *old = malloc((n ? n : 1) * sizeof *old);
-    if (!old) {
-        c->nomem = 1;
-        return 0;
-    }
-    memcpy(old, c->ln, n * sizeof *old);
-    c->nln = 0;
+    size_t n = c->nln, keep = 0, nsplit = 0;
     int changed = 0;
-    /* Kept links first (already evaluated), then the refined ones. */
     unsigned char *split = calloc(n ? n : 1, 1);
     if (!split) {
-        free(old);
         c->nomem = 1;
         return 0;
     }
@@ -584,7 +582,7 @@ static int relink(hctx *c)
      * (split the receiver first), as settle tests new links. */
 #pragma omp parallel for schedule(static)
     for (long i = 0; i < (long)n; i++) {
-        const hlink *l = &old[i];
+        const hlink *l = &c->ln[i];
         if (!(splittable(c, l->r) | splittable(c, l->s)))
             split[i] = 0;
         else if (link_power(c, l->r, l->s) > c->eps)
@@ -594,20 +592,30 @@ static int relink(hctx *c)
             split[i] = 2;
     }
     for (size_t i = 0; i < n; i++)
-        if (!split[i])
-            c->ln[keep++] = old[i];
+        nsplit += split[i] != 0;
+    split_end *se = malloc((nsplit ? nsplit : 1) * sizeof *se);
+    if (!se) {
+        free(split);
+        c->nomem = 1;
+        return 0;
+    }
+    for (size_t i = 0, k = 0; i < n; i++)
+        if (split[i])
+            se[k++] = (split_end){c->ln[i].r, c->ln[i].s, split[i]};
+        else
+            c->ln[keep++] = c->ln[i]; /* keep <= i: in place */
+    free(split);
     c->nln = keep;
     c->first_new = keep;
-    for (size_t i = 0; i < n && !c->nomem; i++)
-        if (split[i] && c->nln < c->max_links) {
-            split_link(c, old[i].r, old[i].s, split[i] == 2);
+    for (size_t k = 0; k < nsplit && !c->nomem; k++)
+        if (c->nln < c->max_links) {
+            split_link(c, se[k].r, se[k].s, se[k].how == 2);
             changed = 1;
-        } else if (split[i]) {
+        } else {
             c->capped = 1;
-            link_add(c, old[i].r, old[i].s);
+            link_add(c, se[k].r, se[k].s);
         }
-    free(split);
-    free(old);
+    free(se);
     return changed;
 }
 
