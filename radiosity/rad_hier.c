@@ -720,8 +720,9 @@ double rad__hier_memory_estimate(double leaves, int cached, double patch_bytes)
 {
     double N = leaves > 2 ? leaves : 2;
     double links = cached ? 0.0 : HIER_LINKS_PER_N_LOG_N * N * log2(N);
-    /* Elements: the leaves and 1/3 as many interior ones; clusters fewer. */
-    return 2.0 * links * (double)sizeof(hlink) + N * (4.0 / 3.0 * (double)sizeof(hel) + patch_bytes + (double)sizeof(hcl));
+    /* Links once (sorted and re-linked in place); elements: the leaves and
+     * 1/3 as many interior ones; clusters fewer. */
+    return links * (double)sizeof(hlink) + N * (4.0 / 3.0 * (double)sizeof(hel) + patch_bytes + (double)sizeof(hcl));
 }
 
 double rad__hier_min_area(const scene *s, const rad_pass_opts *o)
