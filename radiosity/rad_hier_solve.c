@@ -4,6 +4,7 @@
  * sweeps of those to the tolerance (rad_hier_ctx.h has the interface and
  * rad_hier.c's header the formulas). Sums run in a fixed order: the same bits
  * for any thread count. */
+#include <math.h>
 #include <omp.h>
 #include <stdlib.h>
 #include <string.h>
@@ -267,12 +268,17 @@ size_t *rad__hier_groups(const hctx *c, size_t *ngrp)
     return g;
 }
 
+/* The largest channel of any leaf's B; NaN when one is NaN. */
 static double leaves_max_B(const hctx *c)
 {
     double m = 0.0;
     for (size_t i = 0; i < c->nel; i++)
-        if (c->el[i].child == NONE)
-            m = fmax(m, rr_rgb_max(c->el[i].B));
+        if (c->el[i].child == NONE) {
+            rr_rgb b = c->el[i].B;
+            if (isnan(b.r) || isnan(b.g) || isnan(b.b))
+                return NAN;
+            m = fmax(m, rr_rgb_max(b));
+        }
     return m;
 }
 
@@ -301,6 +307,15 @@ rr_status rad__hier_solve(hctx *c, const rad_solve_opts *so, rad_solve_stats *st
         double d = rad__hier_push(c, PUSH_SOLVE), bmax = leaves_max_B(c);
         st->iterations = it + 1;
         st->residual = bmax > 0 ? d / bmax : 0.0;
+        if (!isfinite(st->residual) || !isfinite(bmax)) {
+            /* a transport that creates light diverges: say so, at once,
+             * instead of sweeping to the iteration limit */
+            free(grp);
+            return rr_error_set(err, RR_ERR_INTERNAL,
+                                "%s: radiosity: the hierarchical solve diverged at sweep %d (largest radiosity %g); "
+                                "use radiosity.method \"flat\"",
+                                c->s->path, it + 1, bmax);
+        }
         if (st->residual < tol)
             break;
     }
