@@ -22,7 +22,7 @@ static double node_proj_area(const hctx *c, uint32_t x, rr_vec3 u)
 {
     if (x & CLB)
         return nb_proj(&c->cl[CL(x)].An, u, 1);
-    return fmax(0.0, rr_v3_dot(el_normal(c, x), u)) * c->el[x].area;
+    return rr_max(0.0, rr_v3_dot(el_normal(c, x), u)) * c->el[x].area; /* fmax is a libm call here */
 }
 
 /* The power node x sends towards u (by its current sources, all channels):

@@ -388,7 +388,7 @@ static void against_secondary_by(const char *json, scene_rad_method method, cons
 
 static void against_secondary(const char *json, const char *label, const char *objs, double tol_h, double tol_r)
 {
-    against_secondary_by(json, SCENE_RAD_FLAT, label, objs, tol_h, tol_r);
+    against_secondary_by(json, SCENE_RAD_DEFAULT_METHOD, label, objs, tol_h, tol_r);
 }
 
 static void test_furnace_quad_lamp(void **state)
@@ -405,7 +405,7 @@ static void test_furnace_sphere_lamp(void **state)
      * on the floor while clusters and elements sent by a six-direction split
      * of their power (33 % low along the axes for a sphere) and shadow rays
      * to the sphere's facets crossed the sphere itself; measured -0.38 % and
-     * -0.10 % since (rad_hier_ctx.h, normal_bucket; rad__hier_sphere_ends). */
+     * -0.10 % since (rad_hier_ctx.h, nbuckets; rad__hier_sphere_end). */
     against_secondary_by(k_furnace_sphere, SCENE_RAD_HIERARCHICAL, "furnace, sphere lamp, hier", "floor", 0.02,
                          0.03);
 }
