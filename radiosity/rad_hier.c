@@ -354,8 +354,8 @@ static int split_link(hctx *c, uint32_t r, uint32_t s, int receiver)
 
 static void refine(hctx *c, uint32_t r, uint32_t s)
 {
-    if (c->nomem || (c->capped && c->coarsen))
-        return; /* the first walk is started again coarser (first_refine) */
+    if (c->nomem || (c->capped && c->coarsen) || interrupted(c))
+        return; /* coarsen: the first walk is started again coarser (first_refine) */
     if (r == s) {
         if (!(r & CLB))
             return; /* a planar element does not see itself */
@@ -407,10 +407,19 @@ static void first_refine(hctx *c, double power)
         c->capped = 0;
         c->coarsen = c->eps * 4.0 <= power;
         refine(c, c->top, c->top);
-        if (!c->capped || !c->coarsen || c->nomem)
+        if (!c->capped || !c->coarsen || c->nomem || interrupted(c))
             break;
-        c->nln = 0;
+        /* the walk's links and the elements it split given back, not kept
+         * resident for the next try */
+        free(c->ln);
+        c->ln = NULL;
+        c->nln = c->capln = 0;
         c->nel = nroots;
+        hel *el = realloc(c->el, nroots * sizeof *el);
+        if (el) {
+            c->el = el;
+            c->capel = nroots;
+        }
         for (size_t i = 0; i < nroots; i++)
             c->el[i].child = NONE;
         c->eps *= 4.0;
