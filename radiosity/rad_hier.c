@@ -354,8 +354,8 @@ static int split_link(hctx *c, uint32_t r, uint32_t s, int receiver)
 
 static void refine(hctx *c, uint32_t r, uint32_t s)
 {
-    if (c->nomem || (c->capped && c->coarsen) || interrupted(c))
-        return; /* coarsen: the first walk is started again coarser (first_refine) */
+    if (c->nomem || c->over || interrupted(c))
+        return; /* over: the first walk is started again coarser (first_refine) */
     if (r == s) {
         if (!(r & CLB))
             return; /* a planar element does not see itself */
@@ -374,41 +374,52 @@ static void refine(hctx *c, uint32_t r, uint32_t s)
         return;
     }
     /* A cluster end closer than admissible is split whatever the cap: its
-     * geometry, read at power centroids, is not a bound there (the 1M-room's
+     * geometry, read at power centroids, is not a bound there (the 1M room's
      * links past radiosity.max_links held form factors up to 3300, and its
-     * solve diverged). The cap stops only the refinement for accuracy. */
+     * solve diverged). The cap stops only the refinement for accuracy; the
+     * first walk stops at it (first_refine). */
     double p = link_power(c, r, s);
-    if (isinf(p) && split_link(c, r, s, 0))
-        return;
-    if (p > c->eps) {
-        if (c->nln >= c->max_links)
-            c->capped = 1;
-        else if (split_link(c, r, s, 0))
+    if (c->nln >= c->max_links && (isinf(p) || p > c->eps)) {
+        c->capped = 1;
+        if (c->first) {
+            c->over = 1;
             return;
+        }
+        if (!isinf(p)) {
+            link_add(c, r, s);
+            return;
+        }
     }
+    if (p > c->eps && split_link(c, r, s, 0))
+        return;
     link_add(c, r, s);
 }
 
 /* The first round's walk from the top cluster. Where it would pass
  * radiosity.max_links it is started again with eps 4 times larger (the
- * elements it split taken back), until it fits or eps reaches the emitted
- * power: the cap coarsens the solution evenly. Stopped where it reached the
- * cap instead, the walk refined the first clusters in its order fully and
- * left the rest at their coarsest (Cornell with 5000 links: block median
- * 22 % against 1.9 % uncapped; the same at 1000 links with a tolerance that
- * fits them: see notes/radiosity.md). Links whose cluster end is closer than
- * admissible are made whatever the cap (refine), so the last try may still
- * pass it, and then stops where it does. */
-static void first_refine(hctx *c, double power)
+ * elements it split taken back), and, where even eps at the emitted power
+ * (no refinement for accuracy: only the links that admissibility needs)
+ * does not fit, the pass stops with an error: the cap coarsens the solution
+ * evenly, or says that it cannot. Stopped where it reached the cap instead,
+ * the walk refined the first clusters in its order fully and left the rest
+ * unlinked (a lamp cube's floor black at 30000 links; notes/radiosity.md). */
+static rr_status first_refine(hctx *c, double power, rr_error *err)
 {
     size_t nroots = c->R->n;
     for (;;) {
         c->first_new = 0;
-        c->capped = 0;
-        c->coarsen = c->eps * 4.0 <= power;
+        c->capped = c->over = 0;
+        c->first = 1;
         refine(c, c->top, c->top);
-        if (!c->capped || !c->coarsen || c->nomem || interrupted(c))
-            break;
+        c->first = 0;
+        if (!c->over || c->nomem || interrupted(c))
+            return RR_OK;
+        if (c->eps >= power)
+            return rr_error_set(err, RR_ERR_NOMEM,
+                                "%s: radiosity: the hierarchical method needs more than %zu links for this scene's "
+                                "%zu surfaces even at its coarsest; raise radiosity.max_links (%zu bytes each) or "
+                                "use radiosity.method \"flat\"",
+                                c->s->path, c->max_links, nroots, sizeof(hlink));
         /* the walk's links and the elements it split given back, not kept
          * resident for the next try */
         free(c->ln);
@@ -422,9 +433,8 @@ static void first_refine(hctx *c, double power)
         }
         for (size_t i = 0; i < nroots; i++)
             c->el[i].child = NONE;
-        c->eps *= 4.0;
+        c->eps = fmin(power, c->eps * 4.0);
     }
-    c->coarsen = 0;
 }
 
 /* ---- link evaluation ---- */
@@ -880,7 +890,7 @@ static rr_status hier_run(const scene *s, const rt_accel *a, const rad_pass_opts
     for (int round = 0; round < MAX_ROUNDS && st == RR_OK; round++) {
         rad__hier_sources(&c, 0, 0);
         if (round == 0) {
-            first_refine(&c, power);
+            st = first_refine(&c, power, err);
         } else if ((rad__hier_regeo(&c), !relink(&c))) {
             break;
         }

@@ -186,7 +186,7 @@ typedef struct hctx {
     double eps, min_area;
     size_t max_links;
     int capped, nomem;
-    int coarsen;    /* the first walk stops at the cap, to start again with a larger eps (rad_hier.c, first_refine) */
+    int first, over; /* the first walk (rad_hier.c, first_refine) stops when it reaches the cap (over) */
     int unit;       /* the sources are B = 1 (rad__hier_sources): gathers read hlink.ga */
     double ext, plane_tol;
     uint64_t seed;
