@@ -316,7 +316,9 @@ typedef struct rad_hier_opts {
     double tolerance;  /* a link stays when the power it carries, times the receiver's reflectance,
                           is under tolerance x the scene's emitted power; <= 0: from the scene */
     double min_area;   /* elements are not split below this area; <= 0: from the scene / automatic */
-    size_t max_links;  /* refinement stops (with a warning) at this many links; 0: from the scene */
+    size_t max_links;  /* the most links: past it the tolerance is raised 4x at a time (with a
+                          warning); RR_ERR_INVALID where the cluster links that admissibility
+                          needs do not fit; 0: from the scene */
 } rad_hier_opts;
 
 typedef struct rad_pass_opts {

@@ -415,7 +415,7 @@ static rr_status first_refine(hctx *c, double power, rr_error *err)
         if (!c->over || c->nomem || interrupted(c))
             return RR_OK;
         if (c->eps >= power)
-            return rr_error_set(err, RR_ERR_NOMEM,
+            return rr_error_set(err, RR_ERR_INVALID, /* a setting that cannot be met: exit 2 */
                                 "%s: radiosity: the hierarchical method needs more than %zu links for this scene's "
                                 "%zu surfaces even at its coarsest; raise radiosity.max_links (%zu bytes each) or "
                                 "use radiosity.method \"flat\"",
