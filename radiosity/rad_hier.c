@@ -395,45 +395,61 @@ static void refine(hctx *c, uint32_t r, uint32_t s)
     link_add(c, r, s);
 }
 
-/* The first round's walk from the top cluster. Where it would pass
- * radiosity.max_links it is started again with eps 4 times larger (the
- * elements it split taken back), and, where even eps at the emitted power
- * (no refinement for accuracy: only the links that admissibility needs)
- * does not fit, the pass stops with an error: the cap coarsens the solution
- * evenly, or says that it cannot. Stopped where it reached the cap instead,
- * the walk refined the first clusters in its order fully and left the rest
- * unlinked (a lamp cube's floor black at 30000 links; notes/radiosity.md). */
-static rr_status first_refine(hctx *c, double power, rr_error *err)
+/* The walk's links and the elements it split given back, before it is
+ * started again (not kept resident for the next try). */
+static void unwalk(hctx *c)
 {
     size_t nroots = c->R->n;
+    free(c->ln);
+    c->ln = NULL;
+    c->nln = c->capln = 0;
+    c->nel = nroots;
+    hel *el = realloc(c->el, nroots * sizeof *el);
+    if (el) {
+        c->el = el;
+        c->capel = nroots;
+    }
+    for (size_t i = 0; i < nroots; i++)
+        c->el[i].child = NONE;
+}
+
+/* The first round's walk from the top cluster. Where it would pass
+ * radiosity.max_links, it is tried once at its coarsest (eps at the emitted
+ * power: no refinement for accuracy, only the links that admissibility
+ * needs), and the pass stops with an error where even that does not fit;
+ * else it is started again with eps 4 times larger at a time until it fits:
+ * the cap coarsens the solution evenly, or says that it cannot. Stopped
+ * where it reached the cap instead, the walk refined the first clusters in
+ * its order fully and left the rest unlinked (a lamp cube's floor black at
+ * 30000 links; notes/radiosity.md). The 1M-triangle room's error came after
+ * 205 s of walks stepping 4x at a time; the coarsest first makes it two. */
+static rr_status first_refine(hctx *c, double power, rr_error *err)
+{
+    double asked = c->eps;
+    int coarsest_fits = 0;
     for (;;) {
         c->first_new = 0;
         c->capped = c->over = 0;
         c->first = 1;
         refine(c, c->top, c->top);
         c->first = 0;
-        if (!c->over || c->nomem || interrupted(c))
+        if (c->nomem || interrupted(c))
             return RR_OK;
-        if (c->eps >= power)
+        if (!c->over) {
+            if (coarsest_fits || c->eps < power || asked * 4.0 >= power)
+                return RR_OK;
+            coarsest_fits = 1; /* the coarsest fits: back to 4x what was asked */
+            c->eps = asked * 4.0;
+        } else if (c->eps >= power) {
             return rr_error_set(err, RR_ERR_INVALID, /* a setting that cannot be met: exit 2 */
                                 "%s: radiosity: the hierarchical method needs more than %zu links for this scene's "
                                 "%zu surfaces even at its coarsest; raise radiosity.max_links (%zu bytes each) or "
                                 "use radiosity.method \"flat\"",
-                                c->s->path, c->max_links, nroots, sizeof(hlink));
-        /* the walk's links and the elements it split given back, not kept
-         * resident for the next try */
-        free(c->ln);
-        c->ln = NULL;
-        c->nln = c->capln = 0;
-        c->nel = nroots;
-        hel *el = realloc(c->el, nroots * sizeof *el);
-        if (el) {
-            c->el = el;
-            c->capel = nroots;
+                                c->s->path, c->max_links, c->R->n, sizeof(hlink));
+        } else {
+            c->eps = coarsest_fits ? fmin(power, c->eps * 4.0) : power;
         }
-        for (size_t i = 0; i < nroots; i++)
-            c->el[i].child = NONE;
-        c->eps = fmin(power, c->eps * 4.0);
+        unwalk(c);
     }
 }
 
