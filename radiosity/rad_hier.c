@@ -879,13 +879,14 @@ static rr_status hier_run(const scene *s, const rt_accel *a, const rad_pass_opts
     }
     if (c.cl && !c.nomem)
         rad__hier_probe_new(&c); /* the roots' burial, which their leaf data reads */
-    if (!c.cl || c.nomem || nr == 0 || (c.top = rad__hier_clusters(&c)) == NONE) {
+    if (!c.cl || c.nomem || nr == 0 || interrupted(&c) || (c.top = rad__hier_clusters(&c)) == NONE) {
         free(c.cl);
         free(c.el);
         rt_lights_destroy(L);
         rad_patches_destroy(roots);
-        return nr == 0 ? rr_error_set(err, RR_ERR_INVALID, "%s: radiosity: the scene has no surfaces", s->path)
-                       : rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory", s->path);
+        return nr == 0           ? rr_error_set(err, RR_ERR_INVALID, "%s: radiosity: the scene has no surfaces", s->path)
+               : interrupted(&c) ? rr_error_set(err, RR_ERR_INTERRUPTED, "%s: radiosity: interrupted", s->path)
+                                 : rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory", s->path);
     }
     rad_solve_opts so = o->solve;
     if (!(so.tolerance > 0))

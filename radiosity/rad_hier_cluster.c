@@ -73,10 +73,61 @@ static int cmp_ritem(const void *a, const void *b)
     return x->e < y->e ? -1 : (x->e > y->e);
 }
 
+static int ritem_less(const ritem *x, const ritem *y) { return cmp_ritem(x, y) < 0; }
+
+static void ritem_swap(ritem *a, ritem *b)
+{
+    ritem t = *a;
+    *a = *b;
+    *b = t;
+}
+
+/* Puts the k smallest items (by key, then element: a total order) in
+ * it[0..k) and the rest after them: a quickselect with a median-of-three
+ * pivot, O(n) on average. The halves are the same sets that a full sort
+ * gave, so the same tree; sorting every level took O(n log^2 n), seconds
+ * for the 1M-triangle room's roots, with no place to stop for Ctrl-C. */
+static void ritem_select(ritem *it, size_t n, size_t k)
+{
+    size_t lo = 0, hi = n; /* the k-th lies in [lo, hi) */
+    while (hi - lo > 2) {
+        size_t mid = lo + (hi - lo) / 2;
+        if (ritem_less(&it[mid], &it[lo]))
+            ritem_swap(&it[mid], &it[lo]);
+        if (ritem_less(&it[hi - 1], &it[lo]))
+            ritem_swap(&it[hi - 1], &it[lo]);
+        if (ritem_less(&it[hi - 1], &it[mid]))
+            ritem_swap(&it[hi - 1], &it[mid]);
+        ritem pivot = it[mid];
+        /* Hoare partition of [lo, hi) around the pivot (distinct items) */
+        size_t i = lo, j = hi - 1;
+        for (;;) {
+            while (ritem_less(&it[i], &pivot))
+                i++;
+            while (ritem_less(&pivot, &it[j]))
+                j--;
+            if (i >= j)
+                break;
+            ritem_swap(&it[i], &it[j]);
+            i++;
+            j--;
+        }
+        /* [lo, j] <= pivot <= [j + 1, hi) */
+        if (k <= j)
+            hi = j + 1;
+        else
+            lo = j + 1;
+    }
+    if (hi - lo == 2 && ritem_less(&it[lo + 1], &it[lo]))
+        ritem_swap(&it[lo], &it[lo + 1]);
+}
+
 static uint32_t cluster_build(hctx *c, ritem *it, size_t n)
 {
     if (n == 1)
         return it[0].e;
+    if (n >= 4096 && interrupted(c))
+        return NONE; /* the caller says interrupted */
     rr_vec3 lo = rr_v3(INFINITY, INFINITY, INFINITY), hi = rr_v3(-INFINITY, -INFINITY, -INFINITY);
     for (size_t i = 0; i < n; i++)
         for (int k = 0; k < 3; k++) {
@@ -89,9 +140,11 @@ static uint32_t cluster_build(hctx *c, ritem *it, size_t n)
         rr_vec3 m = c->el[it[i].e].ctr;
         it[i].key = axis == 0 ? m.x : (axis == 1 ? m.y : m.z);
     }
-    qsort(it, n, sizeof *it, cmp_ritem);
+    ritem_select(it, n, n / 2);
     uint32_t id = (uint32_t)c->ncl++;
     uint32_t a = cluster_build(c, it, n / 2), b = cluster_build(c, it + n / 2, n - n / 2);
+    if (a == NONE || b == NONE)
+        return NONE;
     hcl *k = &c->cl[id];
     k->lo = lo;
     k->hi = hi;
