@@ -63,7 +63,7 @@ int main(int argc, char **argv)
     printf("%8s %9s | %9s %11s | %9s | %9s %6s | %9s %6s | %9s\n", "target", "patches", "MC ff s", "MC entries",
            "quad ff s", "direct s", "resid", "GS s", "iters", "total s");
     for (long target = 1024; target <= max; target *= 4) {
-        rad_patch_opts po = {total / (double)target, 1e30, NULL};
+        rad_patch_opts po = {.max_area = total / (double)target, .max_edge = 1e30, .accel = NULL};
         double t0 = now();
         rad_patches *P = NULL;
         if (rad_patches_build(s, &po, &P, &err) != RR_OK)

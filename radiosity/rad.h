@@ -93,6 +93,10 @@ typedef struct rad_patch_opts {
     /* The BVH over the scene, for the solids' inside tests (mesh leaves);
      * NULL tests every mesh triangle (slow for big meshes, same result). */
     const rt_accel *accel;
+    /* The same limits for curved surfaces (spheres, solids), whose patches
+     * are flat facets of them: <= 0, max_area and max_edge. The hierarchical
+     * method's roots are coarser than patches on flat surfaces only. */
+    double curved_max_area, curved_max_edge;
 } rad_patch_opts;
 
 /* Subdivides every triangle of every object into level^2 similar triangles,

@@ -13,6 +13,7 @@
 rad_patch_opts rad_pass_patch_limits(const scene *s, const rad_pass_opts *o)
 {
     rad_patch_opts p;
+    memset(&p, 0, sizeof p); /* the curved limits: those of every surface */
     p.max_area = o && o->patch.max_area > 0 ? o->patch.max_area : s->radiosity.patch_area;
     p.max_edge = o && o->patch.max_edge > 0 ? o->patch.max_edge : s->radiosity.patch_edge;
     p.accel = o ? o->patch.accel : NULL;

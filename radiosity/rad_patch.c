@@ -222,12 +222,23 @@ static void free_solid_meshes(rad__solid_mesh *sm, size_t n)
 typedef struct build_ctx {
     const scene *s;
     const rad_patch_opts *o;
+    rad_patch_opts oc;    /* o with the curved surfaces' limits (spheres, solids) */
     rad_patches *P;
     uint32_t *olevel;     /* subdivision level per object (triangles) */
     uint32_t S;           /* sphere stacks */
     rad__solid_mesh *sm;  /* per object: the tessellated solid (CSG objects) */
     size_t nv, np;        /* vertices and patches written so far */
 } build_ctx;
+
+static rad_patch_opts curved_opts(const rad_patch_opts *o)
+{
+    rad_patch_opts c = *o;
+    if (o->curved_max_area > 0)
+        c.max_area = o->curved_max_area;
+    if (o->curved_max_edge > 0)
+        c.max_edge = o->curved_max_edge;
+    return c;
+}
 
 /* ---- per kind: how many patches, and the patches ---- */
 
@@ -252,7 +263,7 @@ static rr_status sphere_count(build_ctx *c, uint32_t i, double *npatch, double *
 /* Solids are tessellated here: their counts are known only then. */
 static rr_status solid_count(build_ctx *c, uint32_t i, double *npatch, double *nvert, rr_error *err)
 {
-    rr_status st = rad__solid_tessellate(c->s, c->o->accel, i, c->o, &c->sm[i], err);
+    rr_status st = rad__solid_tessellate(c->s, c->o->accel, i, &c->oc, &c->sm[i], err);
     if (st != RR_OK)
         return st;
     *npatch += (double)c->sm[i].ntris;
@@ -271,7 +282,7 @@ static double sphere_estimate(const build_ctx *c, uint32_t i)
     return (double)sphere_patch_count(c->S);
 }
 
-static double solid_estimate(const build_ctx *c, uint32_t i) { return rad_solid_patch_estimate(c->s, i, c->o); }
+static double solid_estimate(const build_ctx *c, uint32_t i) { return rad_solid_patch_estimate(c->s, i, &c->oc); }
 
 /* P's arrays for npatch patches and nvert vertices; 0, or -1 when out of memory. */
 static int allocate(build_ctx *c, size_t npatch, size_t nvert)
@@ -617,7 +628,8 @@ double rad_patches_estimate(const scene *s, const rad_patch_opts *o)
     if (!c.olevel)
         return 0.0;
     object_levels(s, o, c.olevel);
-    c.S = sphere_stacks(s, o);
+    c.oc = curved_opts(o);
+    c.S = sphere_stacks(s, &c.oc);
     double n = 0;
     for (size_t t = 0; t < s->ntris; t++)
         n += k_patch_kinds[RT_PRIM_TRIANGLE].estimate(&c, (uint32_t)t);
@@ -646,7 +658,8 @@ rr_status rad_patches_build(const scene *s, const rad_patch_opts *o, rad_patches
     double npatch = 0, nvert = 0;
     if (c.P && c.olevel && c.sm) {
         object_levels(s, o, c.olevel);
-        c.S = sphere_stacks(s, o);
+        c.oc = curved_opts(o);
+        c.S = sphere_stacks(s, &c.oc);
         st = count_patches(&c, &npatch, &nvert, err);
     }
     if (st == RR_OK && allocate(&c, (size_t)npatch, (size_t)nvert) != 0)

@@ -82,7 +82,7 @@ static void fx_open_head(fx *f, const char *head, const char *objects, double ma
         fail_msg("%s", err.msg);
     free(json);
     assert_int_equal(rt_accel_build(f->s, &f->a, &err), RR_OK);
-    rad_patch_opts po = {max_edge * max_edge, max_edge, NULL};
+    rad_patch_opts po = {.max_area = max_edge * max_edge, .max_edge = max_edge, .accel = NULL};
     if (rad_patches_build(f->s, &po, &f->P, &err) != RR_OK)
         fail_msg("%s", err.msg);
 }

@@ -41,7 +41,7 @@ static void limits_and_areas(void **state)
 {
     (void)state;
     scene *s = load();
-    rad_patch_opts o = {0.05, 0.4, NULL};
+    rad_patch_opts o = {.max_area = 0.05, .max_edge = 0.4, .accel = NULL};
     rad_patches *P = NULL;
     rr_error err;
     assert_int_equal(rad_patches_build(s, &o, &P, &err), RR_OK);
@@ -79,7 +79,7 @@ static void limits_and_areas(void **state)
     /* The estimate the memory check uses is the count, for triangles and spheres. */
     assert_true(rad_patches_estimate(s, &o) == (double)P->n);
     rad_patches_destroy(P);
-    rad_patch_opts o2 = {0.5, 2.0, NULL};
+    rad_patch_opts o2 = {.max_area = 0.5, .max_edge = 2.0, .accel = NULL};
     assert_int_equal(rad_patches_build(s, &o2, &P, &err), RR_OK);
     assert_true(rad_patches_estimate(s, &o2) == (double)P->n);
     rad_patches_destroy(P);
@@ -124,7 +124,7 @@ static void level_outlier_named(void **state)
             fail_msg("%s", err.msg);
         int warned = 0;
         rr_warn_sink w = {warn_count, &warned};
-        rad_patch_opts o = {0.01, 0.2, NULL};
+        rad_patch_opts o = {.max_area = 0.01, .max_edge = 0.2, .accel = NULL};
         assert_int_equal(rad_patches_level_outliers(s, &o, &w), (size_t)sliver);
         assert_int_equal(warned, sliver);
         scene_destroy(s);
@@ -154,7 +154,7 @@ static void conforming_box(void **state)
 {
     (void)state;
     scene *s = load();
-    rad_patch_opts o = {0.03, 0.3, NULL};
+    rad_patch_opts o = {.max_area = 0.03, .max_edge = 0.3, .accel = NULL};
     rad_patches *P = NULL;
     assert_int_equal(rad_patches_build(s, &o, &P, NULL), RR_OK);
     uint32_t *canon = malloc(P->nverts * sizeof *canon);
@@ -203,7 +203,7 @@ static void locate_hits(void **state)
 {
     (void)state;
     scene *s = load();
-    rad_patch_opts o = {0.02, 0.25, NULL};
+    rad_patch_opts o = {.max_area = 0.02, .max_edge = 0.25, .accel = NULL};
     rad_patches *P = NULL;
     assert_int_equal(rad_patches_build(s, &o, &P, NULL), RR_OK);
     rr_rng rng = rr_rng_make(3, 3);
@@ -253,10 +253,10 @@ static void bad_limits(void **state)
     scene *s = load();
     rad_patches *P = NULL;
     rr_error err;
-    rad_patch_opts o = {0, 1, NULL};
+    rad_patch_opts o = {.max_area = 0, .max_edge = 1, .accel = NULL};
     assert_int_equal(rad_patches_build(s, &o, &P, &err), RR_ERR_INVALID);
     assert_null(P);
-    rad_patch_opts tiny = {1e-12, 1e-6, NULL};
+    rad_patch_opts tiny = {.max_area = 1e-12, .max_edge = 1e-6, .accel = NULL};
     assert_int_equal(rad_patches_build(s, &tiny, &P, &err), RR_ERR_LIMIT);
     assert_non_null(strstr(err.msg, "patches"));
     assert_null(P);
@@ -434,7 +434,7 @@ static void solid_patches_cover_the_final_surface(void **state)
         fail_msg("%s", err.msg);
     rt_accel *a = NULL;
     assert_int_equal(rt_accel_build(s, &a, NULL), RR_OK);
-    rad_patch_opts o = {0.003, 0.08, a};
+    rad_patch_opts o = {.max_area = 0.003, .max_edge = 0.08, .accel = a};
     rad_patches *P = NULL;
     assert_int_equal(rad_patches_build(s, &o, &P, &err), RR_OK);
     const double R = 1, r = 0.6, d = 0.9, x = (d * d + R * R - r * r) / (2 * d);
@@ -596,7 +596,7 @@ static void vertex_values_keep_patch_means(void **state)
     rr_error err;
     if (scene_load_string(floor_json, "floor", "", NULL, &s, &err) != RR_OK)
         fail_msg("%s", err.msg);
-    rad_patch_opts o = {0.01, 0.2, NULL};
+    rad_patch_opts o = {.max_area = 0.01, .max_edge = 0.2, .accel = NULL};
     rad_patches *P = NULL;
     assert_int_equal(rad_patches_build(s, &o, &P, NULL), RR_OK);
     assert_true(P->n >= 100);
