@@ -638,7 +638,7 @@ static rr_status estimate(hctx *c, void (*progress)(void *, size_t, size_t), voi
  * links kept move to the front in place and only the ends of those to split
  * are set aside (a copy of every link held them twice, as the sort did). */
 typedef struct split_end {
-    hlink l; /* kept as it is where the cap stops its split */
+    uint32_t r, s;
     unsigned char how;
 } split_end;
 
@@ -674,7 +674,7 @@ static int relink(hctx *c)
     }
     for (size_t i = 0, k = 0; i < n; i++)
         if (split[i])
-            se[k++] = (split_end){c->ln[i], split[i]};
+            se[k++] = (split_end){c->ln[i].r, c->ln[i].s, split[i]};
         else
             c->ln[keep++] = c->ln[i]; /* keep <= i: in place */
     free(split);
@@ -682,13 +682,15 @@ static int relink(hctx *c)
     c->first_new = keep;
     for (size_t k = 0; k < nsplit && !c->nomem; k++)
         if (c->nln < c->max_links) {
-            split_link(c, se[k].l.r, se[k].l.s, se[k].how == 2);
+            split_link(c, se[k].r, se[k].s, se[k].how == 2);
             changed = 1;
         } else {
+            /* kept whole past the cap, and evaluated again (changed: the
+             * round's settle evaluates the links from first_new; without it
+             * the rounds ended and these held f = NaN) */
             c->capped = 1;
-            link_add(c, se[k].l.r, se[k].l.s);
-            if (!c->nomem)
-                c->ln[c->nln - 1] = se[k].l; /* as evaluated: no round may follow to evaluate it */
+            link_add(c, se[k].r, se[k].s);
+            changed = 1;
         }
     free(se);
     return changed;
