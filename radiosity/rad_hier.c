@@ -4,9 +4,9 @@
  * design and the measurements.
  *
  * Elements. Every patch of a coarse patch set (the roots: the scene's
- * triangles, spheres and solids tessellated at 16x the flat method's patch
- * area) is the root of a quadtree of elements, split on demand into four
- * similar triangles (corners A, B, C, then the middle).
+ * triangles at 16x the flat method's patch area, spheres and solids at that
+ * area: rad__hier_root_limits) is the root of a quadtree of elements, split
+ * on demand into four similar triangles (corners A, B, C, then the middle).
  *
  * Clusters. A binary bounding-volume hierarchy over the roots (median split
  * of the centroids on the longest axis). A cluster shoots with the intensity
