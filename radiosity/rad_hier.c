@@ -379,12 +379,12 @@ static void refine(hctx *c, uint32_t r, uint32_t s)
      * solve diverged). The cap stops only the refinement for accuracy; the
      * first walk stops at it (first_refine). */
     double p = link_power(c, r, s);
+    if (c->first && c->nln >= c->max_links) {
+        c->over = 1; /* a link, or a split, past the cap */
+        return;
+    }
     if (c->nln >= c->max_links && (isinf(p) || p > c->eps)) {
         c->capped = 1;
-        if (c->first) {
-            c->over = 1;
-            return;
-        }
         if (!isinf(p)) {
             link_add(c, r, s);
             return;
