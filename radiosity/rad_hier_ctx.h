@@ -292,6 +292,10 @@ void rad__hier_revis_ee(const hctx *c, hlink *l, rr_rng *rng);
 /* The bounding-volume hierarchy of clusters over the roots (c->el[0 ..
  * c->R->n), c->cl room for as many): the top node, NONE when out of memory. */
 uint32_t rad__hier_clusters(hctx *c);
+/* The solved hierarchy as sol (rad_hier_solve.c): the leaves as its patch set
+ * (roots owned from here on), their B, and the gathers the ledger and the
+ * hybrid read. */
+rr_status rad__hier_output(hctx *c, rad_patches *roots, rad_solution *sol, rr_error *err);
 /* Element l->r <- cluster l->s: geometry and visibility (rad_hier.c's header,
  * "Transport"), drawing from rng. */
 void rad__hier_eval_cluster(const hctx *c, hlink *l, rr_rng *rng);

@@ -1,15 +1,17 @@
 /* rad_hier_solve.c - solving on a fixed hierarchy of the hierarchical pass
  * (rad_hier.c): source values up the trees and clusters, every link's
  * transport into its receiver, irradiance down to the leaves, and the Jacobi
- * sweeps of those to the tolerance (rad_hier_ctx.h has the interface and
- * rad_hier.c's header the formulas). Sums run in a fixed order: the same bits
- * for any thread count. */
+ * sweeps of those to the tolerance, then the solution as the leaves' patch
+ * set (rad_hier_ctx.h has the interface and rad_hier.c's header the
+ * formulas). Sums run in a fixed order: the same bits for any thread count. */
 #include <math.h>
 #include <omp.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "rad_hier_ctx.h"
+#include "rad_hier_internal.h"
+#include "rad_pass_internal.h"
 
 
 static int cmp_source(const void *a, const void *b)
@@ -323,3 +325,93 @@ rr_status rad__hier_solve(hctx *c, const rad_solve_opts *so, rad_solve_stats *st
     return RR_OK;
 }
 
+/* ---- output: the leaves as a patch set, their values ---- */
+
+/* The leaves as sol's patch set (roots: the root patches, owned from here
+ * on), their B, and the gathers the ledger and the hybrid read. */
+rr_status rad__hier_output(hctx *c, rad_patches *roots, rad_solution *sol, rr_error *err)
+{
+    /* Split bits in breadth-first order (rad__hier_leaves), and the leaf
+     * elements in the order it numbers the leaves. */
+    size_t n = c->nel;
+    uint32_t *q = malloc((n ? n : 1) * sizeof *q), *leaf = malloc((n ? n : 1) * sizeof *leaf);
+    rad_split_bits bits = {malloc(n ? n : 1), 0};
+    if (!q || !leaf || !bits.bit) {
+        free(q);
+        free(leaf);
+        free(bits.bit);
+        rad_patches_destroy(roots);
+        return rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory", c->s->path);
+    }
+    size_t tail = 0, nleaf = 0;
+    for (size_t r = 0; r < c->R->n; r++)
+        q[tail++] = (uint32_t)r;
+    for (size_t head = 0; head < tail; head++) {
+        const hel *e = &c->el[q[head]];
+        bits.bit[bits.n++] = e->child != NONE;
+        if (e->child == NONE)
+            leaf[nleaf++] = q[head];
+        else
+            for (uint32_t k = 0; k < 4; k++)
+                q[tail++] = e->child + k;
+    }
+    free(q);
+    rr_status st = rad__hier_leaves(roots, &bits, &sol->P, err);
+    free(bits.bit);
+    if (st != RR_OK) {
+        free(leaf);
+        return st;
+    }
+    RR_CHECK(sol->P->n == nleaf);
+    sol->hier_H = malloc((nleaf ? nleaf : 1) * sizeof *sol->hier_H);
+    sol->hier_fsum = malloc((nleaf ? nleaf : 1) * sizeof *sol->hier_fsum);
+    rr_rgb *Hind = malloc((nleaf ? nleaf : 1) * sizeof *Hind);
+    if (rad__solution_arrays(sol) != 0 || !sol->hier_H || !sol->hier_fsum || !Hind) {
+        free(leaf);
+        free(Hind);
+        return rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory", c->s->path);
+    }
+    if ((st = rad__first_shots(c->s, c->a, sol, err)) != RR_OK) {
+        free(leaf);
+        free(Hind);
+        return st;
+    }
+    /* A leaf's area is its open part's, as in the flat pass (rad_pass.c):
+     * the ledger, the vertex means and the display weigh what can be seen. */
+    for (size_t i = 0; i < nleaf; i++) {
+        sol->B[i] = c->el[leaf[i]].B;
+        sol->P->p[i].area *= c->el[leaf[i]].open;
+    }
+    /* The gathers the ledger and the hybrid read: all that arrives (B), what
+     * arrives after a reflection (B - E), and the row sums (B = 1). */
+    size_t ngrp;
+    size_t *grp = rad__hier_groups(c, &ngrp);
+    if (!grp) {
+        free(leaf);
+        free(Hind);
+        return rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory", c->s->path);
+    }
+    rad__hier_sources(c, 0, 0);
+    rad__hier_gather(c, grp, ngrp);
+    rad__hier_push(c, PUSH_KEEP);
+    for (size_t i = 0; i < nleaf; i++)
+        sol->hier_H[i] = c->el[leaf[i]].H;
+    rad__hier_sources(c, 0, 1);
+    rad__hier_gather(c, grp, ngrp);
+    rad__hier_push(c, PUSH_KEEP);
+    for (size_t i = 0; i < nleaf; i++)
+        Hind[i] = c->el[leaf[i]].H;
+    rad__hier_sources(c, 1, 0);
+    rad__hier_gather(c, grp, ngrp);
+    rad__hier_push(c, PUSH_KEEP);
+    for (size_t i = 0; i < nleaf; i++)
+        sol->hier_fsum[i] = rr_rgb_mean(c->el[leaf[i]].H);
+    free(grp);
+    free(leaf);
+    st = rad__to_vertices(sol->P, sol->B, 0, sol->vertex_B) != RR_OK ||
+                 rad__to_vertices(sol->P, Hind, RAD_HIND_SWEEPS, sol->vertex_Hind) != RR_OK
+             ? rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory", c->s->path)
+             : RR_OK;
+    free(Hind);
+    return st;
+}
