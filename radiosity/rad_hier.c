@@ -379,19 +379,15 @@ static void refine(hctx *c, uint32_t r, uint32_t s)
      * links past radiosity.max_links held form factors up to 3300, and its
      * solve diverged). The cap stops only the refinement for accuracy; the
      * first walk stops at it (first_refine). */
-    double p = link_power(c, r, s);
-    if (c->first && c->nln >= c->max_links) {
+    int past = c->nln >= c->max_links;
+    if (c->first && past) {
         c->over = 1; /* a link, or a split, past the cap */
         return;
     }
-    if (c->nln >= c->max_links && (isinf(p) || p > c->eps)) {
+    double p = link_power(c, r, s); /* INFINITY where not admissible */
+    if (past && p > c->eps)
         c->capped = 1;
-        if (!isinf(p)) {
-            link_add(c, r, s);
-            return;
-        }
-    }
-    if (p > c->eps && split_link(c, r, s, 0))
+    if ((isinf(p) || (p > c->eps && !past)) && split_link(c, r, s, 0))
         return;
     link_add(c, r, s);
 }

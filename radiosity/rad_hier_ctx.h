@@ -290,7 +290,8 @@ void rad__hier_revis_ee(const hctx *c, hlink *l, rr_rng *rng);
 /* ---- clusters (rad_hier_cluster.c) ---- */
 
 /* The bounding-volume hierarchy of clusters over the roots (c->el[0 ..
- * c->R->n), c->cl room for as many): the top node, NONE when out of memory. */
+ * c->R->n), c->cl room for as many): the top node, NONE when out of memory
+ * or interrupted. */
 uint32_t rad__hier_clusters(hctx *c);
 /* The solved hierarchy as sol (rad_hier_solve.c): the leaves as its patch set
  * (roots owned from here on), their B, and the gathers the ledger and the
