@@ -114,9 +114,12 @@ int app_parse_size(const char *s, size_t *out);
 /* Estimates what a render of sc by ig needs (film with aovs AOV images, BVH, and when ig runs the
  * radiosity pass, patches and form factors, fewer when cache_path exists) and
  * fails with RR_ERR_LIMIT and a message giving the estimate, the limit and
- * what to change when it exceeds limit. Counts only: nothing is built. */
+ * what to change when it exceeds limit. Counts only: nothing is built.
+ * *pass_bytes (may be NULL) gets what the limit leaves the radiosity pass
+ * after the film and the BVH (0: no limit), for rad_hier_opts.max_bytes: the
+ * hierarchical pass's estimate is only the least it needs (rad.h). */
 rr_status app_check_memory(const scene *sc, const ig_integrator *ig, const char *cache_path, int aovs, size_t limit,
-                           rr_error *err);
+                           double *pass_bytes, rr_error *err);
 /* Sets every non-finite pixel of the film to 0 (rt_film_scrub_nonfinite) and
  * warns on stderr with the count and the first coordinates. Returns the count. */
 size_t app_scrub_film(rt_film *film);

@@ -193,6 +193,7 @@ typedef struct energy_result {
     double balance, balance_tol;
     int created;          /* escaped below 0 beyond the solver's tolerance */
     double allowance;
+    double pass_bytes;    /* what --max-memory leaves the pass (rad_hier_opts.max_bytes) */
 } energy_result;
 
 static const char *column_name(int c)
@@ -375,6 +376,7 @@ static int run(const energy_args *A, scene *s, rt_accel *a, energy_result *R)
 {
     rr_error err;
     app_session_init(&R->ses, s, a, NULL);
+    R->ses.pass.hier.max_bytes = R->pass_bytes;
     rr_status st = app_session_field(&R->ses, A->quiet, &err);
     const rad_solution *sol = R->sol = R->ses.sol;
     if (st == RR_ERR_INTERRUPTED) {
@@ -464,7 +466,7 @@ int app_cmd_energy(int argc, char **argv)
         goto done;
     }
     R.s = s;
-    if (app_check_memory(s, ig_find("radiosity"), NULL, 0, A.max_memory, &err) != RR_OK) {
+    if (app_check_memory(s, ig_find("radiosity"), NULL, 0, A.max_memory, &R.pass_bytes, &err) != RR_OK) {
         app_error("%s", err.msg);
         goto done;
     }

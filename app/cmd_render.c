@@ -532,10 +532,10 @@ static void print_stats(const ig_session *ses, const render_stats *rs)
     if (sol && ses->sol_cached)
         printf("radiosity  %zu patches, read from %s (%.2f s)\n", sol->P->n, ses->cache_path, ses->seconds_pass);
     else if (sol && sol->links)
-        printf("radiosity  %zu leaves, %zu links; refinement %.2f s (%.4g M rays, %.3g Mrays/s), solves %.2f s "
-               "(Jacobi, %d sweep(s) in the last)\n",
-               sol->P->n, sol->links, sol->seconds_ff, mff, sol->seconds_ff > 0 ? mff / sol->seconds_ff : 0.0,
-               sol->seconds_solve, sol->stats.iterations);
+        printf("radiosity  %zu leaves, %zu links (the pass held %.1f MiB); refinement %.2f s (%.4g M rays, %.3g "
+               "Mrays/s), solves %.2f s (Jacobi, %d sweep(s) in the last)\n",
+               sol->P->n, sol->links, sol->pass_bytes / 1048576.0, sol->seconds_ff, mff,
+               sol->seconds_ff > 0 ? mff / sol->seconds_ff : 0.0, sol->seconds_solve, sol->stats.iterations);
     else if (sol)
         printf("radiosity  %zu patches, %zu form factors; patches %.2f s, form factors %.2f s (%.4g M rays), "
                "solve %.2f s (%s, %d iteration(s))\n",
@@ -578,10 +578,10 @@ static int write_stats(const char *path, const render_args *A, const scene *sc, 
         fprintf(f, "\"patches\": %zu, \"form_factors\": %zu, \"radiosity_cached\": %s, "
                    "\"seconds_radiosity\": %.6g, \"seconds_patches\": %.6g, \"seconds_form_factors\": %.6g, "
                    "\"seconds_solve\": %.6g, \"solver_iterations\": %d, \"form_factor_rays\": %llu, "
-                   "\"hierarchical_links\": %zu}\n",
+                   "\"hierarchical_links\": %zu, \"hierarchical_bytes\": %.0f}\n",
                 sol->P->n, sol->nnz, ses->sol_cached ? "true" : "false", ses->seconds_pass, sol->seconds_patches,
                 sol->seconds_ff, sol->seconds_solve, sol->stats.iterations,
-                (unsigned long long)(sol->ff_rays.closest + sol->ff_rays.occluded), sol->links);
+                (unsigned long long)(sol->ff_rays.closest + sol->ff_rays.occluded), sol->links, sol->pass_bytes);
     else
         fprintf(f, "\"patches\": 0}\n");
     int bad = ferror(f);
@@ -726,7 +726,8 @@ int app_cmd_render(int argc, char **argv)
     rc = APP_EXIT_USAGE;
     if (!(sc = load_scene(&A)) || settle_outputs(&A, sc) != 0)
         goto agree;
-    if (app_check_memory(sc, A.ig, A.cache_path, aov_count(A.aovs), A.max_memory, &err) != RR_OK) {
+    double pass_bytes = 0.0;
+    if (app_check_memory(sc, A.ig, A.cache_path, aov_count(A.aovs), A.max_memory, &pass_bytes, &err) != RR_OK) {
         app_error("%s", err.msg);
         goto agree;
     }
@@ -749,6 +750,7 @@ agree:
     }
     app_diagnose_light(sc, accel);
     app_session_init(&ses, sc, accel, A.cache_path);
+    ses.pass.hier.max_bytes = pass_bytes;
     ses.dist = app_mpi_dist();
     app_signals_catch(&sig); /* SIGINT and SIGTERM stop the same way (app_stop says which) */
     rc = A.frame_first ? render_frames(&A, sc, &ses, &film) : render_and_write(&A, sc, &ses, &film);

@@ -220,7 +220,7 @@ static const char *count_text(double v, char *buf, size_t n)
 #define APP_BVH_BYTES_PER_PRIM 48.0
 
 rr_status app_check_memory(const scene *sc, const ig_integrator *ig, const char *cache_path, int aovs, size_t limit,
-                           rr_error *err)
+                           double *pass_bytes, rr_error *err)
 {
     char a[32], b[32], c[32], d[32];
     /* The beauty image and the 7 layers, and the AOV images. */
@@ -239,14 +239,16 @@ rr_status app_check_memory(const scene *sc, const ig_integrator *ig, const char 
         rad = rad_pass_memory_estimate(sc, &po, cached, &patches);
     }
     double total = film + bvh + rad;
+    if (pass_bytes)
+        *pass_bytes = limit == SIZE_MAX ? 0.0 : (double)limit - film - bvh;
     if (total <= (double)limit)
         return RR_OK;
     rr_size_text(total, c, sizeof c);
     rr_size_text((double)limit, d, sizeof d);
     if (rad >= film && rad >= bvh)
         return rr_error_set(err, RR_ERR_LIMIT,
-                            "%s: radiosity: %s patches need about %s of form factors (%s in all), over the limit of "
-                            "%s (--max-memory); raise --patch-area",
+                            "%s: radiosity: %s patches need about %s for patches and form factors (%s in all), "
+                            "over the limit of %s (--max-memory); raise --patch-area",
                             sc->path, count_text(patches, a, sizeof a), rr_size_text(rad, b, sizeof b), c, d);
     if (film >= bvh)
         return rr_error_set(err, RR_ERR_LIMIT,

@@ -80,7 +80,7 @@ const char *rr_size_text(double bytes, char *buf, size_t n)
     const double kib = 1024.0, mib = kib * kib, gib = mib * kib, tib = gib * kib;
     if (bytes >= 10.0 * tib)
         snprintf(buf, n, "%.3g TiB", bytes / tib);
-    else if (bytes >= 0.1 * gib)
+    else if (bytes >= gib)
         snprintf(buf, n, "%.1f GiB", bytes / gib);
     else if (bytes >= mib)
         snprintf(buf, n, "%.1f MiB", bytes / mib);

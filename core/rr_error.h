@@ -53,7 +53,7 @@ rr_status rr_error_prefix(rr_error *err, const char *fmt, ...);
 
 void rr_error_clear(rr_error *err);
 /* A byte count for a message: "6.1 GiB", "512.0 MiB", "12.0 KiB", "100 bytes"
- * (GiB from 0.1 GiB on, so that no size prints as "0.0 GiB"; TiB from 10). */
+ * (MiB up to 1 GiB: "0.1 GiB" said 100 to 150 MiB; TiB from 10). */
 const char *rr_size_text(double bytes, char *buf, size_t n);
 const char *rr_status_name(rr_status code);
 

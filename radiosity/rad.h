@@ -323,6 +323,10 @@ typedef struct rad_hier_opts {
     size_t max_links;  /* the most links: past it the tolerance is raised 4x at a time (with a
                           warning); RR_ERR_INVALID where the cluster links that admissibility
                           needs do not fit; 0: from the scene */
+    double max_bytes;  /* the same bound on the pass's own arrays (links, elements, clusters and
+                          the leaves' patch set, as rad_pass_memory_estimate counts them): the app
+                          gives it what --max-memory leaves after the film and the BVH; <= 0: none.
+                          Not in the cache key: a solution that it coarsened is not cached */
 } rad_hier_opts;
 
 typedef struct rad_pass_opts {
@@ -363,6 +367,9 @@ typedef struct rad_solution {
     size_t links;        /* hierarchical: links of the final hierarchy */
     size_t elements;     /* hierarchical: elements and clusters made */
     int refine_rounds;
+    int memory_bound;    /* hierarchical: rad_hier_opts.max_bytes coarsened it (not cached, as the key
+                            does not hold the limit) */
+    double pass_bytes;   /* hierarchical: rad__hier_bytes at the output (what the pass held at its peak) */
 } rad_solution;
 
 /* Patches, form factors, solve, vertex radiosity: everything the display and
@@ -392,7 +399,11 @@ rad_patch_opts rad_pass_patch_limits(const scene *s, const rad_pass_opts *o);
  * and unless cached, the form factors: the raw rows copied into one matrix,
  * then its transpose and the reciprocal matrix over their union beside it);
  * *patches gets the patch count. Within 20 % of the measured peak on
- * scenes/room.json and the Cornell box at 108,854 patches (notes/hardening.md). */
+ * scenes/room.json and the Cornell box at 108,854 patches (notes/hardening.md).
+ * The hierarchical method: the least it needs (its roots as elements,
+ * clusters and leaves, no links; a cache: the leaves, about the flat patch
+ * count); how far it refines is not known before it runs, and it keeps
+ * itself under rad_hier_opts.max_bytes instead (notes/radiosity.md). */
 double rad_pass_memory_estimate(const scene *s, const rad_pass_opts *o, int cached, double *patches);
 
 /* Radiance B/pi at a ray-tracer hit, interpolated from the vertex radiosity

@@ -339,6 +339,11 @@ rr_status rad_pass_run_cached(const scene *s, const rt_accel *a, const rad_pass_
         /* Several ranks hold the same solution: rank 0 writes it. */
         if (o->ff.dist && o->ff.dist->rank != 0)
             return RR_OK;
+        if ((*out)->memory_bound) {
+            rr_warn(&o->warn, "%s: radiosity: not cached in %s, as --max-memory made it coarser than its settings ask",
+                    s->path, cache_path);
+            return RR_OK;
+        }
         st = cache_save(cache_path, key, *out, err);
         if (st != RR_OK) {
             rad_solution_destroy(*out);

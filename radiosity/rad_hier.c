@@ -161,7 +161,6 @@
 #define MAX_ROUNDS 3
 #define VIS_SHARE 0.125 /* partly visible links are split down to eps times this */
 #define ROUND_TOL 1e-4  /* solver tolerance of the rounds before the last */
-#define HIER_LINKS_PER_N_LOG_N 2.5 /* links over N log2 N, N leaves (rad__hier_memory_estimate) */
 #define ADMISSIBLE 2.0  /* cluster links need centres this many radii sums apart */
 
 /* ---- the hierarchy ---- */
@@ -316,6 +315,31 @@ static void link_add(hctx *c, uint32_t r, uint32_t s)
     l->f = NAN; /* evaluated later (eval_link) */
 }
 
+double rad__hier_bytes(double links, double elements, double clusters)
+{
+    return links * (double)sizeof(hlink) +
+           elements * ((double)sizeof(hel) + (double)sizeof(rr_rgb) + (double)sizeof(size_t) + 0.75 * RAD_PATCH_BYTES) +
+           clusters * ((double)sizeof(hcl) + (double)sizeof(rr_rgb));
+}
+
+/* Whether the links have reached radiosity.max_links or the pass's bytes
+ * BYTES_HEADROOM of max_bytes (--max-memory's share: then by_memory is set,
+ * for the messages). The headroom is for the splits under way when the cap
+ * is reached, which still link their children as admissibility needs:
+ * Cornell and room.json went up to 8 % past a cap at max_bytes itself. */
+#define BYTES_HEADROOM 0.9
+static int past_cap(hctx *c)
+{
+    if (c->nln >= c->max_links)
+        return 1;
+    if (c->max_bytes > 0 &&
+        rad__hier_bytes((double)c->nln, (double)c->nel, (double)c->ncl) >= BYTES_HEADROOM * c->max_bytes) {
+        c->by_memory = 1;
+        return 1;
+    }
+    return 0;
+}
+
 static void refine(hctx *c, uint32_t r, uint32_t s);
 
 /* Splits r or s (the larger that can be split, or r first when receiver) and
@@ -379,7 +403,7 @@ static void refine(hctx *c, uint32_t r, uint32_t s)
      * links past radiosity.max_links held form factors up to 3300, and its
      * solve diverged). The cap stops only the refinement for accuracy; the
      * first walk stops at it (first_refine). */
-    int past = c->nln >= c->max_links;
+    int past = past_cap(c);
     if (c->first && past) {
         c->over = 1; /* a link, or a split, past the cap */
         return;
@@ -437,6 +461,13 @@ static rr_status first_refine(hctx *c, double power, rr_error *err)
                 return RR_OK;
             coarsest_fits = 1; /* the coarsest fits: back to 4x what was asked */
             c->eps = asked * 4.0;
+        } else if (c->eps >= power && c->by_memory) {
+            char b[32];
+            return rr_error_set(err, RR_ERR_INVALID, /* a setting that cannot be met: exit 2 */
+                                "%s: radiosity: the hierarchical method needs more than the %s that --max-memory "
+                                "leaves it for this scene's %zu surfaces, even at its coarsest; raise --max-memory "
+                                "or use radiosity.method \"flat\"",
+                                c->s->path, rr_size_text(c->max_bytes, b, sizeof b), c->R->n);
         } else if (c->eps >= power) {
             return rr_error_set(err, RR_ERR_INVALID, /* a setting that cannot be met: exit 2 */
                                 "%s: radiosity: the hierarchical method needs more than %zu links for this scene's "
@@ -577,7 +608,7 @@ static rr_status settle(hctx *c, void (*progress)(void *, size_t, size_t), void 
             int shot = e->spread > 0 && rr_rgb_max(el_rho(c, (uint32_t)i)) * e->area * e->spread > c->eps;
             int part = e->open > 0 && e->open < 1 &&
                        rr_rgb_max(e->B) * e->area * fmin(e->open, 1.0 - e->open) > c->eps;
-            if (shot || part)
+            if ((shot || part) && !past_cap(c))
                 changed |= el_split(c, (uint32_t)i) == 0;
         }
         /* Partly visible links that carry enough split once more (which,
@@ -596,7 +627,7 @@ static rr_status settle(hctx *c, void (*progress)(void *, size_t, size_t), void 
         }
         for (size_t i = lo; i < old_end && !c->nomem; i++) {
             hlink l = c->ln[i];
-            int split = want[i - lo] && c->nln < c->max_links && split_link(c, l.r, l.s, 1);
+            int split = want[i - lo] && !past_cap(c) && split_link(c, l.r, l.s, 1);
             if (!split)
                 c->ln[keep++] = l;
             changed |= split;
@@ -678,7 +709,7 @@ static int relink(hctx *c)
     c->nln = keep;
     c->first_new = keep;
     for (size_t k = 0; k < nsplit && !c->nomem; k++)
-        if (c->nln < c->max_links) {
+        if (!past_cap(c)) {
             split_link(c, se[k].r, se[k].s, se[k].how == 2);
             changed = 1;
         } else {
@@ -707,15 +738,6 @@ rad_patch_opts rad__hier_root_limits(const scene *s, const rad_pass_opts *o)
     p.max_area *= 16.0;
     p.max_edge *= 4.0;
     return p;
-}
-
-double rad__hier_memory_estimate(double leaves, int cached, double patch_bytes)
-{
-    double N = leaves > 2 ? leaves : 2;
-    double links = cached ? 0.0 : HIER_LINKS_PER_N_LOG_N * N * log2(N);
-    /* Links once (sorted and re-linked in place); elements: the leaves and
-     * 1/3 as many interior ones; clusters fewer. */
-    return links * (double)sizeof(hlink) + N * (4.0 / 3.0 * (double)sizeof(hel) + patch_bytes + (double)sizeof(hcl));
 }
 
 double rad__hier_min_area(const scene *s, const rad_pass_opts *o)
@@ -775,6 +797,7 @@ static rr_status hier_run(const scene *s, const rt_accel *a, const rad_pass_opts
     c.min_area = rad__hier_min_area(s, o);
     double tol = o->hier.tolerance > 0 ? o->hier.tolerance : s->radiosity.refine_tolerance;
     c.max_links = o->hier.max_links > 0 ? o->hier.max_links : (size_t)s->radiosity.max_links;
+    c.max_bytes = o->hier.max_bytes > 0 ? o->hier.max_bytes : 0.0;
     rad_patch_opts po = rad__hier_root_limits(s, o);
     po.accel = a;
     rad_patches *roots = NULL;
@@ -848,14 +871,21 @@ static rr_status hier_run(const scene *s, const rt_accel *a, const rad_pass_opts
     }
     if (st == RR_OK)
         st = timed_solve(&c, &so, sol, &t_solve, err);
+    char cap[96], b[32];
+    if (c.by_memory)
+        snprintf(cap, sizeof cap, "%s (what --max-memory leaves the pass)", rr_size_text(c.max_bytes, b, sizeof b));
+    else
+        snprintf(cap, sizeof cap, "%zu links (radiosity.max_links)", c.max_links);
     if (st == RR_OK && c.eps > eps0)
-        rr_warn(&o->warn, "%s: radiosity: refined to a tolerance of %g instead of %g to stay under %zu links "
-                          "(radiosity.max_links): the solution is coarser than radiosity.refine_tolerance asks",
-                s->path, tol * c.eps / eps0, tol, c.max_links);
+        rr_warn(&o->warn, "%s: radiosity: refined to a tolerance of %g instead of %g to stay under %s: the "
+                          "solution is coarser than radiosity.refine_tolerance asks",
+                s->path, tol * c.eps / eps0, tol, cap);
     if (st == RR_OK && c.capped)
-        rr_warn(&o->warn, "%s: radiosity: refinement stopped at %zu links (radiosity.max_links): the solution is "
-                          "coarser than radiosity.refine_tolerance asks",
-                s->path, c.max_links);
+        rr_warn(&o->warn, "%s: radiosity: refinement stopped at %s: the solution is coarser than "
+                          "radiosity.refine_tolerance asks",
+                s->path, cap);
+    sol->memory_bound = c.by_memory && (c.eps > eps0 || c.capped);
+    sol->pass_bytes = rad__hier_bytes((double)c.nln, (double)c.nel, (double)c.ncl);
     sol->ff_rays = c.rays;
     sol->links = c.nln;
     sol->elements = c.nel + c.ncl;

@@ -185,7 +185,9 @@ typedef struct hctx {
     rt_ray_counts rays; /* rays traced while linking (sol->ff_rays): every parallel region that traces adds its own */
     double eps, min_area;
     size_t max_links;
+    double max_bytes; /* the pass's own arrays at most this (rad_hier_opts.max_bytes); 0: no limit */
     int capped, nomem;
+    int by_memory;    /* the cap reached was max_bytes (the messages name --max-memory) */
     int first, over; /* the first walk (rad_hier.c, first_refine) stops when it reaches the cap (over) */
     int unit;       /* the sources are B = 1 (rad__hier_sources): gathers read hlink.ga */
     double ext, plane_tol;

@@ -39,13 +39,16 @@ rr_status rad__to_vertices(const rad_patches *P, const rr_rgb *per_patch, int sw
 rad_patch_opts rad__hier_root_limits(const scene *s, const rad_pass_opts *o);
 
 /* The smallest element area the hierarchical pass splits to for s given o. */
-/* Peak bytes of a hierarchical pass with about that many leaves (cached: the
- * tree is read, no links are made), patch_bytes a leaf's share of the output:
- * links 2.5 N log2 N (bench/hier-scaling.sh measured 2.1 .. 2.8), each held
- * twice while the links are sorted or re-linked; notes/radiosity.md has how
- * far it is from the measured peaks. */
-double rad__hier_memory_estimate(double leaves, int cached, double patch_bytes);
 double rad__hier_min_area(const scene *s, const rad_pass_opts *o);
+
+/* The bytes a hierarchical pass holds with that many links, elements and
+ * clusters: the links, each element with its source value and receiver
+ * group and (at the output, beside them) its share of the leaves' patch set,
+ * about 3 of 4 elements being leaves, and the clusters. The pass stops
+ * refining where this reaches rad_hier_opts.max_bytes; the process's peak
+ * is about this over what it held before the pass (realloc grows the large
+ * arrays by remapping: pages never written are not resident). */
+double rad__hier_bytes(double links, double elements, double clusters);
 
 /* The hierarchical pass (rad_hier.c): fills sol (P, B, emitted, first_shot,
  * light_landed, vertex_B, vertex_Hind, hier_H, hier_fsum, stats) for scene s. */

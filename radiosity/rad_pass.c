@@ -35,12 +35,10 @@ rad_patch_opts rad_pass_patch_limits(const scene *s, const rad_pass_opts *o)
     return p;
 }
 
-/* Rough per-item costs: per patch the patch record, its radiosity, emission,
- * first shot and shared vertices; a form factor is a column (uint32) and a
- * value (double). The form factors' peak is 2 + U raw matrices, U the union's
+/* Rough per-item costs (per patch: RAD_PATCH_BYTES); a form factor is a
+ * column (uint32) and a value (double). The form factors' peak is 2 + U raw matrices, U the union's
  * size over the raw one (1 to 2; measured 1.36 on scenes/room.json and 1.49
  * on the Cornell box at 108,854 patches): 3.5 is within 20 % for any U. */
-#define RAD_PATCH_BYTES (sizeof(rad_patch) + 8.0 * sizeof(rr_rgb) + 2.0 * sizeof(rr_vec3))
 #define RAD_FF_ENTRY_BYTES 12.0
 #define RAD_FF_PEAK_RAWS 3.5
 
@@ -48,13 +46,14 @@ double rad_pass_memory_estimate(const scene *s, const rad_pass_opts *o, int cach
 {
     rad_patch_opts lim = rad_pass_patch_limits(s, o);
     if (rad__pass_method(s, o, NULL) == RAD_METHOD_HIERARCHICAL) {
-        /* Leaves: about the flat patch count (the smallest element is 1/16
-         * of a flat patch), at least one per root. */
+        /* The least it needs: the roots as elements, clusters and leaves
+         * (the pass keeps its links under rad_hier_opts.max_bytes); a cache
+         * is read as leaves, about the flat patch count. */
         rad_patch_opts rl = rad__hier_root_limits(s, o);
-        double leaves = fmax(rad_patches_estimate(s, &lim), rad_patches_estimate(s, &rl));
+        double roots = rad_patches_estimate(s, &rl), leaves = fmax(rad_patches_estimate(s, &lim), roots);
         if (patches)
-            *patches = leaves;
-        return rad__hier_memory_estimate(leaves, cached, RAD_PATCH_BYTES);
+            *patches = cached ? leaves : roots;
+        return cached ? leaves * RAD_PATCH_BYTES : rad__hier_bytes(0.0, roots, roots);
     }
     double n = rad_patches_estimate(s, &lim);
     int method = o->use_scene_choices ? (int)s->radiosity.form_factors : (int)o->ff.method;

@@ -6,6 +6,10 @@
 
 #include "rad.h"
 
+/* Rough bytes per patch: the patch record, its radiosity, emission, first
+ * shot and shared vertices (the estimates of rad_pass.c and rad_hier.c). */
+#define RAD_PATCH_BYTES (sizeof(rad_patch) + 8.0 * sizeof(rr_rgb) + 2.0 * sizeof(rr_vec3))
+
 /* An empty solution for s with its rt_field set up; NULL when out of memory. */
 rad_solution *rad__solution_new(const scene *s);
 /* Allocates sol's per-patch arrays (B, emitted, first_shot) and per-vertex

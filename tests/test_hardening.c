@@ -573,6 +573,28 @@ static void cli_refuses_tiny_patches(void **state)
     assert_true(exists("tiny.exr"));
 }
 
+/* The hierarchical pass cannot know its links before it runs: --max-memory
+ * bounds it while it refines. Under what its coarsest refinement needs: exit
+ * 2 naming the option, and no output. Under what the settings ask (Cornell's
+ * pass holds 13.8 MiB): a coarser solution with a warning, and an image. */
+static void cli_bounds_the_hierarchical_pass(void **state)
+{
+    (void)state;
+    char out[256], scene_path[512];
+    path_in(out, sizeof out, "hier.exr");
+    snprintf(scene_path, sizeof scene_path, "%s/scenes/cornell.json", RR_SOURCE_DIR);
+    const char *args[] = {"render", scene_path, "--set", "radiosity.method=hierarchical", "--max-memory", "1M",
+                          "--width", "8", "--spp", "1", "-q", "-o", out, NULL};
+    assert_int_equal(finish(start(args)), 2);
+    assert_non_null(strstr(g_out, "even at its coarsest; raise --max-memory"));
+    assert_false(exists("hier.exr"));
+    const char *args2[] = {"render", scene_path, "--set", "radiosity.method=hierarchical", "--max-memory", "6M",
+                           "--width", "8", "--spp", "1", "-q", "-o", out, NULL};
+    assert_int_equal(finish(start(args2)), 0);
+    assert_non_null(strstr(g_out, "what --max-memory leaves the pass"));
+    assert_true(exists("hier.exr"));
+}
+
 /* The mutated copy of scenes/csg.json that ran past 20 s (issue #20): its
  * pebble scaled by -2.5 instead of 0.45, a mirrored pebble through the
  * walls, whose CSG leaf makes ~40-60k patches and 17 M form factors (69 s).
@@ -720,6 +742,7 @@ int main(void)
         cmocka_unit_test(cli_outputs_never_overwrite_inputs), cmocka_unit_test(cli_disk_full_between_writes),
         cmocka_unit_test(cli_cache_key_and_checksum), cmocka_unit_test(cli_concurrent_renders_leave_one_pair),
         cmocka_unit_test(cli_refuses_huge_resolution), cmocka_unit_test(cli_refuses_tiny_patches),
+        cmocka_unit_test(cli_bounds_the_hierarchical_pass),
         cmocka_unit_test(cli_bounds_the_csg_mutant),
         cmocka_unit_test(scrub_nonfinite),             cmocka_unit_test(scale_invariance_whitted),
         cmocka_unit_test(scale_invariance_hybrid),
