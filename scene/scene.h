@@ -184,7 +184,7 @@ typedef struct scene_radiosity {
     int ff_samples;         /* rays (Monte Carlo) or points (quadrature) per patch, default 512 */
     double tolerance;       /* iterative solver: relative residual, default 1e-9 */
     scene_rad_method method; /* hierarchical or flat (SCENE_RAD_DEFAULT_METHOD) */
-    double refine_tolerance; /* hierarchical: link error over emitted power, default 3e-5 */
+    double refine_tolerance; /* hierarchical: link error over emitted power, default 1.5e-5 */
     double min_area;        /* hierarchical: smallest element; 0 = automatic */
     double max_links;       /* hierarchical: links at most, default 1e8 */
 } scene_radiosity;

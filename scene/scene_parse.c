@@ -223,7 +223,7 @@ rr_status sp_parse_radiosity(const sp_ctx *c, const cJSON *root, scene *s)
     r->ff_samples = 512;
     r->tolerance = 1e-9;
     r->method = SCENE_RAD_DEFAULT_METHOD;
-    r->refine_tolerance = 3e-5;
+    r->refine_tolerance = 1.5e-5;
     r->max_links = 100e6;
     const cJSON *v = sp_get(root, "radiosity");
     if (!v)
