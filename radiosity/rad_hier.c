@@ -279,9 +279,9 @@ static double ff_estimate(const hctx *c, uint32_t r, uint32_t s)
     double spread = L > 0 ? (node_radius(c, r) + node_radius(c, s)) / L : 1.0;
     double cr = 1.0, cs = 1.0;
     if (!(r & CLB) && L > 0)
-        cr = fmin(1.0, fmax(0.0, rr_v3_dot(el_normal(c, r), d) / L) + spread);
+        cr = rr_min(1.0, rr_max(0.0, rr_v3_dot(el_normal(c, r), d) / L) + spread);
     if (!(s & CLB) && L > 0)
-        cs = fmin(1.0, fmax(0.0, -rr_v3_dot(el_normal(c, s), d) / L) + spread);
+        cs = rr_min(1.0, rr_max(0.0, -rr_v3_dot(el_normal(c, s), d) / L) + spread);
     return As * cr * cs / (RR_PI * L * L + As);
 }
 

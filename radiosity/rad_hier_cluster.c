@@ -302,7 +302,7 @@ static double geo_term(const hctx *c, rr_vec3 x, uint32_t r, rr_vec3 p, double A
 {
     rr_vec3 d = rr_v3_sub(p, x);
     double L2 = rr_v3_len2(d), L = sqrt(L2);
-    return L > 0 ? fmax(0.0, rr_v3_dot(el_normal(c, r), d) / L) / (L2 + A / RR_PI) : 0.0;
+    return L > 0 ? rr_max(0.0, rr_v3_dot(el_normal(c, r), d) / L) / (L2 + A / RR_PI) : 0.0;
 }
 
 /* The transport of element r <- cluster s per unit of s's power, for s's
@@ -426,8 +426,8 @@ static void cluster_geo(const hctx *c, uint32_t r, uint32_t s, int area_too, dou
         double lo = p0, hi = p0;
         for (int q = 0; q < 3; q++) {
             double g = geo_term(c, c->el[r].c[q], r, k->pc, A);
-            lo = fmin(lo, g);
-            hi = fmax(hi, g);
+            lo = rr_min(lo, g);
+            hi = rr_max(hi, g);
         }
         *spread = (hi - lo) / p0;
     }

@@ -151,8 +151,8 @@ static double side_ff(const hctx *c, uint32_t xi, uint32_t yi, int near, rr_rng 
             continue; /* a buried point of r gathers nothing that its open part gets */
         nopen++;
         double f = rr_v3_dot(ny, rr_v3_sub(x, ey->ctr)) > c->plane_tol ? rad_ff_point_polygon(x, nx, poly, nv) : 0.0;
-        lo = fmin(lo, f); /* the spread of the unoccluded factor: what the uneven test reads */
-        hi = fmax(hi, f);
+        lo = rr_min(lo, f); /* the spread of the unoccluded factor: what the uneven test reads */
+        hi = rr_max(hi, f);
         fk[child_of(b[k])] += f; /* near: 9 of the 36 points in each child; far: k_pts, one in each */
         if (!near && f > 0.0 && !shadow_passes(c, ex, ey, x, poly, nv, (uint32_t)k, rng, v))
             f = 0.0;

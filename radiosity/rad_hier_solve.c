@@ -217,12 +217,12 @@ static double push_el(hctx *c, uint32_t x, rr_rgb Hin, const rr_rgb Din[3], int 
         const rr_rgb ch[4][3] = {{D[0], ab, ca}, {ab, D[1], bc}, {ca, bc, D[2]}, {bc, ca, ab}};
         double m = 0.0;
         for (uint32_t k = 0; k < 4; k++)
-            m = fmax(m, push_el(c, e->child + k, H, ch[k], partial, mode));
+            m = rr_max(m, push_el(c, e->child + k, H, ch[k], partial, mode));
         return m;
     }
     /* a leaf: the field's mean over it */
     H = rr_rgb_add(H, rr_rgb_scale(rr_rgb_add(D[0], rr_rgb_add(D[1], D[2])), 1.0 / 3.0));
-    H = rr_rgb_make(fmax(H.r, 0.0), fmax(H.g, 0.0), fmax(H.b, 0.0));
+    H = rr_rgb_make(rr_max(H.r, 0.0), rr_max(H.g, 0.0), rr_max(H.b, 0.0));
     if (mode == PUSH_SIGMA) {
         /* Only where every link was wholly visible or wholly hidden: there
          * the row sum's error is the quadrature's, which k removes; a few
@@ -238,7 +238,7 @@ static double push_el(hctx *c, uint32_t x, rr_rgb Hin, const rr_rgb Din[3], int 
         return 0.0;
     }
     rr_rgb B = rr_rgb_add(e->E, rr_rgb_mul(el_rho(c, x), H));
-    double d = fmax(fabs(B.r - e->B.r), fmax(fabs(B.g - e->B.g), fabs(B.b - e->B.b)));
+    double d = rr_max(fabs(B.r - e->B.r), rr_max(fabs(B.g - e->B.g), fabs(B.b - e->B.b)));
     e->B = B;
     return d;
 }
@@ -279,7 +279,7 @@ static double leaves_max_B(const hctx *c)
             rr_rgb b = c->el[i].B;
             if (isnan(b.r) || isnan(b.g) || isnan(b.b))
                 return NAN;
-            m = fmax(m, rr_rgb_max(b));
+            m = rr_max(m, rr_rgb_max(b));
         }
     return m;
 }
