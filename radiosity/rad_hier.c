@@ -193,7 +193,7 @@ static uint32_t el_add(hctx *c, const rr_vec3 v[3], uint32_t root, uint32_t dept
     memcpy(e->c, v, sizeof e->c);
     e->ctr = rr_v3_scale(rr_v3_add(v[0], rr_v3_add(v[1], v[2])), 1.0 / 3.0);
     for (int k = 0; k < 3; k++)
-        e->radius = fmax(e->radius, rr_v3_len(rr_v3_sub(v[k], e->ctr)));
+        e->radius = rr_max(e->radius, rr_v3_len(rr_v3_sub(v[k], e->ctr)));
     e->area = ldexp(c->R->p[root].area, -2 * (int)depth);
     e->root = root;
     e->child = NONE;
@@ -235,7 +235,7 @@ static double plane_side_max(const rr_vec3 *pts, int n, rr_vec3 nrm, rr_vec3 p0)
 {
     double m = -INFINITY;
     for (int k = 0; k < n; k++)
-        m = fmax(m, rr_v3_dot(nrm, rr_v3_sub(pts[k], p0)));
+        m = rr_max(m, rr_v3_dot(nrm, rr_v3_sub(pts[k], p0)));
     return m;
 }
 

@@ -136,8 +136,8 @@ static inline void set_shape(hlink *l, const double fk[4])
 {
     double m = (fk[0] + fk[1] + fk[2]) / 3.0, dev = 0.0, d[3];
     for (int k = 0; k < 3; k++) {
-        d[k] = m > 0 ? fmin(2.0, fmax(-1.0, 2.0 * (fk[k] - m) / m)) : 0.0;
-        dev = fmax(dev, fabs(d[k]));
+        d[k] = m > 0 ? rr_min(2.0, rr_max(-1.0, 2.0 * (fk[k] - m) / m)) : 0.0;
+        dev = rr_max(dev, fabs(d[k]));
     }
     memset(l->sh, 0, sizeof l->sh);
     if (!(dev > 0.01))
