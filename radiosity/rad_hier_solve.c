@@ -20,31 +20,21 @@ static int cmp_source(const void *a, const void *b)
     return x->s < y->s ? -1 : (x->s > y->s);
 }
 
-/* The links sorted by receiver, then source: a bucket sort by receiver in
+static int link_less(const hlink *x, const hlink *y) { return x->r < y->r || (x->r == y->r && x->s < y->s); }
+
+/* ln[0 .. n) sorted by receiver, then source: a bucket sort by receiver in
  * place (each link swapped into its receiver's range, in a fixed order),
  * then each receiver's links by source, receivers in parallel (a serial
- * qsort of room.json's 3.7 M links took 0.4 s a solve). In place, and the
- * array trimmed to its links first: the counting sort into a second array
- * held every link twice, as re-linking's copy did (rad_hier.c, relink); with
- * both in place 27 bunnies' pass peaked at 0.84 GB instead of 1.44 GB. -1
- * when out of memory. */
-static int sort_links(hctx *c)
+ * qsort of room.json's 3.7 M links took 0.4 s a solve). -1 when out of
+ * memory. */
+static int bucket_sort(hlink *ln, size_t n, size_t ne)
 {
-    size_t n = c->nln, ne = c->nel;
     size_t *start = calloc(ne + 1, sizeof *start), *next = malloc((ne ? ne : 1) * sizeof *next);
     if (!start || !next) {
         free(start);
         free(next);
         return -1;
     }
-    if (n && c->capln > n) {
-        hlink *t = realloc(c->ln, n * sizeof *t);
-        if (t) {
-            c->ln = t;
-            c->capln = n;
-        }
-    }
-    hlink *ln = c->ln;
     for (size_t i = 0; i < n; i++)
         start[ln[i].r + 1]++;
     for (size_t e = 0; e < ne; e++)
@@ -69,6 +59,57 @@ static int sort_links(hctx *c)
             qsort(ln + lo, hi - lo, sizeof *ln, cmp_source);
     }
     free(start);
+    return 0;
+}
+
+/* The links sorted by receiver, then source (the gather's fixed order). In
+ * place, and the array trimmed to its links first: the counting sort into a
+ * second array held every link twice, as re-linking's copy did (rad_hier.c,
+ * relink); with both in place 27 bunnies' pass peaked at 0.84 GB instead of
+ * 1.44 GB. But re-linking keeps the kept links in order at the front and
+ * adds the new ones behind them (room.json: 81 % and 99 % of the links in
+ * order in the second and third rounds), and the in-place sort moved every
+ * link again (0.5-0.7 s a round, serial: a tenth of the pass). So the links
+ * after the longest sorted prefix are sorted alone and merged in from the
+ * back through a copy of them, where that copy is no larger than what the
+ * output adds later (three quarters of a patch-set entry per element,
+ * rad__hier_bytes): the pass's peak stays where it was. A link is a
+ * receiver-source pair, so the order is total and the result the same. -1
+ * when out of memory. */
+static int sort_links(hctx *c)
+{
+    size_t n = c->nln, ne = c->nel;
+    if (n && c->capln > n) {
+        hlink *t = realloc(c->ln, n * sizeof *t);
+        if (t) {
+            c->ln = t;
+            c->capln = n;
+        }
+    }
+    hlink *ln = c->ln;
+    size_t k = n ? 1 : 0;
+    while (k < n && link_less(&ln[k - 1], &ln[k]))
+        k++;
+    size_t m = n - k;
+    if (m == 0)
+        return 0;
+    hlink *tail = k > 0 && (double)m * sizeof *ln <= 0.75 * RAD_PATCH_BYTES * (double)ne ? malloc(m * sizeof *tail)
+                                                                                        : NULL;
+    if (!tail)
+        return bucket_sort(ln, n, ne);
+    if (bucket_sort(ln + k, m, ne) != 0) {
+        free(tail);
+        return -1;
+    }
+    memcpy(tail, ln + k, m * sizeof *tail);
+    size_t i = k, j = m, w = n; /* from the back: w > i always while j > 0 */
+    while (j > 0) {
+        if (i > 0 && link_less(&tail[j - 1], &ln[i - 1]))
+            ln[--w] = ln[--i];
+        else
+            ln[--w] = tail[--j];
+    }
+    free(tail);
     return 0;
 }
 
