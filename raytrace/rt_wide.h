@@ -485,7 +485,7 @@ int RT_WALK(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_hit *hit
     const int exact_only = p.box_double;
     int tri_ready = 0;
     rt_pkray pr;
-    memset(&pr, 0, sizeof pr); /* set at the first leaf; this only quiets -Wmaybe-uninitialized */
+    RT_PKRAY_UNSET(pr); /* set at the first leaf */
     rt_boxray br;
     if (!rt__boxray_init(&p, &br))
         p.box_double = 1;
@@ -632,7 +632,7 @@ int RT_OCCL(const rt_accel *a, rr_ray ray, double tmin, double tmax)
     const int exact_only = p.box_double; /* the triangles' set-up at the first leaf, as in RT_WALK */
     int tri_ready = 0;
     rt_pkray pr;
-    memset(&pr, 0, sizeof pr); /* set at the first leaf; this only quiets -Wmaybe-uninitialized */
+    RT_PKRAY_UNSET(pr); /* set at the first leaf */
     rt_boxray br;
     if (!rt__boxray_init(&p, &br))
         p.box_double = 1;
