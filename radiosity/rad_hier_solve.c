@@ -62,6 +62,43 @@ static int bucket_sort(hlink *ln, size_t n, size_t ne)
     return 0;
 }
 
+/* bucket_sort on two threads: the links of the receivers below the one that
+ * halves them moved to the front by a two-ended partition (which streams
+ * through the array where the bucket sort's swaps jump), then each part
+ * bucket-sorted by a thread of its own. The first round's sort of room.json
+ * was 3 % of its samples on one thread. The same order: it is total. */
+static int bucket_sort2(hlink *ln, size_t n, size_t ne)
+{
+    if (n < ((size_t)1 << 16) || omp_get_max_threads() < 2)
+        return bucket_sort(ln, n, ne);
+    size_t *count = calloc(ne + 1, sizeof *count);
+    if (!count)
+        return -1;
+    for (size_t i = 0; i < n; i++)
+        count[ln[i].r]++;
+    uint32_t mid = 0;
+    for (size_t acc = 0; mid < ne && acc + count[mid] <= n / 2; mid++)
+        acc += count[mid];
+    free(count);
+    size_t i = 0, j = n;
+    for (;;) {
+        while (i < j && ln[i].r < mid)
+            i++;
+        while (i < j && ln[j - 1].r >= mid)
+            j--;
+        if (i >= j)
+            break;
+        hlink t = ln[i];
+        ln[i++] = ln[j - 1];
+        ln[--j] = t;
+    }
+    int rc[2] = {0, 0};
+#pragma omp parallel for num_threads(2) schedule(static, 1)
+    for (int h = 0; h < 2; h++)
+        rc[h] = h == 0 ? bucket_sort(ln, i, ne) : bucket_sort(ln + i, n - i, ne);
+    return rc[0] || rc[1] ? -1 : 0;
+}
+
 /* The links sorted by receiver, then source (the gather's fixed order). In
  * place, and the array trimmed to its links first: the counting sort into a
  * second array held every link twice, as re-linking's copy did (rad_hier.c,
@@ -96,8 +133,8 @@ static int sort_links(hctx *c)
     hlink *tail = k > 0 && (double)m * sizeof *ln <= 0.75 * RAD_PATCH_BYTES * (double)ne ? malloc(m * sizeof *tail)
                                                                                         : NULL;
     if (!tail)
-        return bucket_sort(ln, n, ne);
-    if (bucket_sort(ln + k, m, ne) != 0) {
+        return bucket_sort2(ln, n, ne);
+    if (bucket_sort2(ln + k, m, ne) != 0) {
         free(tail);
         return -1;
     }
