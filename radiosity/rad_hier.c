@@ -724,31 +724,6 @@ static int relink(hctx *c)
     return changed;
 }
 
-rad_patch_opts rad__hier_root_limits(const scene *s, const rad_pass_opts *o)
-{
-    rad_patch_opts p = rad_pass_patch_limits(s, o);
-    /* Curved surfaces keep the patches' limits: an element is a flat piece
-     * of its root, with the root's normal, so a sphere's roots 16 times the
-     * patch area shaded it in facets of ~40 degrees, and the lit side of
-     * sphere-to-board's sphere came out +7.0 % in the radiosity display
-     * (the flat method, at the patch area, +2.5 %); the incident power was
-     * right (-0.6 % against the light tracer). */
-    p.curved_max_area = p.max_area;
-    p.curved_max_edge = p.max_edge;
-    p.max_area *= 16.0;
-    p.max_edge *= 4.0;
-    return p;
-}
-
-double rad__hier_min_area(const scene *s, const rad_pass_opts *o)
-{
-    if (o && o->hier.min_area > 0)
-        return o->hier.min_area;
-    if (s->radiosity.min_area > 0)
-        return s->radiosity.min_area;
-    return rad_pass_patch_limits(s, o).max_area / 16.0;
-}
-
 static double emitted_power(const hctx *c)
 {
     double P = 0.0;
