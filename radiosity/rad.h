@@ -324,7 +324,7 @@ typedef struct rad_hier_opts {
                           warning); RR_ERR_INVALID where the cluster links that admissibility
                           needs do not fit; 0: from the scene */
     double max_bytes;  /* the same bound on the pass's own arrays (links, elements, clusters and
-                          the leaves' patch set, as rad_pass_memory_estimate counts them): the app
+                          the leaves' patch set, as rad__hier_bytes counts them): the app
                           gives it what --max-memory leaves after the film and the BVH; <= 0: none.
                           Not in the cache key: a solution that it coarsened is not cached */
 } rad_hier_opts;

@@ -63,8 +63,8 @@ double rad__hier_min_area(const scene *s, const rad_pass_opts *o)
 }
 
 /* Rough per-item costs (per patch: RAD_PATCH_BYTES); a form factor is a
- * column (uint32) and a value (double). The form factors' peak is 2 + U raw matrices, U the union's
- * size over the raw one (1 to 2; measured 1.36 on scenes/room.json and 1.49
+ * column (uint32) and a value (double). The form factors' peak is 2 + U raw
+ * matrices, U the union's size over the raw one (1 to 2; measured 1.36 on scenes/room.json and 1.49
  * on the Cornell box at 108,854 patches): 3.5 is within 20 % for any U. */
 #define RAD_FF_ENTRY_BYTES 12.0
 #define RAD_FF_PEAK_RAWS 3.5
