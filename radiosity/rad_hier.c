@@ -239,31 +239,24 @@ static double plane_side_max(const rr_vec3 *pts, int n, rr_vec3 nrm, rr_vec3 p0)
     return m;
 }
 
-static void node_points(const hctx *c, uint32_t x, rr_vec3 pts[8], int *n)
-{
-    if (x & CLB) {
-        const hcl *k = &c->cl[CL(x)];
-        for (int i = 0; i < 8; i++)
-            pts[i] = rr_v3(i & 1 ? k->hi.x : k->lo.x, i & 2 ? k->hi.y : k->lo.y, i & 4 ? k->hi.z : k->lo.z);
-        *n = 8;
-    } else {
-        memcpy(pts, c->el[x].c, 3 * sizeof *pts);
-        *n = 3;
-    }
-}
-
-/* r and s cannot exchange light: one lies wholly behind the other's plane. */
-static int culled(const hctx *c, uint32_t r, uint32_t s)
+/* r and s cannot exchange light (by way w): one lies wholly behind the
+ * other's plane (r read as its image by way of a mirror), or the way's
+ * mirror cannot pass light between them (rad__hier_way_culled). */
+static int culled(const hctx *c, uint32_t r, uint32_t s, unsigned w)
 {
     rr_vec3 pts[8];
     int n;
+    if (w && rad__hier_way_culled(c, r, s, w))
+        return 1;
     if (!(r & CLB)) {
         node_points(c, s, pts, &n);
-        if (plane_side_max(pts, n, el_normal(c, r), c->el[r].ctr) <= c->plane_tol)
+        if (plane_side_max(pts, n, way_dir(c, w, el_normal(c, r)), way_point(c, w, c->el[r].ctr)) <= c->plane_tol)
             return 1;
     }
     if (!(s & CLB)) {
         node_points(c, r, pts, &n);
+        for (int k = 0; w && k < n; k++)
+            pts[k] = way_point(c, w, pts[k]);
         if (plane_side_max(pts, n, el_normal(c, s), c->el[s].ctr) <= c->plane_tol)
             return 1;
     }
@@ -272,31 +265,32 @@ static int culled(const hctx *c, uint32_t r, uint32_t s)
 
 /* An upper estimate of the form factor from r to s: a disc of s's area at
  * the centres' distance, with cosines raised by the nodes' angular size. */
-static double ff_estimate(const hctx *c, uint32_t r, uint32_t s)
+static double ff_estimate(const hctx *c, uint32_t r, uint32_t s, unsigned w)
 {
-    rr_vec3 d = rr_v3_sub(node_ctr(c, s), node_ctr(c, r));
+    rr_vec3 d = rr_v3_sub(node_ctr(c, s), way_point(c, w, node_ctr(c, r)));
     double L = rr_v3_len(d), As = node_area(c, s);
     double spread = L > 0 ? (node_radius(c, r) + node_radius(c, s)) / L : 1.0;
     double cr = 1.0, cs = 1.0;
     if (!(r & CLB) && L > 0)
-        cr = rr_min(1.0, rr_max(0.0, rr_v3_dot(el_normal(c, r), d) / L) + spread);
+        cr = rr_min(1.0, rr_max(0.0, rr_v3_dot(way_dir(c, w, el_normal(c, r)), d) / L) + spread);
     if (!(s & CLB) && L > 0)
         cs = rr_min(1.0, rr_max(0.0, -rr_v3_dot(el_normal(c, s), d) / L) + spread);
     return As * cr * cs / (RR_PI * L * L + As);
 }
 
-static double link_power(const hctx *c, uint32_t r, uint32_t s)
+static double link_power(const hctx *c, uint32_t r, uint32_t s, unsigned w)
 {
     /* A cluster link reads directions and distances at the centres: only
      * between nodes well apart for their size (admissible, as in the fast
      * multipole method) is that accurate whatever power it carries. */
     if (((r & CLB) || (s & CLB)) &&
-        rr_v3_len(rr_v3_sub(node_ctr(c, s), node_ctr(c, r))) < ADMISSIBLE * (node_radius(c, r) + node_radius(c, s)))
+        rr_v3_len(rr_v3_sub(node_ctr(c, s), way_point(c, w, node_ctr(c, r)))) <
+            ADMISSIBLE * (node_radius(c, r) + node_radius(c, s)))
         return INFINITY;
-    return node_rho(c, r) * node_area(c, r) * ff_estimate(c, r, s) * node_B(c, s);
+    return node_rho(c, r) * node_area(c, r) * ff_estimate(c, r, s, w) * node_B(c, s) * way_rho(c, w);
 }
 
-static void link_add(hctx *c, uint32_t r, uint32_t s)
+static void link_add(hctx *c, uint32_t r, uint32_t s, unsigned w)
 {
     if (c->nln == c->capln) {
         size_t cap = c->capln ? 2 * c->capln : 4096;
@@ -312,6 +306,7 @@ static void link_add(hctx *c, uint32_t r, uint32_t s)
     memset(l, 0, sizeof *l);
     l->r = r;
     l->s = s;
+    l->flags = (unsigned char)(w << 1);
     l->f = NAN; /* evaluated later (eval_link) */
 }
 
@@ -340,13 +335,13 @@ static int past_cap(hctx *c)
     return 0;
 }
 
-static void refine(hctx *c, uint32_t r, uint32_t s);
+static void refine(hctx *c, uint32_t r, uint32_t s, unsigned w);
 
 /* Splits r or s (the larger that can be split, or r first when receiver) and
  * refines the children's links; 0 when neither can be split. A shadow's edge
  * lies on the receiver: splitting the source there only shrinks the link's
  * power until it passes, leaving the shadow as coarse as the receiver. */
-static int split_link(hctx *c, uint32_t r, uint32_t s, int receiver)
+static int split_link(hctx *c, uint32_t r, uint32_t s, int receiver, unsigned w)
 {
     int sr = splittable(c, r), ss = splittable(c, s);
     if (!sr && !ss)
@@ -370,32 +365,32 @@ static int split_link(hctx *c, uint32_t r, uint32_t s, int receiver)
     }
     for (int k = 0; k < nk && !c->nomem; k++) {
         if (side)
-            refine(c, r, kids[k]);
+            refine(c, r, kids[k], w);
         else
-            refine(c, kids[k], s);
+            refine(c, kids[k], s, w);
     }
     return 1;
 }
 
-static void refine(hctx *c, uint32_t r, uint32_t s)
+static void refine(hctx *c, uint32_t r, uint32_t s, unsigned w)
 {
     if (c->nomem || c->over || interrupted(c))
         return; /* over: the first walk is started again coarser (first_refine) */
-    if (r == s) {
+    if (r == s && !w) { /* (by way of a mirror a node may see its own image) */
         if (!(r & CLB))
             return; /* a planar element does not see itself */
         uint32_t a = c->cl[CL(r)].child[0], b = c->cl[CL(r)].child[1];
-        refine(c, a, a);
-        refine(c, a, b);
-        refine(c, b, a);
-        refine(c, b, b);
+        refine(c, a, a, 0);
+        refine(c, a, b, 0);
+        refine(c, b, a, 0);
+        refine(c, b, b, 0);
         return;
     }
-    if (culled(c, r, s))
+    if (culled(c, r, s, w))
         return;
     if (r & CLB) { /* receivers are elements: a cluster passes the link to its children */
-        refine(c, c->cl[CL(r)].child[0], s);
-        refine(c, c->cl[CL(r)].child[1], s);
+        refine(c, c->cl[CL(r)].child[0], s, w);
+        refine(c, c->cl[CL(r)].child[1], s, w);
         return;
     }
     /* A cluster end closer than admissible is split whatever the cap: its
@@ -408,12 +403,12 @@ static void refine(hctx *c, uint32_t r, uint32_t s)
         c->over = 1; /* a link, or a split, past the cap */
         return;
     }
-    double p = link_power(c, r, s); /* INFINITY where not admissible */
+    double p = link_power(c, r, s, w); /* INFINITY where not admissible */
     if (past && p > c->eps)
         c->capped = 1;
-    if ((isinf(p) || (p > c->eps && !past)) && split_link(c, r, s, 0))
+    if ((isinf(p) || (p > c->eps && !past)) && split_link(c, r, s, 0, w))
         return;
-    link_add(c, r, s);
+    link_add(c, r, s, w);
 }
 
 /* The walk's links and the elements it split given back, before it is
@@ -452,7 +447,8 @@ static rr_status first_refine(hctx *c, double power, rr_error *err)
         c->first_new = 0;
         c->capped = c->over = 0;
         c->first = 1;
-        refine(c, c->top, c->top);
+        for (unsigned w = 0; w <= c->nimg; w++) /* straight, then by way of each mirror */
+            refine(c, c->top, c->top, w);
         c->first = 0;
         if (c->nomem || interrupted(c))
             return RR_OK;
@@ -491,7 +487,8 @@ static rr_status first_refine(hctx *c, double power, rr_error *err)
  * geometry kept where it is held without visibility. */
 static void eval_link(const hctx *c, hlink *l, int revis)
 {
-    rr_rng rng = rr_rng_make(c->seed ^ c->draw, ((uint64_t)l->r << 32) | l->s);
+    unsigned w = link_way(l);
+    rr_rng rng = rr_rng_make(c->seed ^ c->draw ^ (w ? 0x9e3779b97f4a7c15ULL * w : 0), ((uint64_t)l->r << 32) | l->s);
     if (l->s & CLB)
         (revis ? rad__hier_revis_cluster : rad__hier_eval_cluster)(c, l, &rng);
     else
@@ -623,11 +620,12 @@ static rr_status settle(hctx *c, void (*progress)(void *, size_t, size_t), void 
         for (long i = (long)lo; i < (long)old_end; i++) {
             const hlink *l = &c->ln[i];
             want[i - (long)lo] = uneven(c, l) || unrepresented(c, l->r) ||
-                                 (l->vis > 0 && l->vis < VIS_ONE && link_power(c, l->r, l->s) > VIS_SHARE * c->eps);
+                                 (l->vis > 0 && l->vis < VIS_ONE &&
+                                  link_power(c, l->r, l->s, link_way(l)) > VIS_SHARE * c->eps);
         }
         for (size_t i = lo; i < old_end && !c->nomem; i++) {
             hlink l = c->ln[i];
-            int split = want[i - lo] && !past_cap(c) && split_link(c, l.r, l.s, 1);
+            int split = want[i - lo] && !past_cap(c) && split_link(c, l.r, l.s, 1, link_way(&l));
             if (!split)
                 c->ln[keep++] = l;
             changed |= split;
@@ -667,7 +665,7 @@ static rr_status estimate(hctx *c, void (*progress)(void *, size_t, size_t), voi
  * are set aside (a copy of every link held them twice, as the sort did). */
 typedef struct split_end {
     uint32_t r, s;
-    unsigned char how;
+    unsigned char how, way;
 } split_end;
 
 static int relink(hctx *c)
@@ -686,10 +684,10 @@ static int relink(hctx *c)
         const hlink *l = &c->ln[i];
         if (!(splittable(c, l->r) | splittable(c, l->s)))
             split[i] = 0;
-        else if (link_power(c, l->r, l->s) > c->eps)
+        else if (link_power(c, l->r, l->s, link_way(l)) > c->eps)
             split[i] = 1;
         else if (uneven(c, l) || unrepresented(c, l->r) ||
-                 (l->vis > 0 && l->vis < VIS_ONE && link_power(c, l->r, l->s) > VIS_SHARE * c->eps))
+                 (l->vis > 0 && l->vis < VIS_ONE && link_power(c, l->r, l->s, link_way(l)) > VIS_SHARE * c->eps))
             split[i] = 2;
     }
     for (size_t i = 0; i < n; i++)
@@ -702,7 +700,7 @@ static int relink(hctx *c)
     }
     for (size_t i = 0, k = 0; i < n; i++)
         if (split[i])
-            se[k++] = (split_end){c->ln[i].r, c->ln[i].s, split[i]};
+            se[k++] = (split_end){c->ln[i].r, c->ln[i].s, split[i], (unsigned char)link_way(&c->ln[i])};
         else
             c->ln[keep++] = c->ln[i]; /* keep <= i: in place */
     free(split);
@@ -710,14 +708,14 @@ static int relink(hctx *c)
     c->first_new = keep;
     for (size_t k = 0; k < nsplit && !c->nomem; k++)
         if (!past_cap(c)) {
-            split_link(c, se[k].r, se[k].s, se[k].how == 2);
+            split_link(c, se[k].r, se[k].s, se[k].how == 2, se[k].way);
             changed = 1;
         } else {
             /* kept whole past the cap, and evaluated again (changed: the
              * round's settle evaluates the links from first_new; without it
              * the rounds ended and these held f = NaN) */
             c->capped = 1;
-            link_add(c, se[k].r, se[k].s);
+            link_add(c, se[k].r, se[k].s, se[k].way);
             changed = 1;
         }
     free(se);
@@ -778,7 +776,10 @@ static rr_status hier_run(const scene *s, const rt_accel *a, const rad_pass_opts
     rad_patches *roots = NULL;
     rt_lights *L = NULL;
     rr_status st = rad_patches_build(s, &po, &roots, err);
-    if (st == RR_OK && s->nlights)
+    /* ways by mirrors: planar ones only, which no light meets two of in turn
+     * (rad__pass_method sends other scenes to the flat method) */
+    int mirrors = s->settings.max_depth >= 1 && rt_scene_mirror_kind(s) == RT_MIRRORS_PLANAR;
+    if (st == RR_OK && (s->nlights || mirrors))
         st = rt_lights_build(s, a, s->settings.max_depth, &L, err);
     if (st != RR_OK) {
         rad_patches_destroy(roots);
@@ -788,6 +789,8 @@ static rr_status hier_run(const scene *s, const rt_accel *a, const rad_pass_opts
     c.L = rt_lights_delta_count(L) ? L : NULL;
     size_t nr = roots->n;
     c.cl = malloc((nr ? nr : 1) * sizeof *c.cl);
+    if (mirrors && rad__hier_ways(&c, L) != 0)
+        c.nomem = 1;
     for (size_t i = 0; i < nr && c.cl && !c.nomem; i++) {
         const rad_patch *p = &roots->p[i];
         rr_vec3 v[3] = {roots->verts[p->v[0]], roots->verts[p->v[1]], roots->verts[p->v[2]]};
@@ -796,6 +799,7 @@ static rr_status hier_run(const scene *s, const rt_accel *a, const rad_pass_opts
     if (c.cl && !c.nomem)
         rad__hier_probe_new(&c); /* the roots' burial, which their leaf data reads */
     if (!c.cl || c.nomem || nr == 0 || interrupted(&c) || (c.top = rad__hier_clusters(&c)) == NONE) {
+        free(c.img);
         free(c.cl);
         free(c.el);
         rt_lights_destroy(L);
@@ -871,6 +875,7 @@ static rr_status hier_run(const scene *s, const rt_accel *a, const rad_pass_opts
     }
     rad_patches_destroy(roots);
     rt_lights_destroy(L);
+    free(c.img);
     free(c.el);
     free(c.cl);
     free(c.ln);

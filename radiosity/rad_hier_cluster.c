@@ -14,7 +14,8 @@
 
 /* Node x's area as seen from direction u (towards the viewer): what a
  * cluster shows of itself that way, by its normal buckets (nbuckets), an
- * element's exactly. These two weigh a shadow ray's draw (node_sample) only,
+ * element's exactly, both by node_uarea (a mirror's share left out: its
+ * light goes on by way of it). These two weigh a shadow ray's draw (node_sample) only,
  * so they leave out a curved bucket's shortfall: the draw needs to favour
  * what faces u, and the square roots cost the 8-bunny room 16 % of its
  * pass. */
@@ -22,7 +23,13 @@ static double node_proj_area(const hctx *c, uint32_t x, rr_vec3 u)
 {
     if (x & CLB)
         return nb_proj(&c->cl[CL(x)].An, u, 1);
-    return rr_max(0.0, rr_v3_dot(el_normal(c, x), u)) * c->el[x].area; /* fmax is a libm call here */
+    return rr_max(0.0, rr_v3_dot(el_normal(c, x), u)) * node_uarea(c, x); /* fmax is a libm call here */
+}
+
+/* An element's area as seen from u, the whole of it (power, saturation). */
+static double el_proj_area(const hctx *c, uint32_t x, rr_vec3 u)
+{
+    return rr_max(0.0, rr_v3_dot(el_normal(c, x), u)) * c->el[x].area;
 }
 
 /* The power node x sends towards u (by its current sources, all channels):
@@ -33,7 +40,7 @@ static double node_proj_power(const hctx *c, uint32_t x, rr_vec3 u)
     if (x & CLB)
         return nb_proj(&c->cl[CL(x)].Dn, u, 1);
     const hel *e = &c->el[x];
-    return node_proj_area(c, x, u) * (e->src.r + e->src.g + e->src.b);
+    return el_proj_area(c, x, u) * (e->src.r + e->src.g + e->src.b);
 }
 
 /* Both at once: the area node x shows towards u (node_proj_area) and the
@@ -47,17 +54,17 @@ static void node_proj(const hctx *c, uint32_t x, rr_vec3 u, double *area, double
         return;
     }
     const hel *e = &c->el[x];
-    *area = node_proj_area(c, x, u);
+    *area = el_proj_area(c, x, u);
     *power = *area * (e->src.r + e->src.g + e->src.b);
 }
 
-/* Node x's area by normal bucket, added to nb. */
+/* Node x's area (node_uarea) by normal bucket, added to nb. */
 static void node_area_nb(const hctx *c, uint32_t x, nbuckets *nb)
 {
     if (x & CLB)
         nb_add(nb, &c->cl[CL(x)].An);
     else
-        nb_add_surface(nb, el_normal(c, x), c->el[x].area);
+        nb_add_surface(nb, el_normal(c, x), node_uarea(c, x));
 }
 
 typedef struct ritem {
@@ -153,10 +160,11 @@ static uint32_t cluster_build(hctx *c, ritem *it, size_t n)
     k->child[0] = a;
     k->child[1] = b;
     k->area = node_area(c, a) + node_area(c, b);
+    k->uarea = node_uarea(c, a) + node_uarea(c, b);
     rr_vec3 ca = a & CLB ? c->cl[CL(a)].ac : c->el[a].ctr, cb = b & CLB ? c->cl[CL(b)].ac : c->el[b].ctr;
-    k->ac = k->area > 0 ? rr_v3_scale(rr_v3_add(rr_v3_scale(ca, node_area(c, a)), rr_v3_scale(cb, node_area(c, b))),
-                                      1.0 / k->area)
-                        : k->ctr;
+    k->ac = k->uarea > 0 ? rr_v3_scale(rr_v3_add(rr_v3_scale(ca, node_uarea(c, a)), rr_v3_scale(cb, node_uarea(c, b))),
+                                       1.0 / k->uarea)
+                         : k->ctr;
     k->pc = k->ac;
     k->rho_max = fmax(node_rho(c, a), node_rho(c, b));
     memset(&k->An, 0, sizeof k->An);
@@ -165,7 +173,7 @@ static uint32_t cluster_build(hctx *c, ritem *it, size_t n)
     double m = 0.0;
     for (int q = 0; q < 6; q++)
         m += rr_v3_len(k->An.v[q]);
-    k->flat = k->area > 0 ? m / k->area : 1.0;
+    k->flat = k->uarea > 0 ? m / k->uarea : 1.0;
     return id | CLB;
 }
 
@@ -249,19 +257,44 @@ static int node_sample(const hctx *c, uint32_t x, int k, int fixed, int by_power
  * the six-direction split that the normal buckets replaced). */
 #define BACK_DRAWS 4
 
-static void visibility(const hctx *c, uint32_t r, uint32_t s, rr_rng *rng, int pass[2], int *open_p, int *pass_p,
-                       int *partial)
+/* Point y lies on way w's mirror: what a way's shadow ray must not end on,
+ * as no light leaves the mirror by way of itself (drawn again, as an end
+ * turned away is; without it the rays that the area draw put on a mirror
+ * in the source cluster marked links partly visible, and their leaves lost
+ * the row-sum scale: a furnace with a mirror face was 0.5 % off there). */
+static int on_way_plane(const hctx *c, unsigned w, rr_vec3 y)
+{
+    if (!w)
+        return 0;
+    const himg *g = &c->img[w - 1];
+    return fabs(rr_v3_dot(g->n, y) - g->d) <= 1e-7 * c->ext;
+}
+
+/* A shadow ray's end y (normal ny) faces x; by way of a mirror, by more
+ * than rounding (a face coplanar with x's image: its points come off the
+ * true surface a hair to either side) and not on the mirror. */
+static int end_faces(const hctx *c, unsigned w, rr_vec3 ny, rr_vec3 x, rr_vec3 y)
+{
+    rr_vec3 d = rr_v3_sub(x, y);
+    if (!w)
+        return rr_v3_dot(ny, d) > 0.0;
+    return rr_v3_dot(ny, d) > 1e-9 * rr_v3_len(d) && !on_way_plane(c, w, y);
+}
+
+static void visibility(const hctx *c, const rview *rv, uint32_t r, uint32_t s, rr_rng *rng, int pass[2], int *open_p,
+                       int *pass_p, int *partial)
 {
     enum { NA = 1, NP = VIS_RAYS - 1 }; /* rays drawn by area, by power */
     int nopen = 0;
-    if (open_pt(&c->el[r], 0) < 0)
+    if (open_pt(rv->e, 0) < 0)
         return; /* every fixed point of r is buried: it gathers nothing */
-    rr_vec3 u = rr_v3_norm(rr_v3_sub(node_ctr(c, s), node_ctr(c, r))); /* from r towards s */
+    rr_vec3 u = rr_v3_norm(rr_v3_sub(node_ctr(c, s), rv->ctr)); /* from r (as s sees it) towards s */
     for (int k = 0; k < NA + NP; k++) {
         int by_power = k >= NA;
-        rr_vec3 x, nx, y, ny;
+        rr_vec3 xr, nxr, y, ny;
         uint32_t yroot;
-        node_sample(c, r, open_pt(&c->el[r], k), 1, 0, u, rng, &x, &nx, NULL);
+        node_sample(c, r, open_pt(rv->e, k), 1, 0, u, rng, &xr, &nxr, NULL);
+        rr_vec3 x = way_point(c, rv->way, xr), nx = way_dir(c, rv->way, nxr); /* as s sees it */
         /* A cluster's bucket can give power towards r to surfaces turned
          * away from it (a curved cluster's), and a walk that finds no child
          * facing r draws by area: an end on such a surface, behind the
@@ -269,16 +302,34 @@ static void visibility(const hctx *c, uint32_t r, uint32_t s, rr_rng *rng, int p
         int buried = 0;
         for (int t = 0; t < BACK_DRAWS; t++) {
             buried = node_sample(c, s, k % 4, 0, by_power, rr_v3_neg(u), rng, &y, &ny, &yroot);
-            if (rr_v3_dot(ny, rr_v3_sub(x, y)) > 0.0)
+            if (end_faces(c, rv->way, ny, x, y))
                 break;
         }
         if (buried)
             continue; /* ends under a cover: blocked */
+        if (rv->way && !end_faces(c, rv->way, ny, x, y)) {
+            /* By way of a mirror, an end still turned away from r's image
+             * (on a face coplanar with it, whose image is too) sends it
+             * nothing: not a blocked path, and its ray would graze the
+             * mirror's edge. Counted as passing, so that it does not mark
+             * the link partly visible (a furnace with a mirror face lost
+             * the row-sum scale on a quarter of its leaves). */
+            pass[by_power]++;
+            nopen++;
+            *open_p += by_power;
+            *pass_p += by_power;
+            continue;
+        }
         rad__hier_sphere_end(c, yroot, x, &y, &ny);
-        rr_vec3 d = rr_v3_sub(y, x);
-        rr_vec3 o = rt_offset_origin(c->ext, x, nx, d), t = rt_offset_origin(c->ext, y, ny, rr_v3_neg(d));
-        rr_ray ray = {o, rr_v3_sub(t, o)};
-        int passed = !rt_accel_occluded(c->a, ray, 0.0, RT_SHADOW_END);
+        int passed;
+        if (rv->way) {
+            passed = rt_lights_via_mirror(c->M, c->img[rv->way - 1].plane, xr, nxr, y, ny);
+        } else {
+            rr_vec3 d = rr_v3_sub(y, x);
+            rr_vec3 o = rt_offset_origin(c->ext, x, nx, d), t = rt_offset_origin(c->ext, y, ny, rr_v3_neg(d));
+            rr_ray ray = {o, rr_v3_sub(t, o)};
+            passed = !rt_accel_occluded(c->a, ray, 0.0, RT_SHADOW_END);
+        }
         pass[by_power] += passed;
         nopen++;
         *open_p += by_power;
@@ -297,12 +348,12 @@ static inline double node_cos(rr_vec3 x, rr_vec3 nr, rr_vec3 p, double *L)
     return *L > 0 ? rr_v3_dot(nr, d) / *L : 0.0;
 }
 
-/* cos_r / (d^2 + A / pi) from point x of element r towards point p. */
-static double geo_term(const hctx *c, rr_vec3 x, uint32_t r, rr_vec3 p, double A)
+/* cos_r / (d^2 + A / pi) from point x (normal nr) towards point p. */
+static double geo_term(rr_vec3 x, rr_vec3 nr, rr_vec3 p, double A)
 {
     rr_vec3 d = rr_v3_sub(p, x);
     double L2 = rr_v3_len2(d), L = sqrt(L2);
-    return L > 0 ? rr_max(0.0, rr_v3_dot(el_normal(c, r), d) / L) / (L2 + A / RR_PI) : 0.0;
+    return L > 0 ? rr_max(0.0, rr_v3_dot(nr, d) / L) / (L2 + A / RR_PI) : 0.0;
 }
 
 /* The transport of element r <- cluster s per unit of s's power, for s's
@@ -339,11 +390,11 @@ static double geo_term(const hctx *c, rr_vec3 x, uint32_t r, rr_vec3 p, double A
 #define CL_THETA 0.15  /* and deeper where a node's radius exceeds this share of its distance */
 #define CL_NODES 32    /* the most nodes it reads */
 
-static void cluster_geo(const hctx *c, uint32_t r, uint32_t s, int area_too, double *geo, double *geo_a,
+static void cluster_geo(const hctx *c, const rview *rv, uint32_t s, int area_too, double *geo, double *geo_a,
                         double *spread, double fk[4])
 {
     const hcl *k = &c->cl[CL(s)];
-    rr_vec3 xr = c->el[r].ctr;
+    rr_vec3 xr = rv->ctr, nr = rv->n;
     double P = k->P.r + k->P.g + k->P.b;
     /* *geo_a and *spread are what a new link needs; *geo alone reads them
      * only where s sends nothing */
@@ -359,7 +410,7 @@ static void cluster_geo(const hctx *c, uint32_t r, uint32_t s, int area_too, dou
             if (n & CLB) {
                 rr_vec3 d = rr_v3_sub(node_ctr(c, n), xr);
                 double R = node_radius(c, n);
-                wide = lev < CL_LEVELS || R > CL_THETA * rr_v3_len(d) || fabs(rr_v3_dot(el_normal(c, r), d)) < R;
+                wide = lev < CL_LEVELS || R > CL_THETA * rr_v3_len(d) || fabs(rr_v3_dot(nr, d)) < R;
             }
             if (wide && nn + (nf - i) + 1 <= CL_NODES) {
                 nx[nn++] = c->cl[CL(n)].child[0];
@@ -375,7 +426,6 @@ static void cluster_geo(const hctx *c, uint32_t r, uint32_t s, int area_too, dou
             break;
     }
     double Tp = 0.0, Ta = 0.0;
-    rr_vec3 nr = el_normal(c, r);
     for (int i = 0; i < nf; i++) {
         uint32_t n = fr[i];
         int cl = (n & CLB) != 0;
@@ -398,34 +448,34 @@ static void cluster_geo(const hctx *c, uint32_t r, uint32_t s, int area_too, dou
                 Ta += ca_r / (Lr * Lr) * Aa / RR_PI;
             }
         } else if (cp_r > 0.0) {
-            Ta += cp_r / (Lp * Lp + Ap / RR_PI) * Ap / RR_PI;
+            Ta += cp_r / (Lp * Lp + Ap / RR_PI) * Ap * (1.0 - c->R->p[c->el[n].root].mirror) / RR_PI; /* as node_uarea */
         }
     }
     /* Over the receiver: its 4 points against its centre, and its corners
      * (the uneven test), towards s's centroids as a whole. */
     double A = k->area, mp = 0.0, ma = 0.0;
-    double p0 = geo_term(c, xr, r, k->pc, A), a0 = by_area ? geo_term(c, xr, r, k->ac, A) : 0.0;
+    double p0 = geo_term(xr, nr, k->pc, A), a0 = by_area ? geo_term(xr, nr, k->ac, A) : 0.0;
     int nq = 0;
     for (int q = 0; q < 4; q++) {
-        if (c->el[r].bur & (1u << q))
+        if (rv->e->bur & (1u << q))
             continue; /* over r's open points */
-        rr_vec3 xq = tri_at(c->el[r].c, k_pts[q][0], k_pts[q][1], k_pts[q][2]);
-        double gq = geo_term(c, xq, r, k->pc, A);
+        rr_vec3 xq = tri_at(rv->c, k_pts[q][0], k_pts[q][1], k_pts[q][2]);
+        double gq = geo_term(xq, nr, k->pc, A);
         fk[q == 0 ? 3 : q - 1] = gq; /* k_pts[q]: the centroid of child q - 1, k_pts[0] of the middle one */
         mp += gq;
         if (by_area)
-            ma += geo_term(c, xq, r, k->ac, A);
+            ma += geo_term(xq, nr, k->ac, A);
         nq++;
     }
     mp = nq ? mp / nq : 0.0;
     ma = nq ? ma / nq : 0.0;
-    *geo_a = A > 0 && by_area ? Ta / A * (a0 > 0 ? ma / a0 : 1.0) : 0.0;
+    *geo_a = k->uarea > 0 && by_area ? Ta / k->uarea * (a0 > 0 ? ma / a0 : 1.0) : 0.0;
     *geo = P > 0 ? Tp / P * (p0 > 0 ? mp / p0 : 1.0) : *geo_a;
     *spread = 0.0;
     if (area_too && p0 > 0) {
         double lo = p0, hi = p0;
         for (int q = 0; q < 3; q++) {
-            double g = geo_term(c, c->el[r].c[q], r, k->pc, A);
+            double g = geo_term(rv->c[q], nr, k->pc, A);
             lo = rr_min(lo, g);
             hi = rr_max(hi, g);
         }
@@ -433,36 +483,44 @@ static void cluster_geo(const hctx *c, uint32_t r, uint32_t s, int area_too, dou
     }
 }
 
-static void cluster_vis(const hctx *c, hlink *l, rr_rng *rng)
+static void cluster_vis(const hctx *c, const rview *rv, hlink *l, rr_rng *rng)
 {
     int pass[2] = {0, 0}, open_p = 0, pass_p = 0, partial = 0;
     if (l->f > 0.0f || l->fa > 0.0f)
-        visibility(c, l->r, l->s, rng, pass, &open_p, &pass_p, &partial);
+        visibility(c, rv, l->r, l->s, rng, pass, &open_p, &pass_p, &partial);
     l->v = vis_twelfths(pass[1], VIS_RAYS - 1);
     l->va = vis_twelfths(pass[0], 1);
     l->vis = vis_twelfths(pass_p, open_p);
-    l->partial = (unsigned char)partial;
+    link_set_partial(l, partial);
 }
 
 void rad__hier_eval_cluster(const hctx *c, hlink *l, rr_rng *rng)
 {
     double geo, geo_a, spread, fk[4];
-    cluster_geo(c, l->r, l->s, 1, &geo, &geo_a, &spread, fk);
+    rview rv = rview_of(c, l->r, link_way(l));
+    double rho = way_rho(c, rv.way);
+    cluster_geo(c, &rv, l->s, 1, &geo, &geo_a, &spread, fk);
+    geo *= rho;
+    geo_a *= rho;
     l->f = (float)geo;
     l->fa = (float)geo_a;
     if (c->el[l->r].bur == 0)
         set_shape(l, fk);
     else
         memset(l->sh, 0, sizeof l->sh);
-    cluster_vis(c, l, rng);
+    cluster_vis(c, &rv, l, rng);
     /* How much the factor per unit radiosity of s (geo_a A_s) varies over r,
      * without visibility (rad_hier.c, "Decide, then estimate"), for the
      * uneven test: without it, links from clusters were never split for a
      * gradient across r. */
-    l->dF = (float)(geo_a * c->cl[CL(l->s)].area * spread);
+    l->dF = (float)(geo_a * c->cl[CL(l->s)].uarea * spread);
 }
 
-void rad__hier_revis_cluster(const hctx *c, hlink *l, rr_rng *rng) { cluster_vis(c, l, rng); }
+void rad__hier_revis_cluster(const hctx *c, hlink *l, rr_rng *rng)
+{
+    rview rv = rview_of(c, l->r, link_way(l));
+    cluster_vis(c, &rv, l, rng);
+}
 
 /* The kept cluster links' geometry for the sources as solved (their
  * visibility stays): read with the power of the round that made them, a
@@ -476,8 +534,9 @@ void rad__hier_regeo(hctx *c)
         if (!(l->s & CLB) || isnan(l->f))
             continue;
         double geo, geo_a, spread, fk[4];
-        cluster_geo(c, l->r, l->s, 0, &geo, &geo_a, &spread, fk); /* the power's part only */
-        l->f = (float)geo;
+        rview rv = rview_of(c, l->r, link_way(l));
+        cluster_geo(c, &rv, l->s, 0, &geo, &geo_a, &spread, fk); /* the power's part only */
+        l->f = (float)(geo * way_rho(c, rv.way));
         if (c->el[l->r].bur == 0)
             set_shape(l, fk);
     }

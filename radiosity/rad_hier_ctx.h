@@ -102,11 +102,12 @@ static inline double nb_proj(const nbuckets *nb, rr_vec3 u, int flat)
 typedef struct hcl {
     rr_vec3 lo, hi, ctr;
     double radius, area, rho_max;
+    double uarea;      /* its surfaces' area times (1 - their mirror reflectance): what sends for B = 1 (node_uarea) */
     uint32_t child[2]; /* node references */
-    nbuckets An;       /* its surfaces' area by normal bucket (nbuckets) */
+    nbuckets An;       /* its surfaces' area by normal bucket (nbuckets), as uarea weighs it */
     double flat;       /* sum over the buckets of |An.v| over its area: 1 where no bucket is curved */
     rr_rgb P;          /* power of the current source values */
-    rr_vec3 ac, pc;    /* centroids of its area and of that power (ac where it has none) */
+    rr_vec3 ac, pc;    /* centroids of its area (uarea's) and of that power (ac where it has none) */
     nbuckets Dn;       /* its surfaces' power (all channels) by normal bucket */
 } hcl;
 
@@ -121,7 +122,7 @@ typedef struct hlink {
     float dF;       /* how much the factor varies over r, without visibility */
     unsigned char v, va; /* the visibilities of g and of the B = 1 gather, in twelfths */
     unsigned char vis;   /* share of the shadow rays to open parts that passed (the partial test), in twelfths */
-    unsigned char partial; /* some of its shadow rays passed, some not */
+    unsigned char flags; /* bit 0: some of its shadow rays passed, some not; above: its way (link_way) */
     unsigned char sh[4];   /* how the factor is spread over r, a linear field (set_shape); all 0: evenly */
 } hlink;
 
@@ -161,17 +162,42 @@ static inline int link_shape(const hlink *l, float d[3])
     return 1;
 }
 
+/* Whether some of a link's shadow rays passed and some not. */
+static inline int link_partial(const hlink *l) { return l->flags & 1; }
+static inline void link_set_partial(hlink *l, int partial)
+{
+    l->flags = (unsigned char)((l->flags & ~1u) | (partial != 0));
+}
+/* A link's way: 0 straight, w by way of the mirror hctx.img[w - 1] (the
+ * receiver read as its image in that mirror: rview). */
+#define WAYS_MAX 127
+static inline unsigned link_way(const hlink *l) { return l->flags >> 1; }
+
 /* The transport coefficient of a link, and the same for B = 1. */
 static inline float link_g(const hlink *l) { return l->f * (float)l->v * (1.0f / VIS_ONE); }
 static inline float link_ga(const hlink *l) { return l->fa * (float)l->va * (1.0f / VIS_ONE); }
 /* A share k / n of n <= 4 rays in twelfths. */
 static inline unsigned char vis_twelfths(int k, int n) { return (unsigned char)(n > 0 ? k * (VIS_ONE / n) : 0); }
 
+/* A planar mirror that links pass by way of (rad_hier_mirror.c): the
+ * light table's plane n . x = d, its mean reflectance, and a rectangle in
+ * the plane (origin o, unit axes u, v) around its triangles. */
+typedef struct himg {
+    rr_vec3 n;
+    double d, rho;
+    uint32_t plane;
+    rr_vec3 o, u, v;
+    double u0, u1, v0, v1;
+} himg;
+
 typedef struct hctx {
     const scene *s;
     const rt_accel *a;
     const rad_patches *R;
     const rt_lights *L;
+    const rt_lights *M; /* the mirror planes' table (ways), when img */
+    himg *img;          /* the mirrors links pass by way of: way w is img[w - 1] */
+    unsigned nimg;
     hel *el;
     size_t nel, capel;
     hcl *cl;
@@ -199,6 +225,45 @@ typedef struct hctx {
 static inline int interrupted(const hctx *c) { return c->interrupt && *c->interrupt; }
 
 static inline rr_vec3 el_normal(const hctx *c, uint32_t e) { return c->R->p[c->el[e].root].normal; }
+
+/* Point x and direction v as seen by way w: reflected in its mirror (an
+ * isometry: a receiver read there exchanges light with the real sources as
+ * the real one does by way of the mirror); themselves on way 0. */
+static inline rr_vec3 way_point(const hctx *c, unsigned w, rr_vec3 x)
+{
+    if (!w)
+        return x;
+    const himg *g = &c->img[w - 1];
+    return rr_v3_madd(x, g->n, -2.0 * (rr_v3_dot(g->n, x) - g->d));
+}
+static inline rr_vec3 way_dir(const hctx *c, unsigned w, rr_vec3 v)
+{
+    if (!w)
+        return v;
+    const himg *g = &c->img[w - 1];
+    return rr_v3_madd(v, g->n, -2.0 * rr_v3_dot(g->n, v));
+}
+/* What way w passes on: its mirror's reflectance (1 straight). */
+static inline double way_rho(const hctx *c, unsigned w) { return w ? c->img[w - 1].rho : 1.0; }
+
+/* A receiver element as a link of way w reads it: its corners, centre and
+ * normal reflected in the way's mirror (e itself for burial and its root). */
+typedef struct rview {
+    const hel *e;
+    rr_vec3 c[3], ctr, n;
+    unsigned way;
+} rview;
+static inline rview rview_of(const hctx *c, uint32_t r, unsigned w)
+{
+    rview v;
+    v.e = &c->el[r];
+    v.way = w;
+    for (int k = 0; k < 3; k++)
+        v.c[k] = way_point(c, w, v.e->c[k]);
+    v.ctr = way_point(c, w, v.e->ctr);
+    v.n = way_dir(c, w, el_normal(c, r));
+    return v;
+}
 static inline rr_rgb el_rho(const hctx *c, uint32_t e) { return c->R->p[c->el[e].root].rho; }
 
 /* ---- shared by the builder (rad_hier.c) and the clusters (rad_hier_cluster.c) ---- */
@@ -211,6 +276,32 @@ static inline rr_vec3 node_ctr(const hctx *c, uint32_t x) { return x & CLB ? c->
 static inline double node_rho(const hctx *c, uint32_t x)
 {
     return x & CLB ? c->cl[CL(x)].rho_max : rr_rgb_max(el_rho(c, x));
+}
+
+/* Node x's corners: a cluster's box's 8, an element's 3. */
+static inline void node_points(const hctx *c, uint32_t x, rr_vec3 pts[8], int *n)
+{
+    if (x & CLB) {
+        const hcl *k = &c->cl[CL(x)];
+        for (int i = 0; i < 8; i++)
+            pts[i] = rr_v3(i & 1 ? k->hi.x : k->lo.x, i & 2 ? k->hi.y : k->lo.y, i & 4 ? k->hi.z : k->lo.z);
+        *n = 8;
+    } else {
+        memcpy(pts, c->el[x].c, 3 * sizeof *pts);
+        *n = 3;
+    }
+}
+
+/* Node x's area as the row sums (B = 1 but for mirrors, rad__hier_sources)
+ * weigh it: times 1 - the mirror reflectance, since what a mirror reflects
+ * is carried on by the links by way of it. On a cluster that holds a mirror
+ * the row sums read the rest of its surfaces: by the whole area, a furnace
+ * with a mirror face came out 0.5 % off where such clusters sent. */
+static inline double node_uarea(const hctx *c, uint32_t x)
+{
+    if (x & CLB)
+        return c->cl[CL(x)].uarea;
+    return c->el[x].area * (1.0 - c->R->p[c->el[x].root].mirror);
 }
 
 /* The 4 fixed points of an element (barycentrics): centroid, then halfway to
@@ -306,6 +397,16 @@ void rad__hier_eval_cluster(const hctx *c, hlink *l, rr_rng *rng);
 void rad__hier_revis_cluster(const hctx *c, hlink *l, rr_rng *rng);
 /* The evaluated cluster links' geometry again for the current sources. */
 void rad__hier_regeo(hctx *c);
+
+/* ---- links by way of mirrors (rad_hier_mirror.c) ---- */
+
+/* c->img from the planar mirrors of table M (c->M = M; none when M has no
+ * planes): -1 when out of memory. */
+int rad__hier_ways(hctx *c, const rt_lights *M);
+/* Node r (receiver) and node s cannot exchange light by way w's mirror: on
+ * no common side of its plane, or no segment between their bounding spheres
+ * (s's, and r's image) passes through the rectangle around the mirror. */
+int rad__hier_way_culled(const hctx *c, uint32_t r, uint32_t s, unsigned w);
 
 /* ---- solving (rad_hier_solve.c) ---- */
 

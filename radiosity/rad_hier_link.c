@@ -103,7 +103,7 @@ void rad__hier_sphere_end(const hctx *c, uint32_t yr, rr_vec3 x, rr_vec3 *y, rr_
     }
 }
 
-static int shadow_passes(const hctx *c, const hel *ex, const hel *ey, rr_vec3 x, const rr_vec3 *poly, int nv,
+static int shadow_passes(const hctx *c, const rview *rv, const hel *ey, rr_vec3 x, const rr_vec3 *poly, int nv,
                          uint32_t k, rr_rng *rng, vis_count *v)
 {
     rr_vec3 xs, xn, ys, yn;
@@ -117,11 +117,19 @@ static int shadow_passes(const hctx *c, const hel *ex, const hel *ey, rr_vec3 x,
     if (ey->open < 1.0 && rad__hier_buried(c, ey, ys, yn))
         return 0;
     v->open++;
-    rad_patch_surface(c->R, c->s, c->a, ex->root, x, &xs, &xn);
-    rad__hier_sphere_end(c, ey->root, xs, &ys, &yn);
-    rr_vec3 o = rt_offset_origin(c->ext, xs, xn, xn), t = rt_offset_origin(c->ext, ys, yn, yn);
-    rr_ray ray = {o, rr_v3_sub(t, o)};
-    int passed = !rt_accel_occluded(c->a, ray, 0.0, RT_SHADOW_END);
+    /* x on r as the source sees it (its image by way of a mirror): the
+     * surface point found on the real r */
+    rad_patch_surface(c->R, c->s, c->a, rv->e->root, way_point(c, rv->way, x), &xs, &xn);
+    int passed;
+    if (rv->way) {
+        rad__hier_sphere_end(c, ey->root, way_point(c, rv->way, xs), &ys, &yn);
+        passed = rt_lights_via_mirror(c->M, c->img[rv->way - 1].plane, xs, xn, ys, yn);
+    } else {
+        rad__hier_sphere_end(c, ey->root, xs, &ys, &yn);
+        rr_vec3 o = rt_offset_origin(c->ext, xs, xn, xn), t = rt_offset_origin(c->ext, ys, yn, yn);
+        rr_ray ray = {o, rr_v3_sub(t, o)};
+        passed = !rt_accel_occluded(c->a, ray, 0.0, RT_SHADOW_END);
+    }
     v->pass += passed;
     return passed;
 }
@@ -130,13 +138,13 @@ static int shadow_passes(const hctx *c, const hel *ex, const hel *ey, rr_vec3 x,
  * the middle) holds the point of barycentrics b. */
 static int child_of(const double b[3]) { return b[0] > 0.5 ? 0 : b[1] > 0.5 ? 1 : b[2] > 0.5 ? 2 : 3; }
 
-static double side_ff(const hctx *c, uint32_t xi, uint32_t yi, int near, rr_rng *rng, double *dF, vis_count *v,
+static double side_ff(const hctx *c, const rview *rv, uint32_t yi, int near, rr_rng *rng, double *dF, vis_count *v,
                       double fk[4])
 {
     fk[0] = fk[1] = fk[2] = fk[3] = 0.0;
-    const hel *ex = &c->el[xi], *ey = &c->el[yi];
-    rr_vec3 nx = el_normal(c, xi), ny = el_normal(c, yi), poly[4];
-    int nv = rad__clip_front(ey->c, nx, ex->ctr, c->plane_tol, poly);
+    const hel *ex = rv->e, *ey = &c->el[yi];
+    rr_vec3 nx = rv->n, ny = el_normal(c, yi), poly[4];
+    int nv = rad__clip_front(ey->c, nx, rv->ctr, c->plane_tol, poly);
     *dF = 0.0;
     if (nv < 3)
         return 0.0;
@@ -146,7 +154,7 @@ static double side_ff(const hctx *c, uint32_t xi, uint32_t yi, int near, rr_rng 
     int np = quad_points(near, b), nopen = 0;
     double sum = 0.0, lo = INFINITY, hi = 0.0;
     for (int k = 0; k < np; k++) {
-        rr_vec3 x = tri_at(ex->c, b[k][0], b[k][1], b[k][2]);
+        rr_vec3 x = tri_at(rv->c, b[k][0], b[k][1], b[k][2]);
         if (near ? (ex->nbur >> k) & 1 : (ex->bur >> k) & 1)
             continue; /* a buried point of r gathers nothing that its open part gets */
         nopen++;
@@ -154,7 +162,7 @@ static double side_ff(const hctx *c, uint32_t xi, uint32_t yi, int near, rr_rng 
         lo = rr_min(lo, f); /* the spread of the unoccluded factor: what the uneven test reads */
         hi = rr_max(hi, f);
         fk[child_of(b[k])] += f; /* near: 9 of the 36 points in each child; far: k_pts, one in each */
-        if (!near && f > 0.0 && !shadow_passes(c, ex, ey, x, poly, nv, (uint32_t)k, rng, v))
+        if (!near && f > 0.0 && !shadow_passes(c, rv, ey, x, poly, nv, (uint32_t)k, rng, v))
             f = 0.0;
         sum += f;
     }
@@ -164,24 +172,24 @@ static double side_ff(const hctx *c, uint32_t xi, uint32_t yi, int near, rr_rng 
 
 /* A near pair's visibility: one shadow ray from each of r's 4 open fixed
  * points in front of s, to a point of s clipped to r's front. */
-static void near_vis(const hctx *c, uint32_t xi, uint32_t yi, rr_rng *rng, vis_count *v)
+static void near_vis(const hctx *c, const rview *rv, uint32_t yi, rr_rng *rng, vis_count *v)
 {
-    const hel *ex = &c->el[xi], *ey = &c->el[yi];
-    rr_vec3 nx = el_normal(c, xi), ny = el_normal(c, yi), poly[4];
-    int nv = rad__clip_front(ey->c, nx, ex->ctr, c->plane_tol, poly);
+    const hel *ex = rv->e, *ey = &c->el[yi];
+    rr_vec3 nx = rv->n, ny = el_normal(c, yi), poly[4];
+    int nv = rad__clip_front(ey->c, nx, rv->ctr, c->plane_tol, poly);
     if (nv < 3)
         return;
     for (int k = 0; k < VIS_RAYS; k++) {
-        rr_vec3 x = tri_at(ex->c, k_pts[k][0], k_pts[k][1], k_pts[k][2]);
+        rr_vec3 x = tri_at(rv->c, k_pts[k][0], k_pts[k][1], k_pts[k][2]);
         if (!(ex->bur & (1u << k)) && rr_v3_dot(ny, rr_v3_sub(x, ey->ctr)) > c->plane_tol)
-            shadow_passes(c, ex, ey, x, poly, nv, (uint32_t)k, rng, v);
+            shadow_passes(c, rv, ey, x, poly, nv, (uint32_t)k, rng, v);
     }
 }
 
-static int is_near(const hctx *c, const hlink *l)
+static int is_near(const hctx *c, const rview *rv, const hlink *l)
 {
-    const hel *er = &c->el[l->r], *es = &c->el[l->s];
-    return rr_v3_len(rr_v3_sub(er->ctr, es->ctr)) < 2.0 * (er->radius + es->radius);
+    const hel *er = rv->e, *es = &c->el[l->s];
+    return rr_v3_len(rr_v3_sub(rv->ctr, es->ctr)) < 2.0 * (er->radius + es->radius);
 }
 
 static void set_vis(hlink *l, int near, const vis_count *v)
@@ -191,7 +199,7 @@ static void set_vis(hlink *l, int near, const vis_count *v)
      * passed (l->f holds that). */
     l->v = l->va = near && v->seen ? vis_twelfths(v->pass, v->seen) : VIS_ONE;
     l->vis = v->open ? vis_twelfths(v->pass, v->open) : (v->seen ? 0 : VIS_ONE);
-    l->partial = v->pass > 0 && v->pass < v->open;
+    link_set_partial(l, v->pass > 0 && v->pass < v->open);
 }
 
 /* A sphere's facets are chords of it, their patch areas scaled to its true
@@ -212,12 +220,14 @@ static double facet_scale(const hctx *c, uint32_t e)
 
 void rad__hier_eval_ee(const hctx *c, hlink *l, rr_rng *rng)
 {
-    int near = is_near(c, l);
+    rview rv = rview_of(c, l->r, link_way(l));
+    int near = is_near(c, &rv, l);
     vis_count v = {0, 0, 0};
-    double dF, fk[4];
-    double F = side_ff(c, l->r, l->s, near, rng, &dF, &v, fk) * facet_scale(c, l->s);
+    double dF, fk[4], rho = way_rho(c, rv.way);
+    double F = side_ff(c, &rv, l->s, near, rng, &dF, &v, fk) * facet_scale(c, l->s) * rho;
+    dF *= rho;
     if (near && F > 0.0)
-        near_vis(c, l->r, l->s, rng, &v);
+        near_vis(c, &rv, l->s, rng, &v);
     l->f = l->fa = (float)F;
     /* The factor without visibility shared among r's children as its points
      * fall in them (where none is buried). */
@@ -231,12 +241,13 @@ void rad__hier_eval_ee(const hctx *c, hlink *l, rr_rng *rng)
 
 void rad__hier_revis_ee(const hctx *c, hlink *l, rr_rng *rng)
 {
-    if (!is_near(c, l)) {
+    rview rv = rview_of(c, l->r, link_way(l));
+    if (!is_near(c, &rv, l)) {
         rad__hier_eval_ee(c, l, rng);
         return;
     }
     vis_count v = {0, 0, 0};
     if (l->f > 0.0f)
-        near_vis(c, l->r, l->s, rng, &v);
+        near_vis(c, &rv, l->s, rng, &v);
     set_vis(l, 1, &v);
 }

@@ -14,13 +14,19 @@
 #include "rad_pass_internal.h"
 
 
+/* By source, then way (a receiver-source pair has a link per way at most). */
 static int cmp_source(const void *a, const void *b)
 {
     const hlink *x = a, *y = b;
-    return x->s < y->s ? -1 : (x->s > y->s);
+    if (x->s != y->s)
+        return x->s < y->s ? -1 : 1;
+    return (link_way(x) > link_way(y)) - (link_way(x) < link_way(y));
 }
 
-static int link_less(const hlink *x, const hlink *y) { return x->r < y->r || (x->r == y->r && x->s < y->s); }
+static int link_less(const hlink *x, const hlink *y)
+{
+    return x->r < y->r || (x->r == y->r && (x->s < y->s || (x->s == y->s && link_way(x) < link_way(y))));
+}
 
 /* ln[0 .. n) sorted by receiver, then source: a bucket sort by receiver in
  * place (each link swapped into its receiver's range, in a fixed order),
@@ -186,12 +192,16 @@ static rr_rgb pull_cl(hctx *c, uint32_t x, nbuckets *Dn)
     return k->P;
 }
 
-static void set_leaf_src(hel *e, int unit, int indirect, const rr_rgb *own)
+/* unit: B = 1 but for a mirror's share (1 - its mirror reflectance), so that
+ * the gather is each receiver's effective row sum, sum_j F_ij (1 - m_j)
+ * with the links by way of mirrors in F (rad_energy.c): what a mirror
+ * reflects arrives again by those links. */
+static void set_leaf_src(hel *e, int unit, int indirect, const rad_patch *own)
 {
     if (unit)
-        e->src = rr_rgb_make(1, 1, 1);
+        e->src = rr_rgb_make(1.0 - own->mirror, 1.0 - own->mirror, 1.0 - own->mirror);
     else if (indirect)
-        e->src = rr_rgb_add(e->B, rr_rgb_scale(*own, -1.0));
+        e->src = rr_rgb_add(e->B, rr_rgb_scale(own->emission, -1.0));
     else
         e->src = e->B;
 }
@@ -200,7 +210,7 @@ static void set_src(hctx *c, int unit, int indirect, uint32_t x)
 {
     hel *e = &c->el[x];
     if (e->child == NONE) {
-        set_leaf_src(e, unit, indirect, &c->R->p[e->root].emission);
+        set_leaf_src(e, unit, indirect, &c->R->p[e->root]);
         return;
     }
     for (uint32_t k = 0; k < 4; k++)
@@ -261,7 +271,7 @@ void rad__hier_gather(hctx *c, const size_t *grp, size_t ngrp)
         int inner = e->child != NONE;
         for (size_t j = grp[gi]; j < grp[gi + 1]; j++) {
             const hlink *l = &c->ln[j];
-            partial |= l->partial;
+            partial |= link_partial(l);
             rr_rgb v = rr_rgb_scale(l->s & CLB ? svc[CL(l->s)] : sv[l->s], c->unit ? link_ga(l) : link_g(l));
             H = rr_rgb_add(H, v);
             float d[3];

@@ -249,13 +249,17 @@ rad_method rad__pass_method(const scene *s, const rad_pass_opts *o, const rr_war
     rad_method m = o->use_scene_choices ? (s->radiosity.method == SCENE_RAD_FLAT ? RAD_METHOD_FLAT
                                                                                  : RAD_METHOD_HIERARCHICAL)
                                         : o->method;
-    if (m == RAD_METHOD_HIERARCHICAL && scene_has_mirrors(s)) {
-        /* Links through mirrors (virtual images) are not built yet; the flat
-         * Monte Carlo form factors carry them (extended form factors). */
+    rt_mirror_kind mk = m == RAD_METHOD_HIERARCHICAL && scene_has_mirrors(s) ? rt_scene_mirror_kind(s)
+                                                                              : RT_MIRRORS_NONE;
+    if (mk == RT_MIRRORS_FACING || mk == RT_MIRRORS_CURVED) {
+        /* The hierarchical pass links by way of one planar mirror at a time
+         * (rad_hier.c, "Mirrors"); the flat Monte Carlo form factors follow
+         * rays off any number of mirrors of any shape (extended form factors). */
         if (warn)
-            rr_warn(warn, "%s: radiosity: the scene has mirrors: the flat method (Monte Carlo form factors through "
-                          "mirrors) is used instead of the hierarchical one",
-                    s->path);
+            rr_warn(warn, "%s: radiosity: the scene has %s: the flat method (Monte Carlo form factors through "
+                          "mirrors) is used instead of the hierarchical one, which links by way of one planar "
+                          "mirror at a time",
+                    s->path, mk == RT_MIRRORS_CURVED ? "a curved mirror" : "mirrors that face each other");
         m = RAD_METHOD_FLAT;
     }
     return m;

@@ -88,7 +88,7 @@ int rt_scene_emits(const scene *s)
 
 /* ---- building ---- */
 
-static rr_status build_planes(rt_lights *L, rr_error *err)
+rr_status rt__lights_build_planes(rt_lights *L, rr_error *err)
 {
     const scene *s = L->s;
     L->tri_plane = malloc((s->ntris ? s->ntris : 1) * sizeof *L->tri_plane);
@@ -359,7 +359,7 @@ rr_status rt_lights_build(const scene *s, const rt_accel *a, int max_mirror_dept
     L->scale = rt_scene_scale(s);
     for (size_t i = 0; i < s->nmaterials; i++)
         L->has_mirror |= rr_rgb_max(s->materials[i].mirror) > 0.0;
-    rr_status st = build_planes(L, err);
+    rr_status st = rt__lights_build_planes(L, err);
     int depth = max_mirror_depth < 0 ? 0 : max_mirror_depth;
     if (L->nplanes == 0)
         depth = 0;

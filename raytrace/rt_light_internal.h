@@ -71,4 +71,8 @@ int rt__emit_solid(const rt_lights *L, uint32_t i, rr_vec3 c, double r, const do
  * once the lights are built. */
 rr_status rt__lights_build_emitters(rt_lights *L, rr_error *err);
 
+/* The mirror planes of L->s into L->planes and L->tri_plane (L->s and
+ * L->scale set; rt_light.c, "Mirror planes"). */
+rr_status rt__lights_build_planes(rt_lights *L, rr_error *err);
+
 #endif

@@ -449,6 +449,10 @@ static void test_room_with_mirror(void **state)
      * noise: 5 seeds of `radray compare` give -0.5 .. -2.5 % (hybrid) and
      * +0.3 .. -2.8 % (radiosity) over its ~35 patches at 512 rays. */
     against_secondary(k_mirror_room, "room with a mirror", "left", 0.05, 0.05);
+    /* The hierarchical method, by links by way of the mirror (rad_hier.c,
+     * "Mirrors"). */
+    against_secondary_by(k_mirror_room, SCENE_RAD_HIERARCHICAL, "room with a mirror, hier", "floor,ceiling,left",
+                         0.02, 0.03);
 }
 
 static void test_cubby_of_touching_boxes(void **state)
