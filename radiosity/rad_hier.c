@@ -136,10 +136,26 @@
  * rays' noise (9 % RMS per leaf in room.json), and 1 / sigma of noise is
  * biased (its walls +5 %).
  *
+ * Mirrors: ways. Light from s that reaches r by way of planar mirrors is
+ * what r's image in them gets from s straight (reflections are isometries):
+ * a link of way w (hlink flags; hctx.img[w - 1], a chain of up to
+ * render.max_depth mirrors, each able to see the next) reads its receiver
+ * reflected (rview: corners, centre, normal) in every test and factor above,
+ * times the mirrors' mean reflectances, and its shadow rays are folded at
+ * the mirrors (rt_lights_via_mirrors: each leg must meet its mirror's
+ * triangles first, the last reach s). The first walk runs once straight and
+ * once per way; a way's walk is culled where its mirrors cannot pass light
+ * between the two nodes (rad__hier_way_culled). The gather and the solve
+ * read ways as any link. Row sums (B = 1) weigh each surface by 1 - its
+ * mirror reflectance (node_uarea): what a mirror reflects arrives again by
+ * its ways. A scene with a curved mirror takes the flat method
+ * (rad__pass_method), whose form-factor rays follow mirrors of any shape.
+ *
  * Files: this one builds and refines the hierarchy and runs the rounds;
- * rad_hier_bury.c probes the elements for buried parts;
+ * rad_hier_bury.c probes the elements for buried parts and leaf data;
  * rad_hier_link.c evaluates links between elements;
  * rad_hier_cluster.c builds the clusters and evaluates links from them;
+ * rad_hier_mirror.c makes the ways and culls their walks;
  * rad_hier_solve.c solves on the hierarchy and writes the solution out
  * (rad_hier_ctx.h, their shared types); rad_leaves.c turns the final tree
  * into the leaves' patch set.
@@ -157,7 +173,6 @@
 #include "rad_pass_internal.h"
 #include "rad_ff_internal.h"
 
-#define CLOSED_RAYS 16
 #define MAX_ROUNDS 3
 #define VIS_SHARE 0.125 /* partly visible links are split down to eps times this */
 #define ROUND_TOL 1e-4  /* solver tolerance of the rounds before the last */
@@ -520,45 +535,6 @@ static void eval_links(hctx *c, size_t lo, size_t hi, int revis, void (*progress
     c->evaluated += hi - lo;
 }
 
-/* ---- leaf data: first shot and closedness ---- */
-
-static void leaf_data(const hctx *c, uint32_t x)
-{
-    hel *e = &c->el[x];
-    const rad_patch *rp = &c->R->p[e->root];
-    e->H0 = c->L ? rad__first_shot(c->s, c->a, c->L, c->R, e->root, e->c, NULL, 0.0, &e->spread)
-                 : rr_rgb_make(0, 0, 0);
-    e->E = rr_rgb_add(rp->emission, rr_rgb_mul(rp->rho, e->H0));
-    rr_rng rng = rr_rng_make(c->seed ^ 0x9e3779b97f4a7c15ULL, x);
-    e->closed = open_pt(e, 0) >= 0; /* from its open points */
-    for (int k = 0; k < CLOSED_RAYS && e->closed; k++) {
-        rr_vec3 xs, ns;
-        int q = open_pt(e, k);
-        rad_patch_surface(c->R, c->s, c->a, e->root, tri_at(e->c, k_pts[q][0], k_pts[q][1], k_pts[q][2]), &xs, &ns);
-        double u1, u2;
-        rad_ff_square_stratum((uint32_t)k, CLOSED_RAYS, &rng, &u1, &u2);
-        rr_vec3 dir = rad_ff_cosine_dir(ns, u1, u2);
-        rr_ray ray = {rt_offset_origin(c->ext, xs, ns, dir), dir};
-        rt_hit h;
-        e->closed = rt_accel_closest(c->a, ray, 0.0, INFINITY, &h) && h.front;
-    }
-    e->fresh = 0;
-}
-
-/* leaf_data of the fresh leaves among elements 0 .. ne - 1, in parallel. */
-static void leaves_data(hctx *c, size_t ne)
-{
-#pragma omp parallel
-    {
-        rt_ray_counts before = rt_ray_counts_of_thread();
-#pragma omp for schedule(dynamic, 64)
-        for (long i = 0; i < (long)ne; i++)
-            if (c->el[i].fresh && c->el[i].child == NONE && !interrupted(c))
-                leaf_data(c, (uint32_t)i);
-        rt_ray_counts_add_since(&c->rays, before);
-    }
-}
-
 /* ---- the rounds ---- */
 
 /* The receiver's irradiance from s varies across it by more than eps of
@@ -588,7 +564,7 @@ static rr_status settle(hctx *c, void (*progress)(void *, size_t, size_t), void 
         rad__hier_probe_new(c); /* the links read their ends' burial */
         eval_links(c, lo, c->nln, 0, progress, user);
         size_t ne = c->nel;
-        leaves_data(c, ne);
+        rad__hier_leaves_data(c, ne);
         if (interrupted(c))
             return rr_error_set(err, RR_ERR_INTERRUPTED, "%s: radiosity: interrupted", c->s->path);
         if (progress)
@@ -776,9 +752,10 @@ static rr_status hier_run(const scene *s, const rt_accel *a, const rad_pass_opts
     rad_patches *roots = NULL;
     rt_lights *L = NULL;
     rr_status st = rad_patches_build(s, &po, &roots, err);
-    /* ways by mirrors: planar ones only, which no light meets two of in turn
-     * (rad__pass_method sends other scenes to the flat method) */
-    int mirrors = s->settings.max_depth >= 1 && rt_scene_mirror_kind(s) == RT_MIRRORS_PLANAR;
+    /* ways by mirrors: planar ones only (rad__pass_method sends scenes with a
+     * curved one to the flat method), up to render.max_depth of them in turn */
+    int depth = o->ff.mirror_depth > 0 ? o->ff.mirror_depth : s->settings.max_depth; /* as the flat pass's */
+    int mirrors = depth >= 1 && rt_scene_mirror_kind(s) == RT_MIRRORS_PLANAR;
     if (st == RR_OK && (s->nlights || mirrors))
         st = rt_lights_build(s, a, s->settings.max_depth, &L, err);
     if (st != RR_OK) {
@@ -789,8 +766,14 @@ static rr_status hier_run(const scene *s, const rt_accel *a, const rad_pass_opts
     c.L = rt_lights_delta_count(L) ? L : NULL;
     size_t nr = roots->n;
     c.cl = malloc((nr ? nr : 1) * sizeof *c.cl);
-    if (mirrors && rad__hier_ways(&c, L) != 0)
+    size_t dropped = 0;
+    if (mirrors && rad__hier_ways(&c, L, depth, &dropped) != 0)
         c.nomem = 1;
+    if (dropped)
+        rr_warn(&o->warn, "%s: radiosity: %zu chains of mirrors past the first %d are left out of the hierarchical "
+                          "pass: light that meets their mirrors in that order is missing (lower render.max_depth, "
+                          "or use radiosity.method \"flat\")",
+                s->path, dropped, WAYS_MAX);
     for (size_t i = 0; i < nr && c.cl && !c.nomem; i++) {
         const rad_patch *p = &roots->p[i];
         rr_vec3 v[3] = {roots->verts[p->v[0]], roots->verts[p->v[1]], roots->verts[p->v[2]]};
@@ -814,7 +797,7 @@ static rr_status hier_run(const scene *s, const rt_accel *a, const rad_pass_opts
     if (!so.interrupt)
         so.interrupt = o->ff.interrupt;
     /* The roots' data, their radiosity E to start from, and eps. */
-    leaves_data(&c, nr); /* the roots, all fresh leaves */
+    rad__hier_leaves_data(&c, nr); /* the roots, all fresh leaves */
     for (size_t i = 0; i < c.nel; i++)
         c.el[i].B = c.el[i].E;
     if (st == RR_OK && interrupted(&c))

@@ -1,11 +1,14 @@
-/* rad_hier_bury.c - the hierarchical pass's buried parts (rad_hier.c's
- * header, "Buried parts"): which points of an element lie under another
- * surface, by the flat pass's rule (rad__ff_buried, rad_ff.c), and the
- * probes that give every element its buried fixed points and open share. */
+/* rad_hier_bury.c - what the hierarchical pass probes of each element: its
+ * buried parts (rad_hier.c's header, "Buried parts"): which points of an
+ * element lie under another surface, by the flat pass's rule
+ * (rad__ff_buried, rad_ff.c), and the probes that give every element its
+ * buried fixed points and open share; and a leaf's data, its first shot
+ * and whether it sees a closed part of the scene ("Row sums"). */
 #include <omp.h>
 
 #include "rad_hier_ctx.h"
 #include "rad_ff_internal.h"
+#include "rad_pass_internal.h"
 
 int rad__hier_buried(const hctx *c, const hel *e, rr_vec3 xs, rr_vec3 ns)
 {
@@ -61,6 +64,46 @@ void rad__hier_probe_new(hctx *c)
         for (long i = 0; i < (long)c->nel; i++)
             if (!c->el[i].probed && !interrupted(c))
                 el_probe(c, (uint32_t)i);
+        rt_ray_counts_add_since(&c->rays, before);
+    }
+}
+
+/* ---- leaf data: first shot and closedness ---- */
+
+#define CLOSED_RAYS 16 /* rays from a leaf that decide whether it sees a closed part of the scene */
+
+static void leaf_data(const hctx *c, uint32_t x)
+{
+    hel *e = &c->el[x];
+    const rad_patch *rp = &c->R->p[e->root];
+    e->H0 = c->L ? rad__first_shot(c->s, c->a, c->L, c->R, e->root, e->c, NULL, 0.0, &e->spread)
+                 : rr_rgb_make(0, 0, 0);
+    e->E = rr_rgb_add(rp->emission, rr_rgb_mul(rp->rho, e->H0));
+    rr_rng rng = rr_rng_make(c->seed ^ 0x9e3779b97f4a7c15ULL, x);
+    e->closed = open_pt(e, 0) >= 0; /* from its open points */
+    for (int k = 0; k < CLOSED_RAYS && e->closed; k++) {
+        rr_vec3 xs, ns;
+        int q = open_pt(e, k);
+        rad_patch_surface(c->R, c->s, c->a, e->root, tri_at(e->c, k_pts[q][0], k_pts[q][1], k_pts[q][2]), &xs, &ns);
+        double u1, u2;
+        rad_ff_square_stratum((uint32_t)k, CLOSED_RAYS, &rng, &u1, &u2);
+        rr_vec3 dir = rad_ff_cosine_dir(ns, u1, u2);
+        rr_ray ray = {rt_offset_origin(c->ext, xs, ns, dir), dir};
+        rt_hit h;
+        e->closed = rt_accel_closest(c->a, ray, 0.0, INFINITY, &h) && h.front;
+    }
+    e->fresh = 0;
+}
+
+void rad__hier_leaves_data(hctx *c, size_t ne)
+{
+#pragma omp parallel
+    {
+        rt_ray_counts before = rt_ray_counts_of_thread();
+#pragma omp for schedule(dynamic, 64)
+        for (long i = 0; i < (long)ne; i++)
+            if (c->el[i].fresh && c->el[i].child == NONE && !interrupted(c))
+                leaf_data(c, (uint32_t)i);
         rt_ray_counts_add_since(&c->rays, before);
     }
 }

@@ -267,7 +267,8 @@ static int on_way_plane(const hctx *c, unsigned w, rr_vec3 y)
     if (!w)
         return 0;
     const himg *g = &c->img[w - 1];
-    return fabs(rr_v3_dot(g->n, y) - g->d) <= 1e-7 * c->ext;
+    const hwin *m = &g->win[g->n - 1]; /* the mirror the light leaves the source for */
+    return fabs(rr_v3_dot(m->n, y) - m->d) <= 1e-7 * c->ext;
 }
 
 /* A shadow ray's end y (normal ny) faces x; by way of a mirror, by more
@@ -323,7 +324,7 @@ static void visibility(const hctx *c, const rview *rv, uint32_t r, uint32_t s, r
         rad__hier_sphere_end(c, yroot, x, &y, &ny);
         int passed;
         if (rv->way) {
-            passed = rt_lights_via_mirror(c->M, c->img[rv->way - 1].plane, xr, nxr, y, ny);
+            passed = way_visible(c, rv->way, xr, nxr, y, ny);
         } else {
             rr_vec3 d = rr_v3_sub(y, x);
             rr_vec3 o = rt_offset_origin(c->ext, x, nx, d), t = rt_offset_origin(c->ext, y, ny, rr_v3_neg(d));

@@ -168,8 +168,8 @@ static inline void link_set_partial(hlink *l, int partial)
 {
     l->flags = (unsigned char)((l->flags & ~1u) | (partial != 0));
 }
-/* A link's way: 0 straight, w by way of the mirror hctx.img[w - 1] (the
- * receiver read as its image in that mirror: rview). */
+/* A link's way: 0 straight, w by way of the mirrors of hctx.img[w - 1] (the
+ * receiver read as its image in them: rview). */
 #define WAYS_MAX 127
 static inline unsigned link_way(const hlink *l) { return l->flags >> 1; }
 
@@ -179,15 +179,39 @@ static inline float link_ga(const hlink *l) { return l->fa * (float)l->va * (1.0
 /* A share k / n of n <= 4 rays in twelfths. */
 static inline unsigned char vis_twelfths(int k, int n) { return (unsigned char)(n > 0 ? k * (VIS_ONE / n) : 0); }
 
-/* A planar mirror that links pass by way of (rad_hier_mirror.c): the
- * light table's plane n . x = d, its mean reflectance, and a rectangle in
+/* A rigid map x -> m x + t (compositions of reflections). */
+typedef struct hmap {
+    double m[3][3];
+    rr_vec3 t;
+} hmap;
+static inline rr_vec3 hmap_dir(const hmap *f, rr_vec3 v)
+{
+    return rr_v3(f->m[0][0] * v.x + f->m[0][1] * v.y + f->m[0][2] * v.z,
+                 f->m[1][0] * v.x + f->m[1][1] * v.y + f->m[1][2] * v.z,
+                 f->m[2][0] * v.x + f->m[2][1] * v.y + f->m[2][2] * v.z);
+}
+static inline rr_vec3 hmap_point(const hmap *f, rr_vec3 x) { return rr_v3_add(hmap_dir(f, x), f->t); }
+
+/* A mirror of a way: the light table's plane n . x = d, and a rectangle in
  * the plane (origin o, unit axes u, v) around its triangles. */
-typedef struct himg {
+typedef struct hwin {
     rr_vec3 n;
-    double d, rho;
-    uint32_t plane;
+    double d;
     rr_vec3 o, u, v;
     double u0, u1, v0, v1;
+} hwin;
+
+/* A way (rad_hier_mirror.c): light from a source that meets the planar
+ * mirrors plane[n - 1], ..., plane[0] in turn before the receiver (plane[0]
+ * met first leaving the receiver). T maps the receiver to its image in them
+ * all (reflected in plane[0] first); Tk[k] to its image in plane[0 .. k-1],
+ * Yk[k] a source to its image in plane[k .. n-1] (for the culling). */
+typedef struct himg {
+    int n;
+    uint32_t plane[RT_CHAIN_MAX];
+    double rho; /* the product of their mean reflectances */
+    hmap T, Ti, Tk[RT_CHAIN_MAX], Yk[RT_CHAIN_MAX]; /* Ti: T's inverse */
+    hwin win[RT_CHAIN_MAX];
 } himg;
 
 typedef struct hctx {
@@ -196,7 +220,7 @@ typedef struct hctx {
     const rad_patches *R;
     const rt_lights *L;
     const rt_lights *M; /* the mirror planes' table (ways), when img */
-    himg *img;          /* the mirrors links pass by way of: way w is img[w - 1] */
+    himg *img;          /* the ways by mirrors links pass: way w is img[w - 1] */
     unsigned nimg;
     hel *el;
     size_t nel, capel;
@@ -226,28 +250,31 @@ static inline int interrupted(const hctx *c) { return c->interrupt && *c->interr
 
 static inline rr_vec3 el_normal(const hctx *c, uint32_t e) { return c->R->p[c->el[e].root].normal; }
 
-/* Point x and direction v as seen by way w: reflected in its mirror (an
+/* Point x and direction v as seen by way w: their image in its mirrors (an
  * isometry: a receiver read there exchanges light with the real sources as
- * the real one does by way of the mirror); themselves on way 0. */
+ * the real one does by way of the mirrors); themselves on way 0. */
 static inline rr_vec3 way_point(const hctx *c, unsigned w, rr_vec3 x)
 {
-    if (!w)
-        return x;
-    const himg *g = &c->img[w - 1];
-    return rr_v3_madd(x, g->n, -2.0 * (rr_v3_dot(g->n, x) - g->d));
+    return w ? hmap_point(&c->img[w - 1].T, x) : x;
 }
-static inline rr_vec3 way_dir(const hctx *c, unsigned w, rr_vec3 v)
+static inline rr_vec3 way_dir(const hctx *c, unsigned w, rr_vec3 v) { return w ? hmap_dir(&c->img[w - 1].T, v) : v; }
+/* The real point whose image by way w is x. */
+static inline rr_vec3 way_back(const hctx *c, unsigned w, rr_vec3 x)
 {
-    if (!w)
-        return v;
-    const himg *g = &c->img[w - 1];
-    return rr_v3_madd(v, g->n, -2.0 * rr_v3_dot(g->n, v));
+    return w ? hmap_point(&c->img[w - 1].Ti, x) : x;
 }
-/* What way w passes on: its mirror's reflectance (1 straight). */
+/* The shadow-ray rule by way w's mirrors, from x (normal nx) on the real
+ * receiver to y (normal ny) on the source. */
+static inline int way_visible(const hctx *c, unsigned w, rr_vec3 x, rr_vec3 nx, rr_vec3 y, rr_vec3 ny)
+{
+    const himg *g = &c->img[w - 1];
+    return rt_lights_via_mirrors(c->M, g->plane, g->n, x, nx, y, ny);
+}
+/* What way w passes on: its mirrors' reflectances (1 straight). */
 static inline double way_rho(const hctx *c, unsigned w) { return w ? c->img[w - 1].rho : 1.0; }
 
 /* A receiver element as a link of way w reads it: its corners, centre and
- * normal reflected in the way's mirror (e itself for burial and its root). */
+ * normal reflected in the way's mirrors (e itself for burial and its root). */
 typedef struct rview {
     const hel *e;
     rr_vec3 c[3], ctr, n;
@@ -336,7 +363,7 @@ static inline rr_vec3 tri_random(const rr_vec3 v[3], rr_rng *rng)
 }
 
 
-/* ---- buried parts (rad_hier_bury.c) ---- */
+/* ---- buried parts and leaf data (rad_hier_bury.c) ---- */
 
 /* Whether surface point xs (normal ns) of element e lies under another
  * surface, by the flat pass's rule (rad__ff_buried) for a probe along ns. */
@@ -346,6 +373,10 @@ int rad__hier_point_buried(const hctx *c, const hel *e, rr_vec3 x);
 /* Probes every element not yet probed, in parallel: its fixed points'
  * burial (hel.bur) and its open share (hel.open). */
 void rad__hier_probe_new(hctx *c);
+/* The data of the fresh leaves among elements 0 .. ne - 1, in parallel:
+ * their first shot (H0, E, spread) and whether their CLOSED_RAYS
+ * cosine-drawn rays all land on fronts of surfaces (closed). */
+void rad__hier_leaves_data(hctx *c, size_t ne);
 
 /* ---- element links (rad_hier_link.c) ---- */
 
@@ -400,12 +431,14 @@ void rad__hier_regeo(hctx *c);
 
 /* ---- links by way of mirrors (rad_hier_mirror.c) ---- */
 
-/* c->img from the planar mirrors of table M (c->M = M; none when M has no
- * planes): -1 when out of memory. */
-int rad__hier_ways(hctx *c, const rt_lights *M);
-/* Node r (receiver) and node s cannot exchange light by way w's mirror: on
- * no common side of its plane, or no segment between their bounding spheres
- * (s's, and r's image) passes through the rectangle around the mirror. */
+/* c->img from the planar mirrors of table M (c->M = M): every chain of up
+ * to depth of them in which each can see the next, shortest first, at most
+ * WAYS_MAX (*dropped: how many more there were); -1 when out of memory. */
+int rad__hier_ways(hctx *c, const rt_lights *M, int depth, size_t *dropped);
+/* Node r (receiver) and node s cannot exchange light by way w: at some
+ * mirror of it, the images of the two that meet there lie on no common side
+ * of its plane, or no segment between their bounding spheres passes through
+ * the rectangle around it. */
 int rad__hier_way_culled(const hctx *c, uint32_t r, uint32_t s, unsigned w);
 
 /* ---- solving (rad_hier_solve.c) ---- */

@@ -119,11 +119,11 @@ static int shadow_passes(const hctx *c, const rview *rv, const hel *ey, rr_vec3 
     v->open++;
     /* x on r as the source sees it (its image by way of a mirror): the
      * surface point found on the real r */
-    rad_patch_surface(c->R, c->s, c->a, rv->e->root, way_point(c, rv->way, x), &xs, &xn);
+    rad_patch_surface(c->R, c->s, c->a, rv->e->root, way_back(c, rv->way, x), &xs, &xn);
     int passed;
     if (rv->way) {
         rad__hier_sphere_end(c, ey->root, way_point(c, rv->way, xs), &ys, &yn);
-        passed = rt_lights_via_mirror(c->M, c->img[rv->way - 1].plane, xs, xn, ys, yn);
+        passed = way_visible(c, rv->way, xs, xn, ys, yn);
     } else {
         rad__hier_sphere_end(c, ey->root, xs, &ys, &yn);
         rr_vec3 o = rt_offset_origin(c->ext, xs, xn, xn), t = rt_offset_origin(c->ext, ys, yn, yn);

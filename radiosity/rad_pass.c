@@ -249,17 +249,15 @@ rad_method rad__pass_method(const scene *s, const rad_pass_opts *o, const rr_war
     rad_method m = o->use_scene_choices ? (s->radiosity.method == SCENE_RAD_FLAT ? RAD_METHOD_FLAT
                                                                                  : RAD_METHOD_HIERARCHICAL)
                                         : o->method;
-    rt_mirror_kind mk = m == RAD_METHOD_HIERARCHICAL && scene_has_mirrors(s) ? rt_scene_mirror_kind(s)
-                                                                              : RT_MIRRORS_NONE;
-    if (mk == RT_MIRRORS_FACING || mk == RT_MIRRORS_CURVED) {
-        /* The hierarchical pass links by way of one planar mirror at a time
+    if (m == RAD_METHOD_HIERARCHICAL && scene_has_mirrors(s) && rt_scene_mirror_kind(s) == RT_MIRRORS_CURVED) {
+        /* The hierarchical pass links by way of chains of planar mirrors
          * (rad_hier.c, "Mirrors"); the flat Monte Carlo form factors follow
-         * rays off any number of mirrors of any shape (extended form factors). */
+         * rays off mirrors of any shape (extended form factors). */
         if (warn)
-            rr_warn(warn, "%s: radiosity: the scene has %s: the flat method (Monte Carlo form factors through "
-                          "mirrors) is used instead of the hierarchical one, which links by way of one planar "
-                          "mirror at a time",
-                    s->path, mk == RT_MIRRORS_CURVED ? "a curved mirror" : "mirrors that face each other");
+            rr_warn(warn, "%s: radiosity: the scene has a curved mirror: the flat method (Monte Carlo form factors "
+                          "through mirrors) is used instead of the hierarchical one, which links by way of planar "
+                          "mirrors only",
+                    s->path);
         m = RAD_METHOD_FLAT;
     }
     return m;

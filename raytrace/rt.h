@@ -433,12 +433,11 @@ int rt_lights_mirror_plane(const rt_lights *L, const rt_hit *h);
 
 /* ---- mirror planes for the radiosity pass (rt_mirror.c) ---- */
 
-/* What a scene's mirrors are, by the table's rule for planes: none; planar
- * (every mirror surface in a plane, and no plane reaching off another's, so
- * no light meets two of them in turn); facing (two planes that can see each
- * other); curved (a mirror sphere or solid leaf, or more planes than
- * RT_MIRROR_PLANES_MAX). Needs no accelerator. */
-typedef enum rt_mirror_kind { RT_MIRRORS_NONE, RT_MIRRORS_PLANAR, RT_MIRRORS_FACING, RT_MIRRORS_CURVED } rt_mirror_kind;
+/* What a scene's mirrors are, by the table's rule for planes: none;
+ * planar (every mirror surface in one of the table's planes); curved (a
+ * mirror sphere or solid leaf, or more planes than RT_MIRROR_PLANES_MAX).
+ * Needs no accelerator. */
+typedef enum rt_mirror_kind { RT_MIRRORS_NONE, RT_MIRRORS_PLANAR, RT_MIRRORS_CURVED } rt_mirror_kind;
 rt_mirror_kind rt_scene_mirror_kind(const scene *s);
 /* Mirror plane k (0 <= k < rt_lights_mirror_planes): n . x = d, its mean
  * reflectance, the corners of its triangles (3 each; owned by L). */
@@ -450,11 +449,13 @@ typedef struct rt_mirror_plane {
     size_t nverts;
 } rt_mirror_plane;
 rt_mirror_plane rt_lights_plane(const rt_lights *L, size_t k);
-/* The shadow-ray rule (rt_visible) folded at mirror plane k: 1 when x
- * (normal nx) and y (normal ny) lie on one side of the plane, the segment
- * from x towards y's image meets plane k's own triangles first, and the
- * reflected leg from there reaches y unoccluded. */
-int rt_lights_via_mirror(const rt_lights *L, size_t k, rr_vec3 x, rr_vec3 nx, rr_vec3 y, rr_vec3 ny);
+/* The shadow-ray rule (rt_visible) folded at the mirror planes chain[0 ..
+ * n-1] (1 <= n <= RT_CHAIN_MAX), chain[0] met first from x: 1 when the
+ * straight segment from x (normal nx) towards y's image in the chain, folded
+ * leg by leg, has each leg cross its plane and meet that plane's own
+ * triangles first, and the last leg reaches y (normal ny) unoccluded. */
+int rt_lights_via_mirrors(const rt_lights *L, const uint32_t *chain, int n, rr_vec3 x, rr_vec3 nx, rr_vec3 y,
+                          rr_vec3 ny);
 /* Solid-angle pdf with which rt_lights_sample picks the emitter point hit by
  * path's ray (h: the hit on the emitter, last_dir: the last leg's unit
  * direction); 0 when no light (image) of the table covers that path. */

@@ -8,15 +8,6 @@
 
 static double plane_dist(const mplane *q, rr_vec3 x) { return rr_v3_dot(q->n, x) - q->d; }
 
-/* Whether some corner of plane p lies off plane q (either side). */
-static int reaches_off(const mplane *q, const mplane *p, double tol)
-{
-    for (size_t i = 0; i < p->nverts; i++)
-        if (fabs(plane_dist(q, p->verts[i])) > tol)
-            return 1;
-    return 0;
-}
-
 rt_mirror_kind rt_scene_mirror_kind(const scene *s)
 {
     int any = 0;
@@ -42,13 +33,6 @@ rt_mirror_kind rt_scene_mirror_kind(const scene *s)
         for (size_t t = 0; t < s->ntris && kind == RT_MIRRORS_PLANAR; t++)
             if (L.tri_plane[t] < 0 && rr_rgb_max(s->materials[s->tris[t].material].mirror) > 0)
                 kind = RT_MIRRORS_CURVED; /* past RT_MIRROR_PLANES_MAX planes */
-        double tol = 1e-9 * L.scale;
-        for (size_t a = 0; a < L.nplanes && kind == RT_MIRRORS_PLANAR; a++)
-            for (size_t b = a + 1; b < L.nplanes; b++)
-                if (reaches_off(&L.planes[a], &L.planes[b], tol) && reaches_off(&L.planes[b], &L.planes[a], tol)) {
-                    kind = RT_MIRRORS_FACING;
-                    break;
-                }
     }
     for (size_t k = 0; k < L.nplanes; k++)
         free(L.planes[k].verts);
@@ -64,21 +48,36 @@ rt_mirror_plane rt_lights_plane(const rt_lights *L, size_t k)
     return p;
 }
 
-int rt_lights_via_mirror(const rt_lights *L, size_t k, rr_vec3 x, rr_vec3 nx, rr_vec3 y, rr_vec3 ny)
+int rt_lights_via_mirrors(const rt_lights *L, const uint32_t *chain, int n, rr_vec3 x, rr_vec3 nx, rr_vec3 y,
+                          rr_vec3 ny)
 {
-    const mplane *q = &L->planes[k];
-    double ax = plane_dist(q, x), ay = plane_dist(q, y);
-    if (!(ax * ay > 0.0))
-        return 0; /* not both on one side of the plane */
-    rr_vec3 yi = rr_v3_madd(y, q->n, -2.0 * ay); /* y's image */
-    rr_vec3 o = rt_offset_origin(L->scale, x, nx, rr_v3_sub(yi, x));
-    rr_ray r = {o, rr_v3_sub(yi, o)};
-    rt_hit h;
-    if (!rt_accel_closest(L->a, r, 0.0, 1.0, &h) || h.tri < 0 || L->tri_plane[h.tri] != (int32_t)k)
-        return 0; /* the first leg does not meet this mirror first */
-    rr_vec3 d = rr_v3_madd(r.d, q->n, -2.0 * rr_v3_dot(q->n, r.d)); /* the reflected leg */
-    rr_vec3 side = ay > 0.0 ? q->n : rr_v3_neg(q->n);
-    rr_vec3 o2 = rt_offset_origin(L->scale, h.point, side, d), t = rt_offset_origin(L->scale, y, ny, rr_v3_neg(d));
+    if (n < 1 || n > RT_CHAIN_MAX)
+        return 0;
+    /* img[i]: y's image in mirrors chain[i .. n-1] (in chain[n-1] first),
+     * the point the leg leaving mirror i-1 (or x) heads for */
+    rr_vec3 img[RT_CHAIN_MAX + 1];
+    img[n] = y;
+    for (int i = n - 1; i >= 0; i--) {
+        const mplane *q = &L->planes[chain[i]];
+        img[i] = rr_v3_madd(img[i + 1], q->n, -2.0 * plane_dist(q, img[i + 1]));
+    }
+    rr_vec3 o = x, on = nx;
+    rr_vec3 d = rr_v3_sub(img[0], x);
+    for (int i = 0; i < n; i++) {
+        const mplane *q = &L->planes[chain[i]];
+        double a = plane_dist(q, o), b = plane_dist(q, img[i]);
+        if (!(a * b < 0.0))
+            return 0; /* the leg does not cross the mirror's plane */
+        rr_vec3 oo = rt_offset_origin(L->scale, o, on, d);
+        rr_ray r = {oo, rr_v3_sub(img[i], oo)};
+        rt_hit h;
+        if (!rt_accel_closest(L->a, r, 0.0, 1.0, &h) || h.tri < 0 || L->tri_plane[h.tri] != (int32_t)chain[i])
+            return 0; /* the leg does not meet this mirror first */
+        d = rr_v3_madd(r.d, q->n, -2.0 * rr_v3_dot(q->n, r.d)); /* the reflected leg */
+        o = h.point;
+        on = a > 0.0 ? q->n : rr_v3_neg(q->n);
+    }
+    rr_vec3 o2 = rt_offset_origin(L->scale, o, on, d), t = rt_offset_origin(L->scale, y, ny, rr_v3_neg(d));
     rr_ray r2 = {o2, rr_v3_sub(t, o2)};
     return !rt_accel_occluded(L->a, r2, 0.0, RT_SHADOW_END);
 }

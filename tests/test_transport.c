@@ -437,6 +437,9 @@ static void test_two_mirror_walls(void **state)
 {
     (void)state;
     against_secondary(k_two_mirrors, "floor between mirrors", "floor", 0.02, 0.03);
+    /* The hierarchical method: ways of up to render.max_depth (6) mirrors in
+     * turn (rad_hier.c, "Mirrors"). */
+    against_secondary_by(k_two_mirrors, SCENE_RAD_HIERARCHICAL, "floor between mirrors, hier", "floor", 0.02, 0.03);
 }
 
 static void test_room_with_mirror(void **state)
