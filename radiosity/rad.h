@@ -13,7 +13,9 @@
  *   rad_energy         where the emitted power went
  * or, with radiosity.method "hierarchical" (rad_hier.c, opt-in), elements
  * refined on demand under clusters and links in place of the three middle
- * steps; its leaves are a rad_patches like the flat one (roots, qt below).
+ * steps (links by way of chains of planar mirrors too; a scene with a curved
+ * mirror takes the flat method, with a warning); its leaves are a
+ * rad_patches like the flat one (roots, qt below).
  *
  * Ownership: every *_build / *_compute allocates what it returns and has a
  * matching destroy (NULL is a no-op); outputs are untouched on failure.
