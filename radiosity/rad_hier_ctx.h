@@ -179,19 +179,6 @@ static inline float link_ga(const hlink *l) { return l->fa * (float)l->va * (1.0
 /* A share k / n of n <= 4 rays in twelfths. */
 static inline unsigned char vis_twelfths(int k, int n) { return (unsigned char)(n > 0 ? k * (VIS_ONE / n) : 0); }
 
-/* A rigid map x -> m x + t (compositions of reflections). */
-typedef struct hmap {
-    double m[3][3];
-    rr_vec3 t;
-} hmap;
-static inline rr_vec3 hmap_dir(const hmap *f, rr_vec3 v)
-{
-    return rr_v3(f->m[0][0] * v.x + f->m[0][1] * v.y + f->m[0][2] * v.z,
-                 f->m[1][0] * v.x + f->m[1][1] * v.y + f->m[1][2] * v.z,
-                 f->m[2][0] * v.x + f->m[2][1] * v.y + f->m[2][2] * v.z);
-}
-static inline rr_vec3 hmap_point(const hmap *f, rr_vec3 x) { return rr_v3_add(hmap_dir(f, x), f->t); }
-
 /* A mirror of a way: the light table's plane n . x = d, and a rectangle in
  * the plane (origin o, unit axes u, v) around its triangles. */
 typedef struct hwin {
@@ -210,7 +197,7 @@ typedef struct himg {
     int n;
     uint32_t plane[RT_CHAIN_MAX];
     double rho; /* the product of their mean reflectances */
-    hmap T, Ti, Tk[RT_CHAIN_MAX], Yk[RT_CHAIN_MAX]; /* Ti: T's inverse */
+    rr_xform T, Ti, Tk[RT_CHAIN_MAX], Yk[RT_CHAIN_MAX]; /* Ti: T's inverse */
     hwin win[RT_CHAIN_MAX];
 } himg;
 
@@ -255,13 +242,13 @@ static inline rr_vec3 el_normal(const hctx *c, uint32_t e) { return c->R->p[c->e
  * the real one does by way of the mirrors); themselves on way 0. */
 static inline rr_vec3 way_point(const hctx *c, unsigned w, rr_vec3 x)
 {
-    return w ? hmap_point(&c->img[w - 1].T, x) : x;
+    return w ? rr_xform_point(&c->img[w - 1].T, x) : x;
 }
-static inline rr_vec3 way_dir(const hctx *c, unsigned w, rr_vec3 v) { return w ? hmap_dir(&c->img[w - 1].T, v) : v; }
+static inline rr_vec3 way_dir(const hctx *c, unsigned w, rr_vec3 v) { return w ? rr_xform_vector(&c->img[w - 1].T, v) : v; }
 /* The real point whose image by way w is x. */
 static inline rr_vec3 way_back(const hctx *c, unsigned w, rr_vec3 x)
 {
-    return w ? hmap_point(&c->img[w - 1].Ti, x) : x;
+    return w ? rr_xform_point(&c->img[w - 1].Ti, x) : x;
 }
 /* The shadow-ray rule by way w's mirrors, from x (normal nx) on the real
  * receiver to y (normal ny) on the source. */

@@ -5,24 +5,11 @@
 
 #include "rad_hier_ctx.h"
 
-static const hmap k_identity = {{{1, 0, 0}, {0, 1, 0}, {0, 0, 1}}, {0, 0, 0}};
-
-/* f after g: x -> f(g(x)). */
-static hmap hmap_then(const hmap *f, const hmap *g)
-{
-    hmap h;
-    for (int i = 0; i < 3; i++)
-        for (int j = 0; j < 3; j++)
-            h.m[i][j] = f->m[i][0] * g->m[0][j] + f->m[i][1] * g->m[1][j] + f->m[i][2] * g->m[2][j];
-    h.t = hmap_point(f, g->t);
-    return h;
-}
-
 /* The reflection in plane n . x = d. */
-static hmap reflection(rr_vec3 n, double d)
+static rr_xform reflection(rr_vec3 n, double d)
 {
     const double v[3] = {n.x, n.y, n.z};
-    hmap h;
+    rr_xform h;
     for (int i = 0; i < 3; i++)
         for (int j = 0; j < 3; j++)
             h.m[i][j] = (i == j) - 2.0 * v[i] * v[j];
@@ -67,21 +54,21 @@ static int reaches_off(const rt_mirror_plane *q, const rt_mirror_plane *p, doubl
 /* The maps of way g from its planes (g->n, g->plane, g->win set). */
 static void way_maps(himg *g, const rt_mirror_plane *pl)
 {
-    g->Tk[0] = k_identity;
+    g->Tk[0] = rr_xform_identity();
     for (int k = 1; k < g->n; k++) {
-        hmap r = reflection(pl[g->plane[k - 1]].n, pl[g->plane[k - 1]].d);
-        g->Tk[k] = hmap_then(&r, &g->Tk[k - 1]);
+        rr_xform r = reflection(pl[g->plane[k - 1]].n, pl[g->plane[k - 1]].d);
+        g->Tk[k] = rr_xform_compose(&r, &g->Tk[k - 1]);
     }
-    hmap last = reflection(pl[g->plane[g->n - 1]].n, pl[g->plane[g->n - 1]].d);
-    g->T = hmap_then(&last, &g->Tk[g->n - 1]);
+    rr_xform last = reflection(pl[g->plane[g->n - 1]].n, pl[g->plane[g->n - 1]].d);
+    g->T = rr_xform_compose(&last, &g->Tk[g->n - 1]);
     for (int i = 0; i < 3; i++) /* a rigid map's inverse: the transposed matrix */
         for (int j = 0; j < 3; j++)
             g->Ti.m[i][j] = g->T.m[j][i];
-    g->Ti.t = rr_v3_neg(hmap_dir(&g->Ti, g->T.t));
-    hmap y = k_identity;
+    g->Ti.t = rr_v3_neg(rr_xform_vector(&g->Ti, g->T.t));
+    rr_xform y = rr_xform_identity();
     for (int k = g->n - 1; k >= 0; k--) {
-        hmap r = reflection(pl[g->plane[k]].n, pl[g->plane[k]].d);
-        y = hmap_then(&r, &y);
+        rr_xform r = reflection(pl[g->plane[k]].n, pl[g->plane[k]].d);
+        y = rr_xform_compose(&r, &y);
         g->Yk[k] = y;
     }
 }
@@ -150,13 +137,13 @@ int rad__hier_ways(hctx *c, const rt_lights *M, int depth, size_t *dropped)
 
 /* Which sides of window g node x reaches beyond tol, seen through map f
  * (NULL: itself): bit 1 above, bit 2 below. */
-static int node_sides(const hctx *c, uint32_t x, const hmap *f, const hwin *g)
+static int node_sides(const hctx *c, uint32_t x, const rr_xform *f, const hwin *g)
 {
     rr_vec3 pts[8];
     int n, s = 0;
     node_points(c, x, pts, &n);
     for (int k = 0; k < n; k++) {
-        double t = rr_v3_dot(g->n, f ? hmap_point(f, pts[k]) : pts[k]) - g->d;
+        double t = rr_v3_dot(g->n, f ? rr_xform_point(f, pts[k]) : pts[k]) - g->d;
         s |= t > c->plane_tol ? 1 : t < -c->plane_tol ? 2 : 0;
     }
     return s;
@@ -224,10 +211,10 @@ int rad__hier_way_culled(const hctx *c, uint32_t r, uint32_t s, unsigned w)
     rr_vec3 cr = node_ctr(c, r), cs = node_ctr(c, s);
     for (int k = 0; k < g->n; k++) {
         const hwin *m = &g->win[k];
-        const hmap *tk = k ? &g->Tk[k] : NULL, *yk1 = k + 1 < g->n ? &g->Yk[k + 1] : NULL;
+        const rr_xform *tk = k ? &g->Tk[k] : NULL, *yk1 = k + 1 < g->n ? &g->Yk[k + 1] : NULL;
         if (!(node_sides(c, r, tk, m) & node_sides(c, s, yk1, m)))
             return 1;
-        if (!balls_see_through(m, tk ? hmap_point(tk, cr) : cr, hmap_point(&g->Yk[k], cs), R))
+        if (!balls_see_through(m, tk ? rr_xform_point(tk, cr) : cr, rr_xform_point(&g->Yk[k], cs), R))
             return 1;
     }
     return 0;
