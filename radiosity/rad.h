@@ -362,10 +362,11 @@ typedef struct rad_solution {
                               first shots); 0 when read from a cache */
     /* Hierarchical solutions (P->roots set): per leaf, the irradiance gathered
      * from other surfaces (H, without the first shot) and the effective row sum
-     * (the share of what leaves it that lands on surfaces), for the ledger in
-     * place of F; NULL when read from a cache. */
+     * (the share of what leaves it that lands on surfaces, times 1 - their
+     * mirror reflectance, counted through the links it sends by: rad_hier_solve.c,
+     * sent_shares), for the ledger in place of F; NULL when read from a cache. */
     rr_rgb *hier_H;
-    double *hier_fsum;
+    rr_rgb *hier_fsum;
     size_t links;        /* hierarchical: links of the final hierarchy */
     size_t elements;     /* hierarchical: elements and clusters made */
     int refine_rounds;

@@ -62,9 +62,10 @@ typedef struct ledger_in {
     const rad_ff *F;
     const rr_rgb *B, *emitted, *first_shot;
     /* In place of F (hierarchical solutions): per patch the gathered
-     * irradiance H_i and the effective row sum sum_j F_ij (1 - m_j). */
+     * irradiance H_i and, per channel, the share of what leaves it that the
+     * links deliver, sum_j F_ji (1 - m_j) read from its side (rad.h). */
     const rr_rgb *H;
-    const double *fsum;
+    const rr_rgb *fsum;
     size_t nl;
     const rr_rgb *power, *landed;
 } ledger_in;
@@ -75,15 +76,17 @@ static rad_energy_row patch_row(const ledger_in *in, size_t i)
     const rad_ff *F = in->F;
     const rad_patch *p = &P->p[i];
     rr_rgb h = in->first_shot ? in->first_shot[i] : rr_rgb_make(0, 0, 0);
-    double fsum = 0.0;
+    rr_rgb fsum = rr_rgb_make(0, 0, 0);
     if (!F) {
         h = rr_rgb_add(h, in->H[i]);
         fsum = in->fsum[i];
     } else {
+        double f = 0.0;
         for (size_t k = F->rowptr[i]; k < F->rowptr[i + 1]; k++) {
             h = rr_rgb_add(h, rr_rgb_scale(in->B[F->col[k]], F->val[k]));
-            fsum += F->val[k] * (1.0 - P->p[F->col[k]].mirror);
+            f += F->val[k] * (1.0 - P->p[F->col[k]].mirror);
         }
+        fsum = rr_rgb_make(f, f, f);
     }
     rr_rgb incident = rr_rgb_scale(h, p->area);
     double m = p->mirror;
@@ -97,7 +100,9 @@ static rad_energy_row patch_row(const ledger_in *in, size_t i)
         .reflected = rr_rgb_mul(p->rho, incident),
         .mirrored = rr_rgb_scale(incident, m),
         .absorbed = rr_rgb_mul(absorb, incident),
-        .escaped = rr_rgb_scale(in->B[i], p->area * (1.0 - fsum)),
+        .escaped = F ? rr_rgb_scale(in->B[i], p->area * (1.0 - fsum.g)) /* fsum's channels are one */
+                     : rr_rgb_make(in->B[i].r * p->area * (1.0 - fsum.r), in->B[i].g * p->area * (1.0 - fsum.g),
+                                   in->B[i].b * p->area * (1.0 - fsum.b)),
     };
     return r;
 }
