@@ -219,10 +219,10 @@ static void test_mirror_method(void **state)
  * read from each leaf's own row sum it was 7.8e-4 off on Cornell and 2.6 %
  * on the mirror room (a closed room with a mirror and a lamp of
  * reflectance 0, whose receiving links the oracle never refines); now
- * 3e-6 (what the leaves' clamp of a negative linear shape adds) and 3e-8.
+ * 5.7e-6 and 4e-8.
  * Whether the power went where it should is the light tracer's check
  * (radray energy --check; test_energy). */
-static void ledger_balance(const char *name, double tol)
+static void ledger_balance(const char *name, double tol, double escaped_tol)
 {
     char path[512], m[] = "radiosity.method=hierarchical";
     snprintf(path, sizeof path, "%s/scenes/%s", RR_SOURCE_DIR, name);
@@ -246,8 +246,12 @@ static void ledger_balance(const char *name, double tol)
                  es[3] = {t->escaped.r, t->escaped.g, t->escaped.b};
     for (int k = 0; k < 3; k++)
         worst = fmax(worst, fabs(e[k] - ab[k] - es[k]) / e[k]);
-    print_message("%s, hierarchical: emitted = absorbed + escaped to %.2g (worst channel)\n", name, worst);
+    print_message("%s, hierarchical: emitted = absorbed + escaped to %.2g (worst channel); escaped %.2g of the "
+                  "emitted power\n",
+                  name, worst, t->escaped.g / t->emitted.g);
     assert_true(worst < tol);
+    if (escaped_tol > 0)
+        assert_true(fabs(t->escaped.g) < escaped_tol * t->emitted.g);
     free(rows);
     rad_solution_destroy(sol);
     rt_accel_destroy(a);
@@ -257,8 +261,13 @@ static void ledger_balance(const char *name, double tol)
 static void test_ledger_balance(void **state)
 {
     (void)state;
-    ledger_balance("cornell.json", 2e-5);
-    ledger_balance("mirror-room.json", 1e-6);
+    ledger_balance("cornell.json", 2e-5, 0.0);
+    /* A closed room: escaped, what the links do not deliver, is the
+     * solution's loss (the light tracer: 1e-4 of the emitted power, through
+     * the back faces of the mirror's frame). 6.5e-3 while interior elements
+     * sent the mean over their whole area, buried leaves included
+     * (rad_hier_solve.c, pull_el); 2.7e-4 since. */
+    ledger_balance("mirror-room.json", 1e-6, 2e-3);
 }
 
 /* scenes/room.json made a closed furnace: every material rho = 0.5 and

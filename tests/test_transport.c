@@ -453,9 +453,11 @@ static void test_room_with_mirror(void **state)
      * +0.3 .. -2.8 % (radiosity) over its ~35 patches at 512 rays. */
     against_secondary(k_mirror_room, "room with a mirror", "left", 0.05, 0.05);
     /* The hierarchical method, by links by way of the mirror (rad_hier.c,
-     * "Mirrors"). */
-    against_secondary_by(k_mirror_room, SCENE_RAD_HIERARCHICAL, "room with a mirror, hier", "floor,ceiling,left",
-                         0.02, 0.03);
+     * "Mirrors"); its left wall, the same strip around the mirror, within the
+     * flat line's 5 % (+1.5 % radiosity, +2.1 % hybrid, measured). */
+    against_secondary_by(k_mirror_room, SCENE_RAD_HIERARCHICAL, "room with a mirror, hier", "floor,ceiling", 0.02,
+                         0.03);
+    against_secondary_by(k_mirror_room, SCENE_RAD_HIERARCHICAL, "room with a mirror, hier", "left", 0.05, 0.05);
 }
 
 static void test_cubby_of_touching_boxes(void **state)
