@@ -279,9 +279,11 @@ static void test_ledger_balance(void **state)
  * deliver (sol->hier_fsum); the faces lying against the one-sided walls
  * (the shelf's back panel on the back wall) see nothing and keep B = E (a
  * known gap, rad_hier.c). Over those, weighted by area: the mean within 1 %
- * and the 5th percentile within 6 %. Measured: mean -0.74 %, 5th percentile
- * -4.2 % (-0.41 %, -3.9 % while hier_fsum was each leaf's own row sum: the
- * same solution, other leaves taken; -0.7, -4.6 % before cluster shadow
+ * and the 5th percentile within 6 %. Measured: mean -0.60 %, 5th percentile
+ * -4.0 % (-0.74 %, -4.2 % while interior elements sent the mean of their
+ * leaves over their whole area, buried ones included; -0.41 %, -3.9 % while
+ * hier_fsum was each leaf's own row sum: the same solution, other leaves
+ * taken; -0.7, -4.6 % before cluster shadow
  * rays stopped ending on surfaces turned away, rad_hier_cluster.c); before the links' transport
  * was estimated from rays of its own (rad_hier.c, "Decide, then estimate"),
  * the clusters' geometry read deeper and the factors shared by shape among
