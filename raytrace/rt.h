@@ -431,7 +431,7 @@ void rt_particle_ledger_free(rt_particle_ledger *g); /* NULL and double free are
 /* The mirror plane of a hit, or -1 (not a planar mirror). */
 int rt_lights_mirror_plane(const rt_lights *L, const rt_hit *h);
 
-/* ---- mirror planes for the radiosity pass (rt_mirror.c) ---- */
+/* ---- mirror planes for the radiosity pass (rt_mirror.c; rt_lights_via_mirrors in rt_light.c) ---- */
 
 /* What a scene's mirrors are, by the table's rule for planes: none;
  * planar (every mirror surface in one of the table's planes); curved (a
@@ -451,9 +451,10 @@ typedef struct rt_mirror_plane {
 rt_mirror_plane rt_lights_plane(const rt_lights *L, size_t k);
 /* The shadow-ray rule (rt_visible) folded at the mirror planes chain[0 ..
  * n-1] (1 <= n <= RT_CHAIN_MAX), chain[0] met first from x: 1 when the
- * straight segment from x (normal nx) towards y's image in the chain, folded
- * leg by leg, has each leg cross its plane and meet that plane's own
- * triangles first, and the last leg reaches y (normal ny) unoccluded. */
+ * straight segment from x (normal nx, on whose side it must leave) towards
+ * y's image in the chain, folded leg by leg as a light image's legs are,
+ * has each leg meet its plane's own triangles first, and the last leg
+ * reaches y (normal ny) unoccluded. */
 int rt_lights_via_mirrors(const rt_lights *L, const uint32_t *chain, int n, rr_vec3 x, rr_vec3 nx, rr_vec3 y,
                           rr_vec3 ny);
 /* Solid-angle pdf with which rt_lights_sample picks the emitter point hit by

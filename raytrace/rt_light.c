@@ -458,6 +458,29 @@ static int fold_legs(const rt_lights *L, const light *l, rr_vec3 x, rr_vec3 n, r
     return 1;
 }
 
+int rt_lights_via_mirrors(const rt_lights *L, const uint32_t *chain, int n, rr_vec3 x, rr_vec3 nx, rr_vec3 y,
+                          rr_vec3 ny)
+{
+    if (n < 1 || n > RT_CHAIN_MAX)
+        return 0;
+    /* y as a light whose image chain meets chain[n - 1] first: the same
+     * folded legs as a light's image, then the last leg to y itself */
+    light v;
+    memset(&v, 0, sizeof v);
+    v.p = y;
+    for (int i = n - 1; i >= 0; i--) {
+        v.chain[v.nchain++] = chain[i];
+        v.p = reflect_point(&L->planes[chain[i]], v.p);
+    }
+    rr_vec3 o, on, d;
+    rr_rgb thru;
+    if (!fold_legs(L, &v, x, nx, rr_v3_sub(v.p, x), &o, &on, &d, &thru))
+        return 0;
+    rr_vec3 o2 = rt_offset_origin(L->scale, o, on, d), t = rt_offset_origin(L->scale, y, ny, rr_v3_neg(d));
+    rr_ray r = {o2, rr_v3_sub(t, o2)};
+    return !rt_accel_occluded(L->a, r, 0.0, RT_SHADOW_END);
+}
+
 /* The cheap test before any ray: the straight segment from x to image l
  * (at y, or towards direction y for a directional one) crosses its first
  * mirror's plane. */
