@@ -218,8 +218,10 @@ static void test_mirror_method(void **state)
  * and the bookkeeping's, not the links' reciprocity (which they lack):
  * read from each leaf's own row sum it was 7.8e-4 off on Cornell and 2.6 %
  * on the mirror room (a closed room with a mirror and a lamp of
- * reflectance 0, whose receiving links the oracle never refines); now
- * 5.7e-6 and 4e-8.
+ * reflectance 0, whose receiving links the oracle never refines); then
+ * 5.7e-6 and 4e-8; now 1.4e-8 and 4e-8, since leaves buried whole send
+ * nothing (rad_hier_solve.c, set_leaf_src: 15 such nodes of Cornell sent
+ * 2e-6 of the power by links that no open area accounted for).
  * Whether the power went where it should is the light tracer's check
  * (radray energy --check; test_energy). */
 static void ledger_balance(const char *name, double tol, double escaped_tol)
@@ -261,7 +263,7 @@ static void ledger_balance(const char *name, double tol, double escaped_tol)
 static void test_ledger_balance(void **state)
 {
     (void)state;
-    ledger_balance("cornell.json", 2e-5, 0.0);
+    ledger_balance("cornell.json", 1e-6, 0.0);
     /* A closed room: escaped, what the links do not deliver, is the
      * solution's loss (the light tracer: 1e-4 of the emitted power, through
      * the back faces of the mirror's frame). 6.5e-3 while interior elements
