@@ -566,7 +566,7 @@ static rr_status settle(hctx *c, void (*progress)(void *, size_t, size_t), void 
         size_t ne = c->nel;
         rad__hier_leaves_data(c, ne);
         if (interrupted(c))
-            return rr_error_set(err, RR_ERR_INTERRUPTED, "%s: radiosity: interrupted", c->s->path);
+            return rr_error_set(err, RR_ERR_INTERRUPTED, "%s: radiosity pass interrupted (links)", c->s->path);
         if (progress)
             progress(user, c->evaluated, c->evaluated);
         /* Leaves whose first shot varies by more than eps of power split,
@@ -629,7 +629,7 @@ static rr_status estimate(hctx *c, void (*progress)(void *, size_t, size_t), voi
     c->draw = ESTIMATE_DRAW;
     eval_links(c, 0, c->nln, 1, progress, user);
     if (interrupted(c))
-        return rr_error_set(err, RR_ERR_INTERRUPTED, "%s: radiosity: interrupted", c->s->path);
+        return rr_error_set(err, RR_ERR_INTERRUPTED, "%s: radiosity pass interrupted (links)", c->s->path);
     if (progress)
         progress(user, c->evaluated, c->evaluated);
     return RR_OK;
@@ -788,7 +788,7 @@ static rr_status hier_run(const scene *s, const rt_accel *a, const rad_pass_opts
         rt_lights_destroy(L);
         rad_patches_destroy(roots);
         return nr == 0           ? rr_error_set(err, RR_ERR_INVALID, "%s: radiosity: the scene has no surfaces", s->path)
-               : interrupted(&c) ? rr_error_set(err, RR_ERR_INTERRUPTED, "%s: radiosity: interrupted", s->path)
+               : interrupted(&c) ? rr_error_set(err, RR_ERR_INTERRUPTED, "%s: radiosity pass interrupted (links)", s->path)
                                  : rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory", s->path);
     }
     rad_solve_opts so = o->solve;
@@ -801,7 +801,7 @@ static rr_status hier_run(const scene *s, const rt_accel *a, const rad_pass_opts
     for (size_t i = 0; i < c.nel; i++)
         c.el[i].B = c.el[i].E;
     if (st == RR_OK && interrupted(&c))
-        st = rr_error_set(err, RR_ERR_INTERRUPTED, "%s: radiosity: interrupted", s->path);
+        st = rr_error_set(err, RR_ERR_INTERRUPTED, "%s: radiosity pass interrupted (links)", s->path);
     double power = st == RR_OK ? emitted_power(&c) : 0.0;
     if (st == RR_OK && !(power > 0))
         st = rr_error_set(err, RR_ERR_INVALID, "%s: radiosity: nothing emits light", s->path);
