@@ -421,7 +421,7 @@ rr_status rad__hier_solve(hctx *c, const rad_solve_opts *so, rad_solve_stats *st
     for (int it = 0; it < maxit; it++) {
         if (interrupted(c)) {
             free(grp);
-            return rr_error_set(err, RR_ERR_INTERRUPTED, "%s: radiosity: interrupted", c->s->path);
+            return rr_error_set(err, RR_ERR_INTERRUPTED, "%s: radiosity pass interrupted (solve)", c->s->path);
         }
         rad__hier_sources(c, 0, 0);
         rad__hier_gather(c, grp, ngrp);
