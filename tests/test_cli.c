@@ -449,8 +449,9 @@ static void aovs_and_metadata(void **state)
     assert_string_equal(counts[0], counts[1]);
     assert_null(strstr(counts[0], "\"rays_closest\": 0,"));
     /* The radiosity pass traces one Monte Carlo ray per form-factor sample:
-     * patches x ff_samples (512 by default; no mirror to extend them). */
-    const char *e[] = {"render", lit, "-o", out, "--stats", st, "-q", NULL};
+     * patches x ff_samples (512 by default; no mirror to extend them), the
+     * flat method's. */
+    const char *e[] = {"render", lit, "-o", out, "--stats", st, "--set", "radiosity.method=flat", "-q", NULL};
     assert_int_equal(run(e), 0);
     assert_int_equal(rr_file_read_all(st, &text, &len, NULL), RR_OK);
     const char *pa = strstr(text, "\"patches\": "), *fr = strstr(text, "\"form_factor_rays\": ");
@@ -496,7 +497,8 @@ static void energy_ledger(void **state)
     assert_int_equal(run(a), 0);
     assert_non_null(strstr(g_out, "holds"));
     assert_non_null(strstr(g_out, "left_wall"));
-    const char *b[] = {"energy", cornell, "--json", "--solver", "direct", "--patch-area", "4000", NULL};
+    const char *b[] = {"energy",       cornell, "--json", "--solver", "direct", "--set", "radiosity.method=flat",
+                       "--patch-area", "4000",  NULL};
     assert_int_equal(run(b), 0);
     assert_non_null(strstr(g_out, "\"balanced\": true"));
     assert_non_null(strstr(g_out, "\"solver\": \"direct\""));
