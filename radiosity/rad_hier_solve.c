@@ -403,6 +403,8 @@ static double leaves_max_B(const hctx *c)
     return m;
 }
 
+#define EXTRAPOLATE_MAX 0.99 /* no extrapolation where the error decays slower than this per two sweeps */
+
 /* Row sums (k), then Jacobi sweeps to the tolerance. */
 rr_status rad__hier_solve(hctx *c, const rad_solve_opts *so, rad_solve_stats *st, rr_error *err)
 {
@@ -417,12 +419,26 @@ rr_status rad__hier_solve(hctx *c, const rad_solve_opts *so, rad_solve_stats *st
     rad__hier_push(c, PUSH_SIGMA);
     int maxit = so->max_iterations > 0 ? so->max_iterations : 10000;
     double tol = so->tolerance > 0 ? so->tolerance : 1e-9;
+    /* Two sweeps' history: the leaves' B before the last sweep and before
+     * the one before (Bh[it % 2] holds B_{it - 1} during sweep it). */
+    rr_rgb *Bh = malloc(2 * (c->nel ? c->nel : 1) * sizeof *Bh);
+    if (!Bh) {
+        free(grp);
+        return rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory", c->s->path);
+    }
     st->iterations = 0;
+    double dh[4] = {0, 0, 0, 0}; /* the last four sweeps' largest changes, newest last */
+    int since = 0;
     for (int it = 0; it < maxit; it++) {
         if (interrupted(c)) {
+            free(Bh);
             free(grp);
             return rr_error_set(err, RR_ERR_INTERRUPTED, "%s: radiosity pass interrupted (solve)", c->s->path);
         }
+        rr_rgb *Bprev = Bh + (size_t)(it % 2) * c->nel;
+#pragma omp parallel for schedule(static)
+        for (long i = 0; i < (long)c->nel; i++)
+            Bprev[i] = c->el[i].B;
         rad__hier_sources(c, 0, 0);
         rad__hier_gather(c, grp, ngrp);
         double d = rad__hier_push(c, PUSH_SOLVE), bmax = leaves_max_B(c);
@@ -431,6 +447,7 @@ rr_status rad__hier_solve(hctx *c, const rad_solve_opts *so, rad_solve_stats *st
         if (!isfinite(st->residual) || !isfinite(bmax)) {
             /* a transport that creates light diverges: say so, at once,
              * instead of sweeping to the iteration limit */
+            free(Bh);
             free(grp);
             return rr_error_set(err, RR_ERR_INTERNAL,
                                 "%s: radiosity: the hierarchical solve diverged at sweep %d (largest radiosity %g); "
@@ -439,7 +456,28 @@ rr_status rad__hier_solve(hctx *c, const rad_solve_opts *so, rad_solve_stats *st
         }
         if (st->residual < tol)
             break;
+        memmove(dh, dh + 1, 3 * sizeof *dh);
+        dh[3] = d;
+        if (++since < 4)
+            continue;
+        /* The error's decay over two sweeps, twice: where it holds steady,
+         * its slowest modes (eigenvalues +-l, which Jacobi's largest change
+         * shows as alternating ratios) shrink by q = l^2 per two sweeps, and
+         * B_n + q / (1 - q) (B_n - B_{n-2}) removes them. */
+        double q = dh[2] > 0 ? dh[3] / dh[1] : 0.0, q1 = dh[0] > 0 ? dh[2] / dh[0] : 0.0;
+        if (!(q > 0 && q < EXTRAPOLATE_MAX && fabs(q - q1) < 0.02 * q))
+            continue;
+        double f = q / (1.0 - q);
+        const rr_rgb *B2 = Bh + (size_t)((it + 1) % 2) * c->nel; /* B_{it - 2}, from sweep it - 1's start */
+#pragma omp parallel for schedule(static)
+        for (long i = 0; i < (long)c->nel; i++) {
+            hel *e = &c->el[i];
+            if (e->child == NONE)
+                e->B = rr_rgb_add(e->B, rr_rgb_scale(rr_rgb_add(e->B, rr_rgb_scale(B2[i], -1.0)), f));
+        }
+        since = 0;
     }
+    free(Bh);
     free(grp);
     return RR_OK;
 }
