@@ -734,6 +734,7 @@ static rr_status hier_run(const scene *s, const rt_accel *a, const rad_pass_opts
     double t0 = rr_now_seconds(), t_solve = 0.0;
     hctx c;
     memset(&c, 0, sizeof c);
+    c.cs = rr_rgb_make(1, 1, 1);
     c.s = s;
     c.a = a;
     c.seed = o->ff.seed;
@@ -805,7 +806,7 @@ static rr_status hier_run(const scene *s, const rt_accel *a, const rad_pass_opts
     double power = st == RR_OK ? emitted_power(&c) : 0.0;
     if (st == RR_OK && !(power > 0))
         st = rr_error_set(err, RR_ERR_INVALID, "%s: radiosity: nothing emits light", s->path);
-    c.eps = tol * power;
+    c.eps = c.eps_asked = tol * power;
     double eps0 = c.eps;
     for (int round = 0; round < MAX_ROUNDS && st == RR_OK; round++) {
         rad__hier_sources(&c, 0, 0);

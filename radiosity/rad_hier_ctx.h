@@ -26,6 +26,7 @@ typedef struct hel {
     rr_rgb B, src, H, E, H0;
     rr_rgb Hc[3];   /* what its links send its corners beyond their mean (hlink.sh): a linear field, gathered with H */
     double k;       /* leaf: row-sum scale */
+    float land;     /* leaf: the share of its closedness rays that landed on fronts; -1: it has no open point */
     int partial;    /* it has a partly visible link (rad__hier_gather of B = 1) */
 } hel;
 
@@ -221,12 +222,14 @@ typedef struct hctx {
     size_t evaluated; /* links evaluated so far (progress) */
     rt_ray_counts rays; /* rays traced while linking (sol->ff_rays): every parallel region that traces adds its own */
     double eps, min_area;
+    double eps_asked; /* eps as radiosity.refine_tolerance asks it (eps grows under --max-memory) */
     size_t max_links;
     double max_bytes; /* the pass's own arrays at most this (rad_hier_opts.max_bytes); 0: no limit */
     int capped, nomem;
     int by_memory;    /* the cap reached was max_bytes (the messages name --max-memory) */
     int first, over; /* the first walk (rad_hier.c, first_refine) stops when it reaches the cap (over) */
     int unit;       /* the sources are B = 1 (rad__hier_sources): gathers read hlink.ga */
+    rr_rgb cs;      /* the leaves' reflected light is sent times cs: the column scale (rad__hier_solve) */
     double ext, plane_tol;
     uint64_t seed;
     uint64_t draw;  /* which shadow rays the links draw: 0 while refining, ESTIMATE_DRAW for the estimate */
