@@ -125,7 +125,18 @@
  * Solving (rad_hier_solve.c): Jacobi sweeps of gather (every link,
  * receivers in parallel, each receiver's links in one fixed order) and push-pull (irradiance down to the
  * leaves, B = E + rho k H there, radiosity back up as area means, power up
- * the clusters) until the largest change is under the solver tolerance.
+ * the clusters) until the largest change is under the solver tolerance;
+ * where the largest change decays steadily over two sweeps, the slowest
+ * error modes are extrapolated away (B_n + q / (1 - q) (B_n - B_{n-2})).
+ *
+ * Columns. What the links deliver of a leaf's light (its column sum, per
+ * unit of what it sends) is exact in total (column_sums; the ledger reads
+ * the same), but mixed levels of the trees make it differ from what rays
+ * from the leaf say lands (hel.land, its 16 closedness rays), by a fraction
+ * of a percent. Where nearly all the light lands (CS_OPEN), every leaf's
+ * source is scaled by one factor per channel (hctx.cs) so that the links
+ * deliver in total what the rays say; elsewhere 16 rays per leaf estimate
+ * the landing share too loosely and nothing is scaled.
  *
  * Row sums. A leaf's share of the hemisphere that its links cover, sigma, is
  * what a gather of B = 1 everywhere gives it. Where 16 cosine-distributed
