@@ -364,7 +364,7 @@ typedef struct rad_solution {
      * from other surfaces (H, without the first shot) and the effective row sum
      * (the share of what leaves it that lands on surfaces, times 1 - their
      * mirror reflectance, counted through the links it sends by: rad_hier_solve.c,
-     * sent_shares), for the ledger in place of F; NULL when read from a cache. */
+     * column_sums), for the ledger in place of F; NULL when read from a cache. */
     rr_rgb *hier_H;
     rr_rgb *hier_fsum;
     size_t links;        /* hierarchical: links of the final hierarchy */

@@ -403,7 +403,36 @@ static double leaves_max_B(const hctx *c)
     return m;
 }
 
-static void taken(const hctx *c, uint32_t x, double *tk);
+/* What the receivers under element x take in per unit of irradiance, as
+ * the ledger counts it: their weight w = open area x k x (1 - mirror
+ * reflectance) (what a mirror reflects goes on by its ways), summed over
+ * x's leaves (tk[4 x]), and the sums of w times the barycentrics of each
+ * leaf's centre in x (tk[4 x + 1 .. 3]), which read a link's linear shape
+ * over x exactly (the push carries it to the leaves' centres). */
+static void taken(const hctx *c, uint32_t x, double *tk)
+{
+    const hel *e = &c->el[x];
+    double *t = tk + 4 * (size_t)x;
+    if (e->child == NONE) {
+        t[0] = e->area * e->open * e->k * (1.0 - c->R->p[e->root].mirror);
+        t[1] = t[2] = t[3] = t[0] / 3.0;
+        return;
+    }
+    /* the children's corners in x's barycentrics (el_split): A, ab, ca; ab, B, bc; ca, bc, C; bc, ca, ab */
+    static const double corner[4][3][3] = {{{1, 0, 0}, {.5, .5, 0}, {.5, 0, .5}},
+                                           {{.5, .5, 0}, {0, 1, 0}, {0, .5, .5}},
+                                           {{.5, 0, .5}, {0, .5, .5}, {0, 0, 1}},
+                                           {{0, .5, .5}, {.5, 0, .5}, {.5, .5, 0}}};
+    t[0] = t[1] = t[2] = t[3] = 0.0;
+    for (uint32_t k = 0; k < 4; k++) {
+        taken(c, e->child + k, tk);
+        const double *u = tk + 4 * (size_t)(e->child + k);
+        t[0] += u[0];
+        for (int q = 0; q < 3; q++)
+            for (int a = 0; a < 3; a++)
+                t[1 + a] += u[1 + q] * corner[k][q][a];
+    }
+}
 
 /* The open area under each element (O[x]). */
 static double open_area(const hctx *c, uint32_t x, double *O)
@@ -608,157 +637,6 @@ rr_status rad__hier_solve(hctx *c, const rad_solve_opts *so, rad_solve_stats *st
 
 /* ---- output: the leaves as a patch set, their values ---- */
 
-/* What the receivers under element x take in per unit of irradiance, as
- * the ledger counts it: their weight w = open area x k x (1 - mirror
- * reflectance) (what a mirror reflects goes on by its ways), summed over
- * x's leaves (tk[4 x]), and the sums of w times the barycentrics of each
- * leaf's centre in x (tk[4 x + 1 .. 3]), which read a link's linear shape
- * over x exactly (the push carries it to the leaves' centres). */
-static void taken(const hctx *c, uint32_t x, double *tk)
-{
-    const hel *e = &c->el[x];
-    double *t = tk + 4 * (size_t)x;
-    if (e->child == NONE) {
-        t[0] = e->area * e->open * e->k * (1.0 - c->R->p[e->root].mirror);
-        t[1] = t[2] = t[3] = t[0] / 3.0;
-        return;
-    }
-    /* the children's corners in x's barycentrics (el_split): A, ab, ca; ab, B, bc; ca, bc, C; bc, ca, ab */
-    static const double corner[4][3][3] = {{{1, 0, 0}, {.5, .5, 0}, {.5, 0, .5}},
-                                           {{.5, .5, 0}, {0, 1, 0}, {0, .5, .5}},
-                                           {{.5, 0, .5}, {0, .5, .5}, {0, 0, 1}},
-                                           {{0, .5, .5}, {.5, 0, .5}, {.5, .5, 0}}};
-    t[0] = t[1] = t[2] = t[3] = 0.0;
-    for (uint32_t k = 0; k < 4; k++) {
-        taken(c, e->child + k, tk);
-        const double *u = tk + 4 * (size_t)(e->child + k);
-        t[0] += u[0];
-        for (int q = 0; q < 3; q++)
-            for (int a = 0; a < 3; a++)
-                t[1 + a] += u[1 + q] * corner[k][q][a];
-    }
-}
-
-/* Node x's outgoing power over its leaves (B per channel): what its links
- * carry (pb[2 n]: an element's value, pull_el's mean of B, times its area;
- * a cluster's, its children's summed) and from their open areas (pb[2 n +
- * 1]); n: x's index among elements, then clusters. *open and *all_open as
- * pull_el's. */
-static void out_power(const hctx *c, uint32_t x, rr_rgb *pb, double *open, int *all_open)
-{
-    size_t n = x & CLB ? c->nel + CL(x) : x;
-    rr_rgb f = rr_rgb_make(0, 0, 0), o = f;
-    *open = 0.0;
-    *all_open = 1;
-    if (x & CLB) {
-        for (int k = 0; k < 2; k++) {
-            uint32_t y = c->cl[CL(x)].child[k];
-            double w;
-            int a;
-            out_power(c, y, pb, &w, &a);
-            size_t m = y & CLB ? c->nel + CL(y) : y;
-            f = rr_rgb_add(f, pb[2 * m]);
-            o = rr_rgb_add(o, pb[2 * m + 1]);
-        }
-    } else if (c->el[x].child == NONE) {
-        const hel *e = &c->el[x];
-        f = rr_rgb_scale(rr_rgb_mul(e->B, c->cs), e->area); /* what it sends (set_leaf_src) */
-        o = rr_rgb_scale(f, e->open);
-        *open = e->area * e->open;
-        *all_open = e->open == 1.0;
-    } else {
-        rr_rgb plain = f;
-        for (uint32_t k = 0; k < 4; k++) {
-            uint32_t y = c->el[x].child + k;
-            double w;
-            int a;
-            out_power(c, y, pb, &w, &a);
-            plain = rr_rgb_add(plain, pb[2 * (size_t)y]);
-            o = rr_rgb_add(o, pb[2 * (size_t)y + 1]);
-            *open += w;
-            *all_open &= a;
-        }
-        f = *all_open || !(*open > 0) ? plain : rr_rgb_scale(o, c->el[x].area / *open);
-    }
-    pb[2 * n] = f;
-    pb[2 * n + 1] = o;
-}
-
-static double ratio(double a, double b) { return b > 0 ? a / b : 0.0; }
-
-/* Down the clusters and elements from node x, adding each node's share
- * sent (d: elements, then clusters), per unit of its leaves' power from
- * their open areas, to acc; at the leaves, the whole. */
-static void sent_down(const hctx *c, uint32_t x, rr_rgb acc, const double *d, const rr_rgb *pb, rr_rgb *leaf_sent)
-{
-    size_t n = x & CLB ? c->nel + CL(x) : x;
-    const rr_rgb *f = &pb[2 * n], *o = &pb[2 * n + 1];
-    acc = rr_rgb_add(acc, rr_rgb_make(d[n] * ratio(f->r, o->r), d[n] * ratio(f->g, o->g), d[n] * ratio(f->b, o->b)));
-    if (x & CLB) {
-        sent_down(c, c->cl[CL(x)].child[0], acc, d, pb, leaf_sent);
-        sent_down(c, c->cl[CL(x)].child[1], acc, d, pb, leaf_sent);
-        return;
-    }
-    const hel *e = &c->el[x];
-    if (e->child == NONE) {
-        leaf_sent[x] = acc;
-        return;
-    }
-    for (uint32_t k = 0; k < 4; k++)
-        sent_down(c, e->child + k, acc, d, pb, leaf_sent);
-}
-
-/* Per leaf and channel, the share of its outgoing power (B x its open area)
- * that the links deliver to receivers (into sent[0 .. nel), leaves only):
- * the ledger's effective row sum read from the source's side. A link r <- s
- * carries g src_s to every leaf under r, with its linear shape (src_s
- * pull_el's mean of B over s's leaves; for a cluster, g is per unit of its
- * power), so s sends g taken(r) times its power (src_s A_s); that is shared
- * among its leaves by their power from open areas, since the link's shadow
- * rays already count buried parts as hidden (shared by whole areas,
- * Cornell's leaves under its blocks sent 0.15 % of the emitted power that
- * no open area emits). Read from the receiver's side (its own
- * row sum), the ledger balanced only where the links are reciprocal, which
- * they are not: Cornell 7.8e-4 off, a closed room with a lamp of
- * reflectance 0 2.6 % (the lamp's receiving links, never refined, summed
- * 1.5 % over 1). -1 when out of memory. */
-static int sent_shares(const hctx *c, rr_rgb *sent)
-{
-    size_t nn = c->nel + c->ncl;
-    double *tk = malloc(4 * (c->nel ? c->nel : 1) * sizeof *tk), *d = calloc(nn ? nn : 1, sizeof *d);
-    rr_rgb *pb = malloc(2 * (nn ? nn : 1) * sizeof *pb);
-    if (!tk || !d || !pb) {
-        free(tk);
-        free(d);
-        free(pb);
-        return -1;
-    }
-#pragma omp parallel for schedule(dynamic, 64)
-    for (long r = 0; r < (long)c->R->n; r++)
-        taken(c, (uint32_t)r, tk);
-    for (size_t i = 0; i < c->nln; i++) { /* serial: the sums in one order */
-        const hlink *l = &c->ln[i];
-        const double *t = tk + 4 * (size_t)l->r;
-        double w = t[0];
-        float sh[3];
-        if (c->el[l->r].child != NONE && link_shape(l, sh)) /* as the gather reads it */
-            w += sh[0] * t[1] + sh[1] * t[2] + sh[2] * t[3];
-        double g = (double)link_g(l) * w;
-        if (l->s & CLB)
-            d[c->nel + CL(l->s)] += g;
-        else
-            d[l->s] += c->el[l->s].area > 0 ? g / c->el[l->s].area : 0.0;
-    }
-    free(tk);
-    double w;
-    int all;
-    out_power(c, c->top, pb, &w, &all);
-    sent_down(c, c->top, rr_rgb_make(0, 0, 0), d, pb, sent);
-    free(pb);
-    free(d);
-    return 0;
-}
-
 /* The leaves as sol's patch set (roots: the root patches, owned from here
  * on), their B, and the gathers the ledger and the hybrid read. */
 rr_status rad__hier_output(hctx *c, rad_patches *roots, rad_solution *sol, rr_error *err)
@@ -834,24 +712,24 @@ rr_status rad__hier_output(hctx *c, rad_patches *roots, rad_solution *sol, rr_er
     for (size_t i = 0; i < nleaf; i++)
         Hind[i] = c->el[leaf[i]].H;
     free(grp);
-    /* The ledger's escaped column, B A (1 - fsum) (A its open area), from
-     * the share each leaf sends (sent_shares). */
-    rr_rgb *sent = malloc((c->nel ? c->nel : 1) * sizeof *sent);
-    if (!sent || sent_shares(c, sent) != 0) {
-        free(sent);
+    /* The ledger's escaped column, B A (1 - fsum) (A its open area): fsum,
+     * the share of a leaf's B that its links deliver, cs D (column_sums:
+     * the total is the gather's; read from each leaf's own row sum, the
+     * ledger balanced only where the links are reciprocal, which they are
+     * not: Cornell 7.8e-4 off, a closed room with a lamp of reflectance 0
+     * 2.6 %). */
+    double *D = malloc((c->nel ? c->nel : 1) * sizeof *D);
+    if (!D || column_sums(c, D) != 0) {
+        free(D);
         free(leaf);
         free(Hind);
         return rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory", c->s->path);
     }
     for (size_t i = 0; i < nleaf; i++) {
         const hel *e = &c->el[leaf[i]];
-        /* sent is per unit of what the leaf sends (set_leaf_src); fsum per unit of its B */
-        rr_rgb B = e->B, S = rr_rgb_mul(B, c->cs), t = sent[leaf[i]];
-        rr_rgb f = rr_rgb_make(B.r > 0 ? t.r * S.r / B.r : 0.0, B.g > 0 ? t.g * S.g / B.g : 0.0,
-                               B.b > 0 ? t.b * S.b / B.b : 0.0);
-        sol->hier_fsum[i] = e->open > 0 ? f : rr_rgb_make(0, 0, 0);
+        sol->hier_fsum[i] = e->open > 0 ? rr_rgb_scale(c->cs, D[leaf[i]]) : rr_rgb_make(0, 0, 0);
     }
-    free(sent);
+    free(D);
     free(leaf);
     st = rad__to_vertices(sol->P, sol->B, 0, sol->vertex_B) != RR_OK ||
                  rad__to_vertices(sol->P, Hind, RAD_HIND_SWEEPS, sol->vertex_Hind) != RR_OK

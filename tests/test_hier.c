@@ -214,7 +214,7 @@ static void test_mirror_method(void **state)
 
 /* The ledger's balance, emitted = absorbed + escaped, for hierarchical
  * solutions: escaped counts what leaves each leaf through the links it
- * sends by (rad_hier_solve.c, sent_shares), so the balance is the solve's
+ * sends by (rad_hier_solve.c, column_sums), so the balance is the solve's
  * and the bookkeeping's, not the links' reciprocity (which they lack):
  * read from each leaf's own row sum it was 7.8e-4 off on Cornell and 2.6 %
  * on the mirror room (a closed room with a mirror and a lamp of
