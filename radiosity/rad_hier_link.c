@@ -138,6 +138,13 @@ static int shadow_passes(const hctx *c, const rview *rv, const hel *ey, rr_vec3 
  * the middle) holds the point of barycentrics b. */
 static int child_of(const double b[3]) { return b[0] > 0.5 ? 0 : b[1] > 0.5 ? 1 : b[2] > 0.5 ? 2 : 3; }
 
+/* Whether some near-pair point of e is open (e has open area). */
+static int near_open(const hel *e)
+{
+    const uint64_t all = NEAR_N >= 64 ? ~0ULL : (1ULL << NEAR_N) - 1;
+    return e->open > 0 && (e->nbur & all) != all;
+}
+
 static double side_ff(const hctx *c, const rview *rv, uint32_t yi, int near, rr_rng *rng, double *dF, vis_count *v,
                       double fk[4])
 {
@@ -148,14 +155,20 @@ static double side_ff(const hctx *c, const rview *rv, uint32_t yi, int near, rr_
     *dF = 0.0;
     if (nv < 3)
         return 0.0;
-    if (open_pt(ex, 0) < 0)
-        return 0.0; /* every fixed point of r is buried: it gathers nothing */
+    int pts = near; /* which points: the 4 fixed ones (0) or the near pair's (1) */
+    if (open_pt(ex, 0) < 0) {
+        /* every fixed point of r is buried: its open part (under a glazing
+         * bar's edge, say) gathers at the near pair's points that are not */
+        if (!near_open(ex))
+            return 0.0;
+        pts = 1;
+    }
     double b[NEAR_N][3];
-    int np = quad_points(near, b), nopen = 0;
+    int np = quad_points(pts, b), nopen = 0;
     double sum = 0.0, lo = INFINITY, hi = 0.0;
     for (int k = 0; k < np; k++) {
         rr_vec3 x = tri_at(rv->c, b[k][0], b[k][1], b[k][2]);
-        if (near ? (ex->nbur >> k) & 1 : (ex->bur >> k) & 1)
+        if (pts ? (ex->nbur >> k) & 1 : (ex->bur >> k) & 1)
             continue; /* a buried point of r gathers nothing that its open part gets */
         nopen++;
         double f = rr_v3_dot(ny, rr_v3_sub(x, ey->ctr)) > c->plane_tol ? rad_ff_point_polygon(x, nx, poly, nv) : 0.0;
@@ -179,6 +192,20 @@ static void near_vis(const hctx *c, const rview *rv, uint32_t yi, rr_rng *rng, v
     int nv = rad__clip_front(ey->c, nx, rv->ctr, c->plane_tol, poly);
     if (nv < 3)
         return;
+    if (open_pt(ex, 0) < 0) { /* no open fixed point: VIS_RAYS of the open near-pair points, spread */
+        double b[NEAR_N][3];
+        int np = quad_points(1, b), idx[NEAR_N], m = 0;
+        for (int k = 0; k < np; k++)
+            if (!((ex->nbur >> k) & 1))
+                idx[m++] = k;
+        for (int j = 0; j < VIS_RAYS && j < m; j++) {
+            int k = idx[j * m / VIS_RAYS];
+            rr_vec3 x = tri_at(rv->c, b[k][0], b[k][1], b[k][2]);
+            if (rr_v3_dot(ny, rr_v3_sub(x, ey->ctr)) > c->plane_tol)
+                shadow_passes(c, rv, ey, x, poly, nv, (uint32_t)k, rng, v);
+        }
+        return;
+    }
     for (int k = 0; k < VIS_RAYS; k++) {
         rr_vec3 x = tri_at(rv->c, k_pts[k][0], k_pts[k][1], k_pts[k][2]);
         if (!(ex->bur & (1u << k)) && rr_v3_dot(ny, rr_v3_sub(x, ey->ctr)) > c->plane_tol)
