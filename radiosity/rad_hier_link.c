@@ -198,8 +198,9 @@ static void near_vis(const hctx *c, const rview *rv, uint32_t yi, rr_rng *rng, v
         for (int k = 0; k < np; k++)
             if (!((ex->nbur >> k) & 1))
                 idx[m++] = k;
-        for (int j = 0; j < VIS_RAYS && j < m; j++) {
-            int k = idx[j * m / VIS_RAYS];
+        int n = m < VIS_RAYS ? m : VIS_RAYS;
+        for (int j = 0; j < n; j++) {
+            int k = idx[j * m / n];
             rr_vec3 x = tri_at(rv->c, b[k][0], b[k][1], b[k][2]);
             if (rr_v3_dot(ny, rr_v3_sub(x, ey->ctr)) > c->plane_tol)
                 shadow_passes(c, rv, ey, x, poly, nv, (uint32_t)k, rng, v);
