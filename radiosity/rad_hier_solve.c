@@ -222,7 +222,8 @@ static rr_rgb pull_cl(hctx *c, uint32_t x, nbuckets *Dn)
  * nothing: the ledger and the display give it no area, yet links with a
  * few visible rays carried its B (Cornell: 15 such nodes sent 2e-6 of the
  * power that no open area accounted for, and the ledger's balance was
- * 5.7e-6 off; 1.4e-8 since). */
+ * 5.7e-6 off; 1.4e-8 since). What leaves send is their B times the column
+ * scale cs (column_scale; B = 1 sources are not scaled). */
 static void set_leaf_src(hel *e, int unit, int indirect, const rad_patch *own, rr_rgb cs)
 {
     if (!unit && !(e->open > 0))
@@ -510,9 +511,9 @@ static int column_sums(const hctx *c, double *D)
     return 0;
 }
 
-/* The column scale for the current B: what the links deliver of the light
- * the leaves reflect (B - emission, over their open areas) is scaled to
- * what rays from the leaves say lands on surfaces (hel.land), where nearly
+/* The column scale for the current B: what the links deliver of the
+ * leaves' light (B over their open areas) is scaled to what rays from the
+ * leaves say lands on surfaces (hel.land), where nearly
  * all of it does (CS_OPEN): there the rays' share is 1 but for a few
  * leaves, and exact, while the links lose (or make) a fraction of a
  * percent where they read a source or a receiver at mixed levels of its
