@@ -229,7 +229,7 @@ typedef struct hctx {
     int by_memory;    /* the cap reached was max_bytes (the messages name --max-memory) */
     int first, over; /* the first walk (rad_hier.c, first_refine) stops when it reaches the cap (over) */
     int unit;       /* the sources are B = 1 (rad__hier_sources): gathers read hlink.ga */
-    rr_rgb cs;      /* the leaves' reflected light is sent times cs: the column scale (rad__hier_solve) */
+    rr_rgb cs;      /* what the leaves send is their B times cs: the column scale (rad__hier_solve) */
     double ext, plane_tol;
     uint64_t seed;
     uint64_t draw;  /* which shadow rays the links draw: 0 while refining, ESTIMATE_DRAW for the estimate */
