@@ -288,8 +288,8 @@ static void test_ledger_balance(void **state)
  * deliver (sol->hier_fsum); the faces lying against the one-sided walls
  * (the shelf's back panel on the back wall) see nothing and keep B = E (a
  * known gap, rad_hier.c). Over those, weighted by area: the mean within 1 %
- * and the 5th percentile within 6 %. Measured: mean -0.58 %, 5th percentile
- * -3.85 % (-0.60 %, -4.0 % before the column scale, rad_hier_solve.c;
+ * and the 5th percentile within 6 %. Measured: mean -0.56 %, 5th percentile
+ * -3.83 % (-0.60 %, -4.0 % before the column scale, rad_hier_solve.c;
  * -0.74 %, -4.2 % while interior elements sent the mean of their
  * leaves over their whole area, buried ones included; -0.41 %, -3.9 % while
  * hier_fsum was each leaf's own row sum: the same solution, other leaves
