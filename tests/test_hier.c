@@ -226,17 +226,9 @@ static void test_mirror_method(void **state)
  * (radray energy --check; test_energy). */
 static void ledger_balance(const char *name, double tol, double escaped_tol)
 {
-    char path[512], m[] = "radiosity.method=hierarchical";
-    snprintf(path, sizeof path, "%s/scenes/%s", RR_SOURCE_DIR, name);
-    const char *over[1] = {m};
-    scene_load_opts lo;
-    memset(&lo, 0, sizeof lo);
-    lo.overrides = over;
-    lo.noverrides = 1;
-    scene *s = NULL;
+    const char *over[1] = {"radiosity.method=hierarchical"};
+    scene *s = test_shipped_scene(name, over, 1);
     rr_error err;
-    if (scene_load(path, &lo, &s, &err) != RR_OK)
-        fail_msg("%s", err.msg);
     rt_accel *a = NULL;
     rad_solution *sol = run(s, &a);
     rad_energy_row *rows = NULL;
@@ -320,16 +312,7 @@ static void test_furnace_room(void **state)
     }
     snprintf(set[NM], sizeof set[NM], "radiosity.method=hierarchical");
     over[NM] = set[NM];
-    char path[512];
-    snprintf(path, sizeof path, "%s/scenes/room.json", RR_SOURCE_DIR);
-    scene_load_opts lo;
-    memset(&lo, 0, sizeof lo);
-    lo.overrides = over;
-    lo.noverrides = NM + 1;
-    scene *s = NULL;
-    rr_error err;
-    if (scene_load(path, &lo, &s, &err) != RR_OK)
-        fail_msg("%s", err.msg);
+    scene *s = test_shipped_scene("room.json", over, NM + 1);
     for (size_t m = 0; m < s->nmaterials; m++) /* room.json has no material the list above misses */
         if (s->materials[m].diffuse.g != 0.5 || s->materials[m].emission.g != 0.5 || s->materials[m].mirror.g != 0)
             fail_msg("room.json: material '%s' is not in this test's list", s->materials[m].name);
@@ -460,19 +443,12 @@ typedef struct cornell_run {
 static int cornell_means_run(const char *method, cornell_run *cr, double mean[16], char *msg, size_t cap)
 {
     int max_links = cr->max_links;
-    char path[512], m[64], ml[64];
-    snprintf(path, sizeof path, "%s/scenes/cornell.json", RR_SOURCE_DIR);
+    char m[64], ml[64];
     snprintf(m, sizeof m, "radiosity.method=%s", method);
     snprintf(ml, sizeof ml, "radiosity.max_links=%d", max_links);
     const char *over[2] = {m, ml};
-    scene_load_opts lo;
-    memset(&lo, 0, sizeof lo);
-    lo.overrides = over;
-    lo.noverrides = max_links ? 2 : 1;
-    scene *s = NULL;
+    scene *s = test_shipped_scene("cornell.json", over, max_links ? 2 : 1);
     rr_error err;
-    if (scene_load(path, &lo, &s, &err) != RR_OK)
-        fail_msg("%s", err.msg);
     assert_true(s->nobjects <= 16);
     rt_accel *a = NULL;
     assert_int_equal(rt_accel_build(s, &a, NULL), RR_OK);

@@ -70,6 +70,23 @@ static inline scene *test_doc_scene(const char *heading, const char *name)
     return s;
 }
 
+/* Loads scenes/<rel> of the source tree with the n --set style overrides
+ * over; fails the test when it does not load. Include after cmocka.h. */
+static inline scene *test_shipped_scene(const char *rel, const char *const *over, size_t n)
+{
+    char path[512];
+    snprintf(path, sizeof path, "%s/scenes/%s", RR_SOURCE_DIR, rel);
+    scene_load_opts lo;
+    memset(&lo, 0, sizeof lo);
+    lo.overrides = over;
+    lo.noverrides = n;
+    scene *s = NULL;
+    rr_error err;
+    if (scene_load(path, &lo, &s, &err) != RR_OK)
+        fail_msg("%s", err.msg);
+    return s;
+}
+
 /* Builds a scene JSON string with a random triangle soup and a few spheres. */
 static inline char *random_scene(rr_rng *rng, int ntri, int nsph)
 {

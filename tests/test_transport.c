@@ -37,6 +37,7 @@
 
 #include "ig.h"
 #include "rad.h"
+#include "test_scenes.h"
 #include "test_world.h"
 
 /* An integrator of the table (integrator/ig.h) by name. */
@@ -665,17 +666,11 @@ static void block_error(const rr_image *t, const rr_image *r, double *median, do
 static void test_hierarchical_cornell_blocks(void **state)
 {
     (void)state;
-    char path[512];
-    snprintf(path, sizeof path, "%s/scenes/cornell.json", RR_SOURCE_DIR);
     const char *over[] = {"radiosity.method=hierarchical"};
-    scene_load_opts lo;
-    memset(&lo, 0, sizeof lo);
-    lo.overrides = over;
-    lo.noverrides = 1;
-    scene *s = NULL;
+    scene *s = test_shipped_scene("cornell.json", over, 1);
     rr_error err;
     rr_view v;
-    if (scene_load(path, &lo, &s, &err) != RR_OK || rr_view_resize(&s->view, 64, &v, &err) != RR_OK)
+    if (rr_view_resize(&s->view, 64, &v, &err) != RR_OK)
         fail_msg("%s", err.msg);
     s->view = v;
     world w;
