@@ -818,7 +818,6 @@ static rr_status hier_run(const scene *s, const rt_accel *a, const rad_pass_opts
     if (st == RR_OK && !(power > 0))
         st = rr_error_set(err, RR_ERR_INVALID, "%s: radiosity: nothing emits light", s->path);
     c.eps = c.eps_asked = tol * power;
-    double eps0 = c.eps;
     for (int round = 0; round < MAX_ROUNDS && st == RR_OK; round++) {
         rad__hier_sources(&c, 0, 0);
         if (round == 0) {
@@ -850,15 +849,15 @@ static rr_status hier_run(const scene *s, const rt_accel *a, const rad_pass_opts
         snprintf(cap, sizeof cap, "%s (what --max-memory leaves the pass)", rr_size_text(c.max_bytes, b, sizeof b));
     else
         snprintf(cap, sizeof cap, "%zu links (radiosity.max_links)", c.max_links);
-    if (st == RR_OK && c.eps > eps0)
+    if (st == RR_OK && c.eps > c.eps_asked)
         rr_warn(&o->warn, "%s: radiosity: refined to a tolerance of %g instead of %g to stay under %s: the "
                           "solution is coarser than radiosity.refine_tolerance asks",
-                s->path, tol * c.eps / eps0, tol, cap);
+                s->path, tol * c.eps / c.eps_asked, tol, cap);
     if (st == RR_OK && c.capped)
         rr_warn(&o->warn, "%s: radiosity: refinement stopped at %s: the solution is coarser than "
                           "radiosity.refine_tolerance asks",
                 s->path, cap);
-    sol->memory_bound = c.by_memory && (c.eps > eps0 || c.capped);
+    sol->memory_bound = c.by_memory && (c.eps > c.eps_asked || c.capped);
     sol->pass_bytes = rad__hier_bytes((double)c.nln, (double)c.nel, (double)c.ncl);
     sol->ff_rays = c.rays;
     sol->links = c.nln;
