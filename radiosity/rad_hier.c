@@ -557,6 +557,50 @@ static int uneven(const hctx *c, const hlink *l)
 
 
 
+/* Each element's least and most exposure over its leaves (xlo, xhi), an
+ * exposure being 1 - back, the share of a leaf's closedness rays that did
+ * not meet a surface's back; leaves with no data yet, or no open point, are
+ * left out (xlo > xhi when none is left). */
+static void exposure(hctx *c, uint32_t x)
+{
+    hel *e = &c->el[x];
+    if (e->child == NONE) {
+        int known = !e->fresh && e->back >= 0.0f;
+        e->xlo = known ? 1.0f - e->back : 1.0f;
+        e->xhi = known ? 1.0f - e->back : 0.0f;
+        return;
+    }
+    e->xlo = 1.0f;
+    e->xhi = 0.0f;
+    for (uint32_t k = 0; k < 4; k++) {
+        exposure(c, e->child + k);
+        e->xlo = fminf(e->xlo, c->el[e->child + k].xlo);
+        e->xhi = fmaxf(e->xhi, c->el[e->child + k].xhi);
+    }
+}
+
+static void exposures(hctx *c)
+{
+#pragma omp parallel for schedule(dynamic, 64)
+    for (long r = 0; r < (long)c->R->n; r++)
+        exposure(c, (uint32_t)r);
+}
+
+/* Receiver r's leaves are exposed unevenly: some see the backs of
+ * surfaces close by (the ceiling in the gap over a lamp, whose back faces
+ * it), others do not. No light comes from a surface's back, so those
+ * leaves take in less from every source than the link's shadow rays, from
+ * r's fixed points, say; the link goes to r's children while the
+ * difference can carry VIS_SHARE of eps, as a partly visible link does. */
+static int unevenly_exposed(const hctx *c, const hlink *l)
+{
+    if (l->r & CLB)
+        return 0;
+    const hel *e = &c->el[l->r];
+    return e->child != NONE && e->xhi > e->xlo &&
+           (e->xhi - e->xlo) * link_power(c, l->r, l->s, link_way(l)) > VIS_SHARE * c->eps;
+}
+
 /* Receiver r has an open part but all four of its fixed points, where it
  * gathers, are buried: it cannot stand for that part (which would gather
  * nothing), so its links go to its children. */
@@ -597,6 +641,7 @@ static rr_status settle(hctx *c, void (*progress)(void *, size_t, size_t), void 
         }
         /* Partly visible links that carry enough split once more (which,
          * decided in parallel: splitting changes no node a test reads). */
+        exposures(c);
         size_t keep = lo;
         c->first_new = c->nln;
         size_t old_end = c->nln;
@@ -606,7 +651,7 @@ static rr_status settle(hctx *c, void (*progress)(void *, size_t, size_t), void 
 #pragma omp parallel for schedule(static)
         for (long i = (long)lo; i < (long)old_end; i++) {
             const hlink *l = &c->ln[i];
-            want[i - (long)lo] = uneven(c, l) || unrepresented(c, l->r) ||
+            want[i - (long)lo] = uneven(c, l) || unrepresented(c, l->r) || unevenly_exposed(c, l) ||
                                  (l->vis > 0 && l->vis < VIS_ONE &&
                                   link_power(c, l->r, l->s, link_way(l)) > VIS_SHARE * c->eps);
         }
@@ -666,6 +711,7 @@ static int relink(hctx *c)
     }
     /* 1: too much power (split the larger end); 2: uneven or partly hidden
      * (split the receiver first), as settle tests new links. */
+    exposures(c);
 #pragma omp parallel for schedule(static)
     for (long i = 0; i < (long)n; i++) {
         const hlink *l = &c->ln[i];
@@ -673,7 +719,7 @@ static int relink(hctx *c)
             split[i] = 0;
         else if (link_power(c, l->r, l->s, link_way(l)) > c->eps)
             split[i] = 1;
-        else if (uneven(c, l) || unrepresented(c, l->r) ||
+        else if (uneven(c, l) || unrepresented(c, l->r) || unevenly_exposed(c, l) ||
                  (l->vis > 0 && l->vis < VIS_ONE && link_power(c, l->r, l->s, link_way(l)) > VIS_SHARE * c->eps))
             split[i] = 2;
     }

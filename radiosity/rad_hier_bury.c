@@ -80,7 +80,7 @@ static void leaf_data(const hctx *c, uint32_t x)
                  : rr_rgb_make(0, 0, 0);
     e->E = rr_rgb_add(rp->emission, rr_rgb_mul(rp->rho, e->H0));
     rr_rng rng = rr_rng_make(c->seed ^ 0x9e3779b97f4a7c15ULL, x);
-    int any = open_pt(e, 0) >= 0, landed = 0; /* from its open points */
+    int any = open_pt(e, 0) >= 0, landed = 0, back = 0; /* from its open points */
     for (int k = 0; k < CLOSED_RAYS && any; k++) {
         rr_vec3 xs, ns;
         int q = open_pt(e, k);
@@ -90,10 +90,14 @@ static void leaf_data(const hctx *c, uint32_t x)
         rr_vec3 dir = rad_ff_cosine_dir(ns, u1, u2);
         rr_ray ray = {rt_offset_origin(c->ext, xs, ns, dir), dir};
         rt_hit h;
-        landed += rt_accel_closest(c->a, ray, 0.0, INFINITY, &h) && h.front;
+        if (rt_accel_closest(c->a, ray, 0.0, INFINITY, &h)) {
+            landed += h.front;
+            back += !h.front;
+        }
     }
     e->closed = any && landed == CLOSED_RAYS;
     e->land = any ? (float)landed / CLOSED_RAYS : -1.0f;
+    e->back = any ? (float)back / CLOSED_RAYS : -1.0f;
     e->fresh = 0;
 }
 

@@ -27,6 +27,8 @@ typedef struct hel {
     rr_rgb Hc[3];   /* what its links send its corners beyond their mean (hlink.sh): a linear field, gathered with H */
     double k;       /* leaf: row-sum scale */
     float land;     /* leaf: the share of its closedness rays that landed on fronts; -1: it has no open point */
+    float back;     /* leaf: the share that met a surface's back (no light comes from there); -1 as land */
+    float xlo, xhi; /* the least and most of 1 - back over its leaves (rad__hier_exposure) */
     int partial;    /* it has a partly visible link (rad__hier_gather of B = 1) */
 } hel;
 
