@@ -183,6 +183,7 @@
 #include "rad_hier_internal.h"
 #include "rad_pass_internal.h"
 #include "rad_ff_internal.h"
+#include "rad_solve_internal.h"
 
 #define MAX_ROUNDS 3
 #define VIS_SHARE 0.125 /* partly visible links are split down to eps times this */
@@ -810,6 +811,10 @@ static rr_status hier_run(const scene *s, const rt_accel *a, const rad_pass_opts
     rad_patches *roots = NULL;
     rt_lights *L = NULL;
     rr_status st = rad_patches_build(s, &po, &roots, err);
+    if (st == RR_OK && (st = rad_reflectance_check(roots, o->solve.allow_rho_ge_1, err)) != RR_OK) {
+        rad_patches_destroy(roots);
+        roots = NULL;
+    }
     /* ways by mirrors: planar ones only (rad__pass_method sends scenes with a
      * curved one to the flat method), up to render.max_depth of them in turn */
     int depth = o->ff.mirror_depth > 0 ? o->ff.mirror_depth : s->settings.max_depth; /* as the flat pass's */

@@ -349,7 +349,7 @@ static double push_el(hctx *c, uint32_t x, rr_rgb Hin, const rr_rgb Din[3], int 
          * shadow rays per partly visible link make it noise (9 % RMS per
          * leaf in room.json), and 1 / sigma of noise is biased (+2 %). */
         double sigma = (H.r + H.g + H.b) / 3.0;
-        e->k = e->closed && !partial && sigma > 0 ? 1.0 / sigma : 1.0;
+        e->k = c->el[e->root].shut && !partial && sigma > 0 ? 1.0 / sigma : 1.0;
         return 0.0;
     }
     H = rr_rgb_scale(H, e->k);
@@ -363,8 +363,35 @@ static double push_el(hctx *c, uint32_t x, rr_rgb Hin, const rr_rgb Din[3], int 
     return d;
 }
 
+/* Whether all of element x's leaves with closedness rays are closed. */
+static int all_closed(const hctx *c, uint32_t x)
+{
+    const hel *e = &c->el[x];
+    if (e->child == NONE)
+        return e->closed || e->land < 0.0f;
+    for (uint32_t k = 0; k < 4; k++)
+        if (!all_closed(c, e->child + k))
+            return 0;
+    return 1;
+}
+
+/* hel.shut of every root: its leaves' closedness rays, all of them, landed
+ * on fronts. A leaf's 16 alone decided k before: where a share f of its
+ * hemisphere is open they all land with probability (1 - f)^16, and then
+ * 1 / sigma scales its row up by 1 / (1 - f), up to 2.4 % on average at
+ * f = 1 / 16 (a box's underside 0.5 over a wide lamp, f 0.036: +1.6 %
+ * against the closed form). A root's leaves shoot some hundreds. */
+static void roots_shut(hctx *c)
+{
+#pragma omp parallel for schedule(dynamic, 64)
+    for (long r = 0; r < (long)c->R->n; r++)
+        c->el[r].shut = all_closed(c, (uint32_t)r) && (c->el[r].child != NONE || c->el[r].closed);
+}
+
 double rad__hier_push(hctx *c, push_mode mode)
 {
+    if (mode == PUSH_SIGMA)
+        roots_shut(c);
     size_t nr = c->R->n;
     double m = 0.0;
 #pragma omp parallel for schedule(dynamic, 64) reduction(max : m)

@@ -101,13 +101,11 @@ rr_status rad_system_check(const rad_patches *P, const rad_ff *F, rr_error *err)
     return RR_OK;
 }
 
-/* The physical conditions for a unique non-negative solution. */
-static rr_status check_physics(const rad_patches *P, int allow_rho_ge_1, rr_error *err)
+rr_status rad_reflectance_check(const rad_patches *P, int allow_rho_ge_1, rr_error *err)
 {
-    int emits = 0;
-    for (size_t i = 0; i < P->n; i++) {
+    for (size_t i = 0; i < P->n && !allow_rho_ge_1; i++) {
         const rad_patch *p = &P->p[i];
-        for (int c = 0; c < 3 && !allow_rho_ge_1; c++) {
+        for (int c = 0; c < 3; c++) {
             double rho = rad_rgb_get(p->rho, c);
             if (rho >= 1.0)
                 return rr_error_set(err, RR_ERR_INVALID,
@@ -116,9 +114,20 @@ static rr_status check_physics(const rad_patches *P, int allow_rho_ge_1, rr_erro
                                     "it receives)",
                                     i, (unsigned)p->object, rad_channel_name(c), rho);
         }
-        if (rr_rgb_max(p->emission) > 0.0)
-            emits = 1;
     }
+    return RR_OK;
+}
+
+/* The physical conditions for a unique non-negative solution. */
+static rr_status check_physics(const rad_patches *P, int allow_rho_ge_1, rr_error *err)
+{
+    rr_status st = rad_reflectance_check(P, allow_rho_ge_1, err);
+    if (st != RR_OK)
+        return st;
+    int emits = 0;
+    for (size_t i = 0; i < P->n; i++)
+        if (rr_rgb_max(P->p[i].emission) > 0.0)
+            emits = 1;
     if (!emits)
         return rr_error_set(err, RR_ERR_INVALID,
                             "no patch emits light and no point or directional light reaches a patch's front: "
