@@ -55,13 +55,16 @@ static const char render_usage[] =
     "                         radiosity solution (or --radiosity-cache) for all of them\n"
     "      --reproducible     leave the timings out of the EXR header, so that the file's\n"
     "                         bytes depend on the inputs alone (any thread or rank count)\n"
-    "radiosity options (override the scene's \"radiosity\" block):\n"
-    "      --patch-area A     largest patch area (scene units squared)\n"
+    "radiosity options (override the scene's \"radiosity\" block; the method is hierarchical\n"
+    "unless --set radiosity.method=flat, and the flat method's options say so):\n"
+    "      --patch-area A     largest patch area (scene units squared; hierarchical: its roots\n"
+    "                         are 16 times that, its leaves refined on demand)\n"
     "      --patch-edge L     longest patch edge\n"
-    "      --solver S         auto, direct (CHOLMOD) or iterative (Gauss-Seidel)\n"
-    "      --ff METHOD        form factors: montecarlo or quadrature\n"
-    "      --ff-samples N     rays or sample points per patch\n"
-    "      --plot FILE        write the solver's convergence (residual per iteration) as PNG or SVG\n"
+    "      --solver S         flat: auto, direct (CHOLMOD) or iterative (Gauss-Seidel)\n"
+    "      --ff METHOD        flat: form factors by montecarlo or quadrature\n"
+    "      --ff-samples N     flat: rays or sample points per patch\n"
+    "      --plot FILE        write the solver's convergence (residual per iteration; hierarchical:\n"
+    "                         the last solve's largest change per sweep) as PNG or SVG\n"
     "      --radiosity-cache FILE  reuse the radiosity solution saved in FILE (made there when\n"
     "                         missing); one made for another scene or other settings is refused\n"
     "      --set KEY=VALUE    override any scene value by its JSON path, e.g.\n"
@@ -413,7 +416,10 @@ static int write_plot(const render_args *A, const rad_solution *sol)
     }
     char title[128];
     rr_error err;
-    snprintf(title, sizeof title, "Gauss-Seidel residual, %zu patches", sol->P->n);
+    if (sol->P->roots) /* hierarchical: its last solve's Jacobi sweeps */
+        snprintf(title, sizeof title, "Jacobi sweeps' largest change, %zu leaves (hierarchical)", sol->P->n);
+    else
+        snprintf(title, sizeof title, "Gauss-Seidel residual, %zu patches", sol->P->n);
     if (app_plot_residuals(A->plot, sol->stats.history, sol->stats.nhistory, title, &err) != 0) {
         app_error("%s", err.msg);
         return -1;

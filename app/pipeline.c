@@ -38,9 +38,32 @@ const char *app_option_key(const char *option)
     return NULL;
 }
 
+/* Options that choose how the flat method computes and solves (--solver,
+ * --ff, --ff-samples, or --set of their keys), given for a scene that takes
+ * the hierarchical one: said once, since they change nothing there. */
+static void warn_flat_only(const scene *s, const scene_load_opts *lo)
+{
+    static const char *const flat_keys[] = {"radiosity.solver", "radiosity.form_factors", "radiosity.ff_samples"};
+    if (s->radiosity.method != SCENE_RAD_HIERARCHICAL)
+        return;
+    for (size_t i = 0; i < lo->noverrides; i++)
+        for (size_t k = 0; k < sizeof flat_keys / sizeof flat_keys[0]; k++) {
+            size_t n = strlen(flat_keys[k]);
+            if (!strncmp(lo->overrides[i], flat_keys[k], n) && lo->overrides[i][n] == '=') {
+                rr_warn(&lo->warn,
+                        "%s: %s applies to the flat radiosity method; this scene takes the hierarchical one (the "
+                        "default), which it does not change: add --set radiosity.method=flat",
+                        s->path, flat_keys[k]);
+                return;
+            }
+        }
+}
+
 rr_status app_scene_load(const char *path, const scene_load_opts *lo, scene **out, rr_error *err)
 {
     rr_status st = scene_load(path, lo, out, err);
+    if (st == RR_OK)
+        warn_flat_only(*out, lo);
     if (st == RR_OK || !err)
         return st;
     /* A message "<path>: <key>..." about a key an override set is about the

@@ -11,7 +11,7 @@
  *   rad_ff_compute     sparse form factors F_ij with visibility (BVH rays)
  *   rad_solve          B per patch and channel (CHOLMOD, or Gauss-Seidel)
  *   rad_energy         where the emitted power went
- * or, with radiosity.method "hierarchical" (rad_hier.c, opt-in), elements
+ * or, with radiosity.method "hierarchical" (rad_hier.c, the default), elements
  * refined on demand under clusters and links in place of the three middle
  * steps (links by way of chains of planar mirrors too; a scene with a curved
  * mirror takes the flat method, with a warning); its leaves are a

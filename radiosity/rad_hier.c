@@ -1,5 +1,5 @@
 /* rad_hier.c - hierarchical radiosity with clustering, the radiosity pass's
- * method "hierarchical" (opt-in: the flat one is still the default) (Hanrahan, Salzman & Aupperle 1991; clusters after
+ * method "hierarchical", the default (the flat one: radiosity.method "flat") (Hanrahan, Salzman & Aupperle 1991; clusters after
  * Smits, Arvo & Greenberg 1994 and Sillion 1995). notes/radiosity.md has the
  * design and the measurements.
  *

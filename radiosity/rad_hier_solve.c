@@ -573,6 +573,20 @@ static rr_rgb column_scale(const hctx *c, const double *D)
     return rr_rgb_make(f[0], f[1], f[2]);
 }
 
+/* r appended to st's history (the --plot of the last solve); -1 when out
+ * of memory. */
+static int add_history(rad_solve_stats *st, double r)
+{
+    if ((st->nhistory & (st->nhistory - 1)) == 0) { /* 0, 1, 2, 4, ...: grown at powers of two */
+        double *h = realloc(st->history, (size_t)(st->nhistory ? 2 * st->nhistory : 1) * sizeof *h);
+        if (!h)
+            return -1;
+        st->history = h;
+    }
+    st->history[st->nhistory++] = r;
+    return 0;
+}
+
 #define EXTRAPOLATE_MAX 0.99 /* no extrapolation where the error decays slower than this per two sweeps */
 
 /* Row sums (k), then Jacobi sweeps to the tolerance. */
@@ -604,6 +618,9 @@ rr_status rad__hier_solve(hctx *c, const rad_solve_opts *so, rad_solve_stats *st
         return rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory", c->s->path);
     }
     st->iterations = 0;
+    free(st->history); /* the last solve's sweeps are the ones plotted */
+    st->history = NULL;
+    st->nhistory = 0;
     double dh[4] = {0, 0, 0, 0}; /* the last four sweeps' largest changes, newest last */
     int since = 0;
     for (int it = 0; it < maxit; it++) {
@@ -623,6 +640,12 @@ rr_status rad__hier_solve(hctx *c, const rad_solve_opts *so, rad_solve_stats *st
         double d = rad__hier_push(c, PUSH_SOLVE), bmax = leaves_max_B(c);
         st->iterations = it + 1;
         st->residual = bmax > 0 ? d / bmax : 0.0;
+        if (add_history(st, st->residual) != 0) {
+            free(D);
+            free(Bh);
+            free(grp);
+            return rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory", c->s->path);
+        }
         if (!isfinite(st->residual) || !isfinite(bmax)) {
             /* a transport that creates light diverges: say so, at once,
              * instead of sweeping to the iteration limit */

@@ -174,7 +174,7 @@ typedef struct scene_settings {
 typedef enum scene_rad_solver { SCENE_RAD_AUTO = 0, SCENE_RAD_DIRECT = 1, SCENE_RAD_ITERATIVE = 2 } scene_rad_solver;
 typedef enum scene_rad_ff { SCENE_FF_MONTE_CARLO = 0, SCENE_FF_QUADRATURE = 1 } scene_rad_ff;
 typedef enum scene_rad_method { SCENE_RAD_HIERARCHICAL = 0, SCENE_RAD_FLAT = 1 } scene_rad_method;
-#define SCENE_RAD_DEFAULT_METHOD SCENE_RAD_FLAT
+#define SCENE_RAD_DEFAULT_METHOD SCENE_RAD_HIERARCHICAL
 
 typedef struct scene_radiosity {
     double patch_area;      /* largest patch area; 0 = automatic (surface area / 2000) */

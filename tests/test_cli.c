@@ -519,14 +519,23 @@ static void energy_ledger(void **state)
     const char *e[] = {"render", sc, "--mode", "radiosty", NULL};
     assert_int_equal(run(e), 2);
     assert_non_null(strstr(g_out, "--mode"));
-    /* Radiosity display with a convergence plot. */
+    /* Radiosity display with a convergence plot: the flat method's
+     * Gauss-Seidel sweeps, then the hierarchical method's Jacobi sweeps (the
+     * default), where --solver changes nothing and says so. */
     char out[256], plot[256];
     snprintf(out, sizeof out, "%s/rad.exr", g_dir);
     snprintf(plot, sizeof plot, "%s/conv.svg", g_dir);
     const char *f[] = {"render", cornell, "--mode", "radiosity", "--width", "21", "--patch-area", "4000",
-                       "--solver", "iterative", "--plot", plot, "-o", out, NULL};
+                       "--solver", "iterative", "--set", "radiosity.method=flat", "--plot", plot, "-o", out, NULL};
     assert_int_equal(run(f), 0);
     assert_true(exists("rad.exr") && exists("conv.svg"));
+    assert_null(strstr(g_out, "applies to the flat radiosity method"));
+    assert_int_equal(remove(plot), 0);
+    const char *g[] = {"render", cornell, "--mode", "radiosity", "--width", "21", "--solver", "iterative",
+                       "--plot",  plot,    "-o",     out,         NULL};
+    assert_int_equal(run(g), 0);
+    assert_true(exists("conv.svg"));
+    assert_non_null(strstr(g_out, "radiosity.solver applies to the flat radiosity method"));
     rr_image im = {0};
     assert_int_equal(img_read_exr(out, "radiosity", &im, NULL), RR_OK);
     assert_true(rr_image_get(&im, 10, 10).r > 0.0);
