@@ -51,6 +51,31 @@ static int reaches_off(const rt_mirror_plane *q, const rt_mirror_plane *p, doubl
     return 0;
 }
 
+/* Whether light can go from mirror plane a to mirror plane b. Mirrors
+ * reflect on both sides, so some of each must lie off the other's plane;
+ * but the back of a closed object's surface faces its sealed inside, where
+ * no light is: there the other must reach the front. A framed mirror made
+ * as a closed box (scenes/interior.json: 6 planes) gave chains of up to 5
+ * of its faces by way of its inside, 514 of them past WAYS_MAX (127) and
+ * left out with a warning; now its 6 planes are its only ways. */
+static int passes_light(const hctx *c, const rt_mirror_plane *a, const rt_mirror_plane *b, double tol)
+{
+    if (!reaches_off(a, b, tol) || !reaches_off(b, a, tol))
+        return 0;
+    const rt_mirror_plane *pair[2][2] = {{a, b}, {b, a}};
+    for (int k = 0; k < 2; k++) {
+        const rt_mirror_plane *q = pair[k][0], *p = pair[k][1];
+        if (!scene_object_closed(c->s, q->object))
+            continue;
+        int front = 0;
+        for (size_t i = 0; i < p->nverts && !front; i++)
+            front = rr_v3_dot(q->n, p->verts[i]) - q->d > tol;
+        if (!front)
+            return 0;
+    }
+    return 1;
+}
+
 /* The maps of way g from its planes (g->n, g->plane, g->win set). */
 static void way_maps(himg *g, const rt_mirror_plane *pl)
 {
@@ -110,7 +135,7 @@ int rad__hier_ways(hctx *c, const rt_lights *M, int depth, size_t *dropped)
             for (size_t k = 0; k < np; k++) {
                 uint32_t last = c->img[i].plane[len - 2];
                 if (k == last || !(pl[k].reflectance > 0) || pl[k].nverts == 0 ||
-                    !reaches_off(&pl[last], &pl[k], tol) || !reaches_off(&pl[k], &pl[last], tol))
+                    !passes_light(c, &pl[last], &pl[k], tol))
                     continue;
                 if (c->nimg == WAYS_MAX) {
                     (*dropped)++;

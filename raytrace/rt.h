@@ -447,6 +447,7 @@ typedef struct rt_mirror_plane {
     double reflectance;
     const rr_vec3 *verts;
     size_t nverts;
+    uint32_t object;   /* the scene object its triangles belong to */
 } rt_mirror_plane;
 rt_mirror_plane rt_lights_plane(const rt_lights *L, size_t k);
 /* The shadow-ray rule (rt_visible) folded at the mirror planes chain[0 ..

@@ -43,6 +43,6 @@ rt_mirror_kind rt_scene_mirror_kind(const scene *s)
 rt_mirror_plane rt_lights_plane(const rt_lights *L, size_t k)
 {
     const mplane *q = &L->planes[k];
-    rt_mirror_plane p = {q->n, q->d, q->reflectance, q->verts, q->nverts};
+    rt_mirror_plane p = {q->n, q->d, q->reflectance, q->verts, q->nverts, q->object};
     return p;
 }
