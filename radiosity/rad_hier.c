@@ -39,7 +39,9 @@
  * exceeds eps / 8, and an uneven one, rho A_r (F_max - F_min) B_s > eps over
  * the receiver's quadrature points (for cluster sources, of the geometric term
  * at its corners). Without the first, sphere-to-board's
- * shadow was as coarse as the board's roots.
+ * shadow was as coarse as the board's roots. A third splits the receiver
+ * whose leaves see the backs of surfaces unevenly (unevenly_exposed: its
+ * fixed points' rays cannot tell that the ceiling over a lamp is hidden).
  * A link with a cluster at either end is split, whatever it carries, while
  * the centres are closer than ADMISSIBLE times the sum of the radii: without
  * that, Cornell's rotated tall block came out 18.5 % dark (-2.0 % with it).
@@ -558,35 +560,6 @@ static int uneven(const hctx *c, const hlink *l)
 
 
 
-/* Each element's least and most exposure over its leaves (xlo, xhi), an
- * exposure being 1 - back, the share of a leaf's closedness rays that did
- * not meet a surface's back; leaves with no data yet, or no open point, are
- * left out (xlo > xhi when none is left). */
-static void exposure(hctx *c, uint32_t x)
-{
-    hel *e = &c->el[x];
-    if (e->child == NONE) {
-        int known = !e->fresh && e->back >= 0.0f;
-        e->xlo = known ? 1.0f - e->back : 1.0f;
-        e->xhi = known ? 1.0f - e->back : 0.0f;
-        return;
-    }
-    e->xlo = 1.0f;
-    e->xhi = 0.0f;
-    for (uint32_t k = 0; k < 4; k++) {
-        exposure(c, e->child + k);
-        e->xlo = fminf(e->xlo, c->el[e->child + k].xlo);
-        e->xhi = fmaxf(e->xhi, c->el[e->child + k].xhi);
-    }
-}
-
-static void exposures(hctx *c)
-{
-#pragma omp parallel for schedule(dynamic, 64)
-    for (long r = 0; r < (long)c->R->n; r++)
-        exposure(c, (uint32_t)r);
-}
-
 /* Receiver r's leaves are exposed unevenly: some see the backs of
  * surfaces close by (the ceiling in the gap over a lamp, whose back faces
  * it), others do not. No light comes from a surface's back, so those
@@ -642,7 +615,7 @@ static rr_status settle(hctx *c, void (*progress)(void *, size_t, size_t), void 
         }
         /* Partly visible links that carry enough split once more (which,
          * decided in parallel: splitting changes no node a test reads). */
-        exposures(c);
+        rad__hier_exposures(c);
         size_t keep = lo;
         c->first_new = c->nln;
         size_t old_end = c->nln;
@@ -712,7 +685,7 @@ static int relink(hctx *c)
     }
     /* 1: too much power (split the larger end); 2: uneven or partly hidden
      * (split the receiver first), as settle tests new links. */
-    exposures(c);
+    rad__hier_exposures(c);
 #pragma omp parallel for schedule(static)
     for (long i = 0; i < (long)n; i++) {
         const hlink *l = &c->ln[i];

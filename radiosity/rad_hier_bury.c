@@ -2,8 +2,10 @@
  * buried parts (rad_hier.c's header, "Buried parts"): which points of an
  * element lie under another surface, by the flat pass's rule
  * (rad__ff_buried, rad_ff.c), and the probes that give every element its
- * buried fixed points and open share; and a leaf's data, its first shot
- * and whether it sees a closed part of the scene ("Row sums"). */
+ * buried fixed points and open share; and a leaf's data, its first shot,
+ * whether it sees a closed part of the scene ("Row sums") and how much of
+ * it the backs of surfaces hide (the elements' exposures, read by the
+ * refinement's unevenly_exposed). */
 #include <omp.h>
 
 #include "rad_hier_ctx.h"
@@ -112,4 +114,33 @@ void rad__hier_leaves_data(hctx *c, size_t ne)
                 leaf_data(c, (uint32_t)i);
         rt_ray_counts_add_since(&c->rays, before);
     }
+}
+
+/* Each element's least and most exposure over its leaves (xlo, xhi), an
+ * exposure being 1 - back, the share of a leaf's closedness rays that did
+ * not meet a surface's back; leaves with no data yet, or no open point, are
+ * left out (xlo > xhi when none is left). */
+static void exposure(hctx *c, uint32_t x)
+{
+    hel *e = &c->el[x];
+    if (e->child == NONE) {
+        int known = !e->fresh && e->back >= 0.0f;
+        e->xlo = known ? 1.0f - e->back : 1.0f;
+        e->xhi = known ? 1.0f - e->back : 0.0f;
+        return;
+    }
+    e->xlo = 1.0f;
+    e->xhi = 0.0f;
+    for (uint32_t k = 0; k < 4; k++) {
+        exposure(c, e->child + k);
+        e->xlo = fminf(e->xlo, c->el[e->child + k].xlo);
+        e->xhi = fmaxf(e->xhi, c->el[e->child + k].xhi);
+    }
+}
+
+void rad__hier_exposures(hctx *c)
+{
+#pragma omp parallel for schedule(dynamic, 64)
+    for (long r = 0; r < (long)c->R->n; r++)
+        exposure(c, (uint32_t)r);
 }

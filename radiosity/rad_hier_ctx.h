@@ -368,8 +368,12 @@ int rad__hier_point_buried(const hctx *c, const hel *e, rr_vec3 x);
 void rad__hier_probe_new(hctx *c);
 /* The data of the fresh leaves among elements 0 .. ne - 1, in parallel:
  * their first shot (H0, E, spread) and whether their CLOSED_RAYS
- * cosine-drawn rays all land on fronts of surfaces (closed). */
+ * cosine-drawn rays all land on fronts of surfaces (closed; land, back:
+ * the shares that landed on fronts and on backs). */
 void rad__hier_leaves_data(hctx *c, size_t ne);
+/* Every element's xlo and xhi from its leaves' back shares (rad_hier.c,
+ * unevenly_exposed). */
+void rad__hier_exposures(hctx *c);
 
 /* ---- element links (rad_hier_link.c) ---- */
 

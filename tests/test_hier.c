@@ -220,6 +220,16 @@ static void test_mirror_method(void **state)
     mirror_method("a closed mirror box", mbox, 1, NULL);
 }
 
+/* The energy ledger of a solution: its rows (free()), *nrows of them. */
+static rad_energy_row *ledger(const rad_solution *sol, size_t *nrows)
+{
+    rr_error err;
+    rad_energy_row *rows = NULL;
+    if (rad_energy_solution(sol, &rows, nrows, &err) != RR_OK)
+        fail_msg("%s", err.msg);
+    return rows;
+}
+
 /* The ledger's balance, emitted = absorbed + escaped, for hierarchical
  * solutions: escaped counts what leaves each leaf through the links it
  * sends by (rad_hier_solve.c, column_sums), so the balance is the solve's
@@ -236,12 +246,10 @@ static void ledger_balance(const char *name, double tol, double escaped_tol)
 {
     const char *over[1] = {"radiosity.method=hierarchical"};
     scene *s = test_shipped_scene(name, over, 1);
-    rr_error err;
     rt_accel *a = NULL;
     rad_solution *sol = run(s, &a);
-    rad_energy_row *rows = NULL;
     size_t nrows = 0;
-    assert_int_equal(rad_energy_solution(sol, &rows, &nrows, &err), RR_OK);
+    rad_energy_row *rows = ledger(sol, &nrows);
     const rad_energy_row *t = &rows[nrows - 1];
     double worst = 0.0;
     const double e[3] = {t->emitted.r, t->emitted.g, t->emitted.b}, ab[3] = {t->absorbed.r, t->absorbed.g, t->absorbed.b},
@@ -469,12 +477,10 @@ static void test_board_over_lamp(void **state)
                    corner_ff(3 + x, 3 + y, 0.5);
         }
     double want = RR_PI * 4.0 * sum / ((double)n * n);
-    rr_error err;
     rt_accel *a = NULL;
     rad_solution *sol = run(s, &a);
-    rad_energy_row *rows = NULL;
     size_t nrows = 0;
-    assert_int_equal(rad_energy_solution(sol, &rows, &nrows, &err), RR_OK);
+    rad_energy_row *rows = ledger(sol, &nrows);
     double got = -1.0;
     for (size_t k = 0; k < nrows; k++)
         if (rows[k].object == 1)
