@@ -17,7 +17,7 @@ typedef struct hel {
     double area, radius;
     uint32_t root, child, depth;
     int closed;     /* leaf: its closedness rays all landed on fronts */
-    int shut;       /* root: every closed leaf's rays in its tree landed (roots_shut) */
+    int shut;       /* root: every closedness ray of its leaves landed on a front: k applies (roots_shut) */
     int probed;     /* its burial probes are done (open, bur) */
     double open;    /* the open share of its area: not buried under another surface (rad.h: buried parts) */
     unsigned bur;   /* bit k: its fixed point k_pts[k] is buried */

@@ -385,7 +385,7 @@ static void roots_shut(hctx *c)
 {
 #pragma omp parallel for schedule(dynamic, 64)
     for (long r = 0; r < (long)c->R->n; r++)
-        c->el[r].shut = all_closed(c, (uint32_t)r) && (c->el[r].child != NONE || c->el[r].closed);
+        c->el[r].shut = c->el[r].child == NONE ? c->el[r].closed : all_closed(c, (uint32_t)r);
 }
 
 double rad__hier_push(hctx *c, push_mode mode)
