@@ -8,10 +8,6 @@
 
 #include "rad_hier_ctx.h"
 
-/* A cluster whose hcl.flat is this close to 1 has no curved bucket: nb_proj
- * skips the shortfall's square roots. */
-#define CL_FLAT_EXACT (1.0 - 1e-12)
-
 /* Node x's area as seen from direction u (towards the viewer): what a
  * cluster shows of itself that way, by its normal buckets (nbuckets), an
  * element's exactly, both by node_uarea (a mirror's share left out: its
@@ -49,8 +45,8 @@ static void node_proj(const hctx *c, uint32_t x, rr_vec3 u, double *area, double
 {
     if (x & CLB) {
         const hcl *k = &c->cl[CL(x)];
-        *area = nb_proj(&k->An, u, k->flat >= CL_FLAT_EXACT);
-        *power = nb_proj(&k->Dn, u, k->flat >= CL_FLAT_EXACT);
+        *area = nb_proj(&k->An, u, cl_flat(k));
+        *power = nb_proj(&k->Dn, u, cl_flat(k));
         return;
     }
     const hel *e = &c->el[x];

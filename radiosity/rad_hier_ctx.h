@@ -115,6 +115,11 @@ typedef struct hcl {
     nbuckets Dn;       /* its surfaces' power (all channels) by normal bucket */
 } hcl;
 
+/* A cluster with no curved bucket (hcl.flat within rounding of 1): its
+ * buckets send exactly what its surfaces do, and nb_proj skips the
+ * shortfall's square roots. */
+static inline int cl_flat(const hcl *k) { return k->flat >= 1.0 - 1e-12; }
+
 /* Visibilities are held in twelfths: every share of 1 to 4 shadow rays is
  * a whole number of them. */
 #define VIS_ONE 12
