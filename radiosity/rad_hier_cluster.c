@@ -39,20 +39,6 @@ static double node_proj_power(const hctx *c, uint32_t x, rr_vec3 u)
     return el_proj_area(c, x, u) * (e->src.r + e->src.g + e->src.b);
 }
 
-/* Both at once: the area node x shows towards u (node_proj_area) and the
- * power it sends that way (node_proj_power). */
-static void node_proj(const hctx *c, uint32_t x, rr_vec3 u, double *area, double *power)
-{
-    if (x & CLB) {
-        const hcl *k = &c->cl[CL(x)];
-        *area = nb_proj(&k->An, u, cl_flat(k));
-        *power = nb_proj(&k->Dn, u, cl_flat(k));
-        return;
-    }
-    const hel *e = &c->el[x];
-    *area = el_proj_area(c, x, u);
-    *power = *area * (e->src.r + e->src.g + e->src.b);
-}
 
 /* Node x's area (node_uarea) by normal bucket, added to nb. */
 static void node_area_nb(const hctx *c, uint32_t x, nbuckets *nb)
@@ -410,8 +396,10 @@ static void cluster_geo(const hctx *c, const rview *rv, uint32_t s, int area_too
                 wide = lev < CL_LEVELS || R > CL_THETA * rr_v3_len(d) || fabs(rr_v3_dot(nr, d)) < R;
             }
             if (wide && nn + (nf - i) + 1 <= CL_NODES) {
-                nx[nn++] = c->cl[CL(n)].child[0];
-                nx[nn++] = c->cl[CL(n)].child[1];
+                for (int k = 0; k < 2; k++) {
+                    uint32_t ch = c->cl[CL(n)].child[k];
+                    nx[nn++] = ch;
+                }
                 grew = 1;
             } else {
                 nx[nn++] = n;
@@ -427,23 +415,29 @@ static void cluster_geo(const hctx *c, const rview *rv, uint32_t s, int area_too
         uint32_t n = fr[i];
         int cl = (n & CLB) != 0;
         rr_vec3 cp = cl ? c->cl[CL(n)].pc : c->el[n].ctr;
-        double Ap = 0.0, Pp = 0.0, Aa = 0.0, Pa = 0.0, Lp = 0.0, Lr = 0.0;
+        double Ap = 0.0, Lp = 0.0, Lr = 0.0;
         /* an element's two centroids are one point; the disc's saturation,
-         * A / pi, for flat nodes (elements) only */
+         * A / pi, for flat nodes (elements) only; a cluster's power term
+         * reads only what it sends, its area term only what it shows */
         double cp_r = node_cos(xr, nr, cp, &Lp);
         if (cp_r > 0.0) {
-            node_proj(c, n, rr_v3_scale(rr_v3_sub(xr, cp), 1.0 / Lp), &Ap, &Pp);
-            Tp += cp_r / (Lp * Lp + (cl ? 0.0 : Ap / RR_PI)) * Pp / RR_PI;
+            rr_vec3 u = rr_v3_scale(rr_v3_sub(xr, cp), 1.0 / Lp);
+            if (cl) {
+                const hcl *q = &c->cl[CL(n)];
+                Tp += cp_r / (Lp * Lp) * nb_proj(&q->Dn, u, cl_flat(q)) / RR_PI;
+            } else {
+                const hel *e = &c->el[n];
+                Ap = el_proj_area(c, n, u);
+                Tp += cp_r / (Lp * Lp + Ap / RR_PI) * (Ap * (e->src.r + e->src.g + e->src.b)) / RR_PI;
+            }
         }
         if (!by_area)
             continue;
         if (cl) {
-            rr_vec3 ca = c->cl[CL(n)].ac;
-            double ca_r = node_cos(xr, nr, ca, &Lr);
-            if (ca_r > 0.0) {
-                node_proj(c, n, rr_v3_scale(rr_v3_sub(xr, ca), 1.0 / Lr), &Aa, &Pa);
-                Ta += ca_r / (Lr * Lr) * Aa / RR_PI;
-            }
+            const hcl *q = &c->cl[CL(n)];
+            double ca_r = node_cos(xr, nr, q->ac, &Lr);
+            if (ca_r > 0.0)
+                Ta += ca_r / (Lr * Lr) * nb_proj(&q->An, rr_v3_scale(rr_v3_sub(xr, q->ac), 1.0 / Lr), cl_flat(q)) / RR_PI;
         } else if (cp_r > 0.0) {
             Ta += cp_r / (Lp * Lp + Ap / RR_PI) * Ap * (1.0 - c->R->p[c->el[n].root].mirror) / RR_PI; /* as node_uarea */
         }
