@@ -185,15 +185,28 @@ uint32_t rad__hier_clusters(hctx *c)
  * faces halved its light). xs on the true surface, ns its normal, *root its
  * element's root (when root is not NULL). Returns
  * whether a random point lies on a buried part of its element. */
+/* Whether cluster node x sends nothing at all: then neither do its
+ * children (their sources are not negative), and a draw by power falls back
+ * to area at every level below. */
+static int cl_dark(const hctx *c, uint32_t x)
+{
+    rr_rgb P = c->cl[CL(x)].P;
+    return !(P.r + P.g + P.b > 0);
+}
+
 static int node_sample(const hctx *c, uint32_t x, int k, int fixed, int by_power, rr_vec3 u, rr_rng *rng,
                        rr_vec3 *xs, rr_vec3 *ns, uint32_t *root)
 {
+    if (by_power && (x & CLB) && cl_dark(c, x))
+        by_power = 0; /* the same draws, without the power's projections */
     while (x & CLB) {
         const hcl *q = &c->cl[CL(x)];
         double a0 = 0.0, a1 = 0.0;
         if (by_power) {
             a0 = node_proj_power(c, q->child[0], u);
             a1 = node_proj_power(c, q->child[1], u);
+            if (!(a0 + a1 > 0) && cl_dark(c, x))
+                by_power = 0;
         }
         if (!(a0 + a1 > 0)) { /* no power towards u (or by area): by the area shown */
             a0 = node_proj_area(c, q->child[0], u);
@@ -422,7 +435,9 @@ static void cluster_geo(const hctx *c, const rview *rv, uint32_t s, int area_too
         double cp_r = node_cos(xr, nr, cp, &Lp);
         if (cp_r > 0.0) {
             rr_vec3 u = rr_v3_scale(rr_v3_sub(xr, cp), 1.0 / Lp);
-            if (cl) {
+            if (cl && !(P > 0)) {
+                /* s sends nothing, nor does any node of it: no term */
+            } else if (cl) {
                 const hcl *q = &c->cl[CL(n)];
                 Tp += cp_r / (Lp * Lp) * nb_proj(&q->Dn, u, cl_flat(q)) / RR_PI;
             } else {
