@@ -4,9 +4,10 @@
  * leaves of at most 8 items, nodes in one array in depth-first order (left
  * child next, right child at `index`). The scene BVH collapses the tree into
  * wide nodes (rt_bvh.c); the solids' mesh leaves walk it as it is
- * (rt_solid_mesh.c). Large subtrees are built as OpenMP tasks
- * (RT_BUILD_TASK_MIN), written where the serial build puts them: the same
- * nodes for any thread count.
+ * (rt_solid_mesh.c). The top of the tree (nodes of RT_BUILD_TASK_MIN items
+ * and more) is built as OpenMP tasks, the subtrees below it by a parallel
+ * loop, each written where the serial build puts it: the same nodes for any
+ * thread count.
  *
  * The build reads 32-byte references (rt_bref: the item's box as floats
  * rounded outward, and its number), 4 floats per corner so that a box union
@@ -534,13 +535,32 @@ static void build_rec(builder *b, const span *sp, int depth)
     build_rec(b, &r, depth + 1);
 }
 
-/* build_rec with the two subtrees of a large node built as tasks, each in
- * its slots (see builder): the right child's index is its slot, until
- * compact() moves it. */
-static void build_par(builder *b, const span *sp, int depth)
+/* A subtree below RT_BUILD_TASK_MIN left by build_par for the loop that
+ * builds them (rt__bvh_build_binary): its span, its slots, its depth. */
+typedef struct subtree {
+    span sp;
+    builder b;
+    int depth;
+} subtree;
+typedef struct subtrees {
+    subtree *it;
+    size_t n, cap;
+} subtrees;
+
+/* The top of the tree: nodes of RT_BUILD_TASK_MIN items and more, their two
+ * subtrees as tasks, each in its slots (see builder: the right child's index
+ * is its slot, until compact() moves it); the subtrees below that size are
+ * set aside in *f. Built here as tasks, the idle thread did not take them up
+ * (libgomp ran both 50 k-item halves of room-100k's tree on one thread, one
+ * after the other: 2 threads built it no faster than 1). */
+static void build_par(builder *b, const span *sp, int depth, subtrees *f)
 {
     if (sp->count < RT_BUILD_TASK_MIN) {
-        build_rec(b, sp, depth);
+        size_t k;
+#pragma omp atomic capture
+        k = f->n++;
+        RR_CHECK(k < f->cap);
+        f->it[k] = (subtree){*sp, *b, depth};
         return;
     }
     size_t idx;
@@ -551,11 +571,16 @@ static void build_par(builder *b, const span *sp, int depth)
     builder L = {b->refs, b->nodes, idx + 1}, R = {b->refs, b->nodes, idx + 2 * l.count};
     b->nodes[idx].index = (uint32_t)R.next;
 #pragma omp task shared(L, l) if (omp_in_parallel())
-    build_par(&L, &l, depth + 1);
+    build_par(&L, &l, depth + 1, f);
 #pragma omp task shared(R, r) if (omp_in_parallel())
-    build_par(&R, &r, depth + 1);
+    build_par(&R, &r, depth + 1, f);
 #pragma omp taskwait
-    b->next = R.next;
+}
+
+static int larger_first(const void *a, const void *b)
+{
+    size_t x = ((const subtree *)a)->sp.count, y = ((const subtree *)b)->sp.count;
+    return (x < y) - (x > y);
 }
 
 /* The tree build_par left with gaps, moved down into depth-first order in
@@ -619,9 +644,26 @@ int rt__bvh_build_binary(rt_bref *refs, size_t n, int threads, rt_node **nodes, 
         build_rec(&b, &root, 0);
         count = b.next;
     } else {
+        /* At most two subtrees per node of the top, and at most n /
+         * RT_BUILD_TASK_MIN such nodes per level. */
+        subtrees f = {NULL, 0, 2 * (n / RT_BUILD_TASK_MIN + 1) * RT_STACK};
+        f.it = malloc(f.cap * sizeof *f.it);
+        if (!f.it) {
+            free(b.nodes);
+            return -1;
+        }
 #pragma omp parallel num_threads(threads)
+        {
 #pragma omp single
-        build_par(&b, &root, 0);
+            {
+                build_par(&b, &root, 0, &f);
+                qsort(f.it, f.n, sizeof *f.it, larger_first); /* for the balance only */
+            }
+#pragma omp for schedule(dynamic, 1)
+            for (size_t i = 0; i < f.n; i++)
+                build_rec(&f.it[i].b, &f.it[i].sp, f.it[i].depth);
+        }
+        free(f.it);
         count = compact(b.nodes);
     }
     rt_node *shrunk = realloc(b.nodes, count * sizeof *b.nodes);
