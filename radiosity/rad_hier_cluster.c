@@ -39,7 +39,6 @@ static double node_proj_power(const hctx *c, uint32_t x, rr_vec3 u)
     return el_proj_area(c, x, u) * (e->src.r + e->src.g + e->src.b);
 }
 
-
 /* Node x's area (node_uarea) by normal bucket, added to nb. */
 static void node_area_nb(const hctx *c, uint32_t x, nbuckets *nb)
 {
@@ -176,15 +175,6 @@ uint32_t rad__hier_clusters(hctx *c)
 
 /* ---- shadow rays ---- */
 
-/* A point on the surfaces of node x for a shadow ray: element points are the
- * fixed pattern (k_pts[k]) when fixed, else random. A cluster's come from a
- * root drawn, level by level, by the power it sends towards u
- * (node_proj_power) when by_power, else by the area it shows that way
- * (node_proj_area; surfaces facing away, whose share the cluster's intensity
- * already leaves out, are not drawn: drawn by plain area, a solid block's far
- * faces halved its light). xs on the true surface, ns its normal, *root its
- * element's root (when root is not NULL). Returns
- * whether a random point lies on a buried part of its element. */
 /* Whether cluster node x sends nothing at all: then neither do its
  * children (their sources are not negative), and a draw by power falls back
  * to area at every level below. */
@@ -194,6 +184,15 @@ static int cl_dark(const hctx *c, uint32_t x)
     return !(P.r + P.g + P.b > 0);
 }
 
+/* A point on the surfaces of node x for a shadow ray: element points are the
+ * fixed pattern (k_pts[k]) when fixed, else random. A cluster's come from a
+ * root drawn, level by level, by the power it sends towards u
+ * (node_proj_power) when by_power, else by the area it shows that way
+ * (node_proj_area; surfaces facing away, whose share the cluster's intensity
+ * already leaves out, are not drawn: drawn by plain area, a solid block's far
+ * faces halved its light). xs on the true surface, ns its normal, *root its
+ * element's root (when root is not NULL). Returns
+ * whether a random point lies on a buried part of its element. */
 static int node_sample(const hctx *c, uint32_t x, int k, int fixed, int by_power, rr_vec3 u, rr_rng *rng,
                        rr_vec3 *xs, rr_vec3 *ns, uint32_t *root)
 {
@@ -409,10 +408,8 @@ static void cluster_geo(const hctx *c, const rview *rv, uint32_t s, int area_too
                 wide = lev < CL_LEVELS || R > CL_THETA * rr_v3_len(d) || fabs(rr_v3_dot(nr, d)) < R;
             }
             if (wide && nn + (nf - i) + 1 <= CL_NODES) {
-                for (int k = 0; k < 2; k++) {
-                    uint32_t ch = c->cl[CL(n)].child[k];
-                    nx[nn++] = ch;
-                }
+                nx[nn++] = c->cl[CL(n)].child[0];
+                nx[nn++] = c->cl[CL(n)].child[1];
                 grew = 1;
             } else {
                 nx[nn++] = n;
@@ -435,15 +432,13 @@ static void cluster_geo(const hctx *c, const rview *rv, uint32_t s, int area_too
         double cp_r = node_cos(xr, nr, cp, &Lp);
         if (cp_r > 0.0) {
             rr_vec3 u = rr_v3_scale(rr_v3_sub(xr, cp), 1.0 / Lp);
-            if (cl && !(P > 0)) {
-                /* s sends nothing, nor does any node of it: no term */
-            } else if (cl) {
-                const hcl *q = &c->cl[CL(n)];
-                Tp += cp_r / (Lp * Lp) * nb_proj(&q->Dn, u, cl_flat(q)) / RR_PI;
-            } else {
+            if (!cl) {
                 const hel *e = &c->el[n];
                 Ap = el_proj_area(c, n, u);
                 Tp += cp_r / (Lp * Lp + Ap / RR_PI) * (Ap * (e->src.r + e->src.g + e->src.b)) / RR_PI;
+            } else if (P > 0) { /* where s sends nothing, none of its nodes does */
+                const hcl *q = &c->cl[CL(n)];
+                Tp += cp_r / (Lp * Lp) * nb_proj(&q->Dn, u, cl_flat(q)) / RR_PI;
             }
         }
         if (!by_area)
