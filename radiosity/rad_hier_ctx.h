@@ -1,5 +1,6 @@
 /* rad_hier_ctx.h - private to the hierarchical pass (rad_hier.c builds and
- * refines the hierarchy, rad_hier_solve.c solves on it): its elements,
+ * refines the hierarchy, rad_hier_rounds.c evaluates and re-tests its links,
+ * rad_hier_solve.c solves on it): its elements,
  * clusters and links, and the solving steps the builder calls. */
 #ifndef RAD_HIER_CTX_H
 #define RAD_HIER_CTX_H
@@ -295,6 +296,18 @@ static inline rr_rgb el_rho(const hctx *c, uint32_t e) { return c->R->p[c->el[e]
 
 #define VIS_RAYS 4 /* shadow rays per link */
 
+/* The largest channel of the mean radiosity node x shoots. */
+static inline double node_B(const hctx *c, uint32_t x)
+{
+    if (x & CLB) {
+        const hcl *k = &c->cl[CL(x)];
+        return k->area > 0 ? rr_rgb_max(k->P) / k->area : 0.0;
+    }
+    return rr_rgb_max(c->el[x].src); /* the area mean of its leaves' B (rad__hier_sources) */
+}
+/* Node x can be split: a cluster, or an element whose children keep min_area. */
+static inline int splittable(const hctx *c, uint32_t x) { return (x & CLB) || c->el[x].area * 0.25 >= c->min_area; }
+
 static inline double node_area(const hctx *c, uint32_t x) { return x & CLB ? c->cl[CL(x)].area : c->el[x].area; }
 static inline double node_radius(const hctx *c, uint32_t x) { return x & CLB ? c->cl[CL(x)].radius : c->el[x].radius; }
 static inline rr_vec3 node_ctr(const hctx *c, uint32_t x) { return x & CLB ? c->cl[CL(x)].ctr : c->el[x].ctr; }
@@ -360,6 +373,36 @@ static inline rr_vec3 tri_random(const rr_vec3 v[3], rr_rng *rng)
     return tri_at(v, 1.0 - u - w, u, w);
 }
 
+
+/* ---- the hierarchy and its links (rad_hier.c) ---- */
+
+/* Element x's four children (made once); 0, or -1 when out of memory. */
+int rad__hier_el_split(hctx *c, uint32_t x);
+/* The power link r <- s by way w may carry (the oracle: rho_max(r) A_r
+ * Fhat B_s), INFINITY where a cluster end is closer than admissible. */
+double rad__hier_link_power(const hctx *c, uint32_t r, uint32_t s, unsigned w);
+/* A new link r <- s by way w, to be evaluated (from c->first_new on). */
+void rad__hier_link_add(hctx *c, uint32_t r, uint32_t s, unsigned w);
+/* Whether the links have reached radiosity.max_links or the pass's share of
+ * --max-memory (then c->by_memory is set). */
+int rad__hier_past_cap(hctx *c);
+/* Splits r or s (the larger that can be split, r first when receiver) and
+ * refines the children's links; 0 when neither can be split. */
+int rad__hier_split_link(hctx *c, uint32_t r, uint32_t s, int receiver, unsigned w);
+
+/* ---- the links evaluated and re-tested (rad_hier_rounds.c) ---- */
+
+/* Evaluates the links from c->first_new on, and computes the data of fresh
+ * leaves; then splits what the visibility and first-shot tests ask for, and
+ * again, until nothing changes. */
+rr_status rad__hier_settle(hctx *c, void (*progress)(void *, size_t, size_t), void *user, rr_error *err);
+/* Every link's visibility drawn afresh from the estimate's own stream once
+ * the refinement has settled, the geometry kept where it is held without
+ * visibility. */
+rr_status rad__hier_estimate(hctx *c, void (*progress)(void *, size_t, size_t), void *user, rr_error *err);
+/* Re-tests every link with the solved radiosity; those that now carry too
+ * much are replaced by refined ones. Returns whether anything changed. */
+int rad__hier_relink(hctx *c);
 
 /* ---- buried parts and leaf data (rad_hier_bury.c) ---- */
 

@@ -1,0 +1,235 @@
+/* rad_hier_rounds.c - the hierarchical pass's links evaluated and tested
+ * again (rad_hier.c runs the rounds): every new link evaluated in parallel
+ * and the split tests that read what the evaluation found (settle), the
+ * visibility of every link drawn afresh once the refinement has settled
+ * (estimate), and every kept link re-tested with the solved radiosity
+ * (relink). rad_hier.c's header has the tests and why ("Links and the
+ * oracle", "Decide, then estimate"). */
+#include <omp.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "rad_hier_ctx.h"
+
+#define VIS_SHARE 0.125 /* partly visible links are split down to eps times this */
+
+/* ---- link evaluation ---- */
+
+/* The links' shadow rays come from rr_rng_make(seed ^ draw, (r << 32) | s):
+ * draw 0 while refining, this one for the transport's estimate. */
+#define ESTIMATE_DRAW 0xa0761d6478bd642fULL
+
+/* Link l evaluated whole, or (revis) its visibility drawn again, the
+ * geometry kept where it is held without visibility. */
+static void eval_link(const hctx *c, hlink *l, int revis)
+{
+    unsigned w = link_way(l);
+    rr_rng rng = rr_rng_make(c->seed ^ c->draw ^ (w ? 0x9e3779b97f4a7c15ULL * w : 0), ((uint64_t)l->r << 32) | l->s);
+    if (l->s & CLB)
+        (revis ? rad__hier_revis_cluster : rad__hier_eval_cluster)(c, l, &rng);
+    else
+        (revis ? rad__hier_revis_ee : rad__hier_eval_ee)(c, l, &rng);
+}
+
+/* Links lo .. hi - 1 evaluated in parallel, with progress (links evaluated
+ * of those made so far, from one thread); stops early when interrupted. */
+static void eval_links(hctx *c, size_t lo, size_t hi, int revis, void (*progress)(void *, size_t, size_t),
+                       void *user)
+{
+    size_t done = 0;
+#pragma omp parallel
+    {
+        rt_ray_counts before = rt_ray_counts_of_thread();
+#pragma omp for schedule(dynamic, 256)
+        for (long i = (long)lo; i < (long)hi; i++) {
+            if (interrupted(c))
+                continue;
+            eval_link(c, &c->ln[i], revis);
+            size_t d;
+#pragma omp atomic capture
+            d = ++done;
+            if (progress && omp_get_thread_num() == 0 && (d & 4095) == 0)
+                progress(user, c->evaluated + d, c->evaluated + (hi - lo));
+        }
+        rt_ray_counts_add_since(&c->rays, before);
+    }
+    c->evaluated += hi - lo;
+}
+
+/* ---- the rounds ---- */
+
+/* The receiver's irradiance from s varies across it by more than eps of
+ * power: rho A_r (F_max - F_min) B_s over its quadrature points. */
+static int uneven(const hctx *c, const hlink *l)
+{
+    return node_rho(c, l->r) * node_area(c, l->r) * l->dF * node_B(c, l->s) > c->eps;
+}
+
+/* Receiver r's leaves are exposed unevenly: some see the backs of
+ * surfaces close by (the ceiling in the gap over a lamp, whose back faces
+ * it), others do not. No light comes from a surface's back, so those
+ * leaves take in less from every source than the link's shadow rays, from
+ * r's fixed points, say; the link goes to r's children while the
+ * difference can carry VIS_SHARE of eps, as a partly visible link does. */
+static int unevenly_exposed(const hctx *c, const hlink *l)
+{
+    if (l->r & CLB)
+        return 0;
+    const hel *e = &c->el[l->r];
+    return e->child != NONE && e->xhi > e->xlo &&
+           (e->xhi - e->xlo) * rad__hier_link_power(c, l->r, l->s, link_way(l)) > VIS_SHARE * c->eps;
+}
+
+/* Receiver r has an open part but all four of its fixed points, where it
+ * gathers, are buried: it cannot stand for that part (which would gather
+ * nothing), so its links go to its children. */
+static int unrepresented(const hctx *c, uint32_t r)
+{
+    return !(r & CLB) && c->el[r].open > 0 && open_pt(&c->el[r], 0) < 0 && splittable(c, r);
+}
+
+/* Evaluates the links from c->first_new on, and computes the data of fresh
+ * leaves; then splits what the visibility and first-shot tests ask for, and
+ * again, until nothing changes. */
+rr_status rad__hier_settle(hctx *c, void (*progress)(void *, size_t, size_t), void *user, rr_error *err)
+{
+    for (int pass = 0; pass < 32; pass++) {
+        size_t lo = c->first_new;
+        rad__hier_probe_new(c); /* the links read their ends' burial */
+        eval_links(c, lo, c->nln, 0, progress, user);
+        size_t ne = c->nel;
+        rad__hier_leaves_data(c, ne);
+        if (interrupted(c))
+            return rr_error_set(err, RR_ERR_INTERRUPTED, "%s: radiosity pass interrupted (links)", c->s->path);
+        if (progress)
+            progress(user, c->evaluated, c->evaluated);
+        /* Leaves whose first shot varies by more than eps of power split,
+         * and partly buried ones whose buried share carries that much: the
+         * burial's edge lies within them, and their points stand for both
+         * sides of it. */
+        int changed = 0;
+        for (size_t i = 0; i < ne && !c->nomem; i++) {
+            hel *e = &c->el[i];
+            if (e->child != NONE || e->fresh || !splittable(c, (uint32_t)i))
+                continue;
+            int shot = e->spread > 0 && rr_rgb_max(el_rho(c, (uint32_t)i)) * e->area * e->spread > c->eps;
+            int part = e->open > 0 && e->open < 1 &&
+                       rr_rgb_max(e->B) * e->area * fmin(e->open, 1.0 - e->open) > c->eps;
+            if ((shot || part) && !rad__hier_past_cap(c))
+                changed |= rad__hier_el_split(c, (uint32_t)i) == 0;
+        }
+        /* Partly visible links that carry enough split once more (which,
+         * decided in parallel: splitting changes no node a test reads). */
+        rad__hier_exposures(c);
+        size_t keep = lo;
+        c->first_new = c->nln;
+        size_t old_end = c->nln;
+        unsigned char *want = malloc(old_end - lo + 1);
+        if (!want)
+            return rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory", c->s->path);
+#pragma omp parallel for schedule(static)
+        for (long i = (long)lo; i < (long)old_end; i++) {
+            const hlink *l = &c->ln[i];
+            want[i - (long)lo] = uneven(c, l) || unrepresented(c, l->r) || unevenly_exposed(c, l) ||
+                                 (l->vis > 0 && l->vis < VIS_ONE &&
+                                  rad__hier_link_power(c, l->r, l->s, link_way(l)) > VIS_SHARE * c->eps);
+        }
+        for (size_t i = lo; i < old_end && !c->nomem; i++) {
+            hlink l = c->ln[i];
+            int split = want[i - lo] && !rad__hier_past_cap(c) && rad__hier_split_link(c, l.r, l.s, 1, link_way(&l));
+            if (!split)
+                c->ln[keep++] = l;
+            changed |= split;
+        }
+        free(want);
+        /* Compact: kept links of this batch, then the new ones. */
+        size_t nnew = c->nln - old_end;
+        memmove(c->ln + keep, c->ln + old_end, nnew * sizeof *c->ln);
+        c->nln = keep + nnew;
+        c->first_new = keep;
+        if (c->nomem)
+            return rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory for %zu links", c->s->path, c->nln);
+        if (!changed)
+            return RR_OK;
+    }
+    return RR_OK;
+}
+
+/* Decide, then estimate: every link's visibility drawn afresh
+ * (ESTIMATE_DRAW) once the refinement has settled (rad_hier.c's header);
+ * the geometry is kept where it is held without visibility (cluster links,
+ * near pairs: a far pair is evaluated whole). */
+rr_status rad__hier_estimate(hctx *c, void (*progress)(void *, size_t, size_t), void *user, rr_error *err)
+{
+    c->draw = ESTIMATE_DRAW;
+    eval_links(c, 0, c->nln, 1, progress, user);
+    if (interrupted(c))
+        return rr_error_set(err, RR_ERR_INTERRUPTED, "%s: radiosity pass interrupted (links)", c->s->path);
+    if (progress)
+        progress(user, c->evaluated, c->evaluated);
+    return RR_OK;
+}
+
+/* Re-tests every link with the solved radiosity; those that now carry too
+ * much are replaced by refined ones. Returns whether anything changed. The
+ * links kept move to the front in place and only the ends of those to split
+ * are set aside (a copy of every link held them twice, as the sort did). */
+typedef struct split_end {
+    uint32_t r, s;
+    unsigned char how, way;
+} split_end;
+
+int rad__hier_relink(hctx *c)
+{
+    size_t n = c->nln, keep = 0, nsplit = 0;
+    int changed = 0;
+    unsigned char *split = calloc(n ? n : 1, 1);
+    if (!split) {
+        c->nomem = 1;
+        return 0;
+    }
+    /* 1: too much power (split the larger end); 2: uneven or partly hidden
+     * (split the receiver first), as settle tests new links. */
+    rad__hier_exposures(c);
+#pragma omp parallel for schedule(static)
+    for (long i = 0; i < (long)n; i++) {
+        const hlink *l = &c->ln[i];
+        if (!(splittable(c, l->r) | splittable(c, l->s)))
+            split[i] = 0;
+        else if (rad__hier_link_power(c, l->r, l->s, link_way(l)) > c->eps)
+            split[i] = 1;
+        else if (uneven(c, l) || unrepresented(c, l->r) || unevenly_exposed(c, l) ||
+                 (l->vis > 0 && l->vis < VIS_ONE && rad__hier_link_power(c, l->r, l->s, link_way(l)) > VIS_SHARE * c->eps))
+            split[i] = 2;
+    }
+    for (size_t i = 0; i < n; i++)
+        nsplit += split[i] != 0;
+    split_end *se = malloc((nsplit ? nsplit : 1) * sizeof *se);
+    if (!se) {
+        free(split);
+        c->nomem = 1;
+        return 0;
+    }
+    for (size_t i = 0, k = 0; i < n; i++)
+        if (split[i])
+            se[k++] = (split_end){c->ln[i].r, c->ln[i].s, split[i], (unsigned char)link_way(&c->ln[i])};
+        else
+            c->ln[keep++] = c->ln[i]; /* keep <= i: in place */
+    free(split);
+    c->nln = keep;
+    c->first_new = keep;
+    for (size_t k = 0; k < nsplit && !c->nomem; k++)
+        if (!rad__hier_past_cap(c)) {
+            rad__hier_split_link(c, se[k].r, se[k].s, se[k].how == 2, se[k].way);
+            changed = 1;
+        } else {
+            /* kept whole past the cap, and evaluated again (changed: the
+             * round's settle evaluates the links from first_new; without it
+             * the rounds ended and these held f = NaN) */
+            c->capped = 1;
+            rad__hier_link_add(c, se[k].r, se[k].s, se[k].way);
+            changed = 1;
+        }
+    free(se);
+    return changed;
+}
