@@ -347,7 +347,8 @@ typedef struct rad_solution {
     rad_patches *P;
     rad_ff *F;
     rr_rgb *B;           /* per patch radiosity */
-    rr_rgb *vertex_B;    /* per patch vertex: area-weighted mean of the patches around it */
+    rr_rgb *vertex_B;    /* per patch vertex: area-weighted mean of the patches around it
+                          * (the hierarchical method: then back-projected, RAD_HIND_SWEEPS) */
     rr_rgb *emitted;     /* per patch: pi Le of its material (the patches' emission minus the first shot below) */
     rr_rgb *first_shot;  /* per patch: irradiance from point and directional lights (shadowed) */
     rr_rgb *light_landed; /* per scene light: its power that ends on patch fronts, sum (1 - m_k) A_k H0_k */
@@ -422,7 +423,10 @@ rr_rgb rad_radiance_at(const rad_solution *sol, const scene *s, const rt_hit *h)
  * interpolated irradiance's mean over each patch towards the patch's own: plain
  * means flatten a peak at a surface's edge (irradiance rises into a concave
  * corner), and a cubby's back came out 3.5 % dark (notes/radiosity.md). The
- * radiosity display (vertex_B) keeps the plain means, the classic images. */
+ * radiosity display (vertex_B) takes the same sweeps in the hierarchical
+ * method: plain means brighten every concave edge where B falls towards it
+ * (Cornell's display, block p90 5.6 -> 3.5 %). The flat method's display keeps
+ * the plain means: its patches' noise dominates there, and sweeps amplify it. */
 #define RAD_HIND_SWEEPS 2
 rr_rgb rad_indirect_at(const rad_solution *sol, const scene *s, const rt_hit *h, rr_rgb rho);
 

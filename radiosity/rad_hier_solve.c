@@ -782,7 +782,7 @@ rr_status rad__hier_output(hctx *c, rad_patches *roots, rad_solution *sol, rr_er
     }
     free(D);
     free(leaf);
-    st = rad__to_vertices(sol->P, sol->B, 0, sol->vertex_B) != RR_OK ||
+    st = rad__to_vertices(sol->P, sol->B, RAD_HIND_SWEEPS, sol->vertex_B) != RR_OK ||
                  rad__to_vertices(sol->P, Hind, RAD_HIND_SWEEPS, sol->vertex_Hind) != RR_OK
              ? rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory", c->s->path)
              : RR_OK;

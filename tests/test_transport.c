@@ -177,6 +177,77 @@ static void floor_under_sphere_lamp(scene_rad_method method)
     world_free(&w);
 }
 
+/* ---- the radiosity display at a surface's edge: closed form ---- */
+
+#define EDGE_LAMP                                                                                                  \
+    "{\"format\":\"radray-scene/1\",\"camera\":{\"type\":\"lookat\",\"eye\":[1,0.5,0],\"target\":[-1,0.5,0],"   \
+    "\"up\":[0,1,0],\"fov\":40,\"width\":64,\"height\":64},"                                                        \
+    "\"materials\":{\"wall\":{\"diffuse\":[0.5,0.5,0.5]},\"lamp\":{\"diffuse\":0,\"emission\":[4,4,4]},"           \
+    "\"sky\":{\"diffuse\":0,\"emission\":[100,100,100]}},"                                                         \
+    "\"objects\":[{\"name\":\"wall\",\"type\":\"quad\",\"material\":\"wall\","                                      \
+    "\"vertices\":[[-1,0,-1],[-1,1,-1],[-1,1,1],[-1,0,1]]},"                                                       \
+    "{\"name\":\"lamp\",\"type\":\"quad\",\"material\":\"lamp\","                                                    \
+    "\"vertices\":[[-0.8,1,-0.5],[0.2,1,-0.5],[0.2,1,0.5],[-0.8,1,0.5]]},"                                      \
+    "{\"name\":\"sky_lamp\",\"type\":\"quad\",\"material\":\"sky\","                                                \
+    "\"vertices\":[[-1,10,-1],[-1,10,1],[1,10,1],[1,10,-1]]}]}"
+
+/* Point-to-polygon form factor (the contour integral) of the quad q[4] at x
+ * with normal n: (1 / 2 pi) sum over edges of the angle they subtend times
+ * n . (the unit normal of the plane through x and the edge). */
+static double point_to_quad(rr_vec3 x, rr_vec3 n, const rr_vec3 q[4])
+{
+    double sum = 0;
+    for (int i = 0; i < 4; i++) {
+        rr_vec3 a = rr_v3_norm(rr_v3_sub(q[i], x)), b = rr_v3_norm(rr_v3_sub(q[(i + 1) % 4], x));
+        rr_vec3 c = rr_v3_cross(a, b);
+        sum += acos(fmax(-1.0, fmin(1.0, rr_v3_dot(a, b)))) * rr_v3_dot(n, c) / rr_v3_len(c);
+    }
+    return fabs(sum) / (2.0 * RR_PI);
+}
+
+/* A wall under a square lamp in the plane of the wall's top edge, as
+ * Cornell's walls meet its ceiling: the lamp does not reflect, so the wall's
+ * radiance is rho Le F(x) exactly, and it falls to 0 at the top edge, where
+ * the lamp is seen edge-on. A brighter lamp far above, facing away, holds
+ * most of the emitted power, so the wall's links carry little of it and its
+ * leaves stay coarse (as on Cornell's ceiling, lit only by the walls). The
+ * hierarchical display against the closed form, over the band of pixels
+ * whose hit is within 0.1 of the top edge and over the rest: a vertex on the
+ * edge has leaves on one side only, and the plain area-weighted mean of
+ * their B put it half a leaf inwards: measured +18.2 % in the band and
+ * -7.4 % below it; with the back-projection sweeps (rad.h RAD_HIND_SWEEPS)
+ * +2.6 % and -2.7 %. The tolerance, 5 %, is the issue's block p90. */
+static void test_display_at_an_edge(void **state)
+{
+    (void)state;
+    world w;
+    world_load(&w, EDGE_LAMP);
+    w.s->radiosity.method = SCENE_RAD_HIERARCHICAL;
+    int wall = object_index(w.s, "wall");
+    const rr_vec3 lamp[4] = {rr_v3(-0.8, 1, -0.5), rr_v3(0.2, 1, -0.5), rr_v3(0.2, 1, 0.5), rr_v3(-0.8, 1, 0.5)};
+    double Le = 4, rho = 0.5;
+    rt_film f;
+    world_render(&w, mode("radiosity"), 16, &f);
+    double got[2] = {0, 0}, want[2] = {0, 0};
+    int n[2] = {0, 0};
+    for (int y = 0; y < w.s->view.height; y++)
+        for (int x = 0; x < w.s->view.width; x++) {
+            rt_hit h;
+            if (!pixel_inside(&w, x, y, wall) || !pixel_hit(&w, x, y, &h))
+                continue;
+            int band = h.point.y > 0.9;
+            want[band] += rho * Le * point_to_quad(h.point, rr_v3(1, 0, 0), lamp);
+            got[band] += rr_rgb_mean(px(&f.beauty, x, y));
+            n[band]++;
+        }
+    print_message("  %d pixels below the band, %d in it\n", n[0], n[1]);
+    assert_true(n[0] > 500 && n[1] > 100);
+    expect_rel("wall below the band, hier", "radiosity", got[0] / n[0], want[0] / n[0], 0.05);
+    expect_rel("wall's top band, hier", "radiosity", got[1] / n[1], want[1] / n[1], 0.05);
+    rt_film_free(&f);
+    world_free(&w);
+}
+
 static void test_floor_under_sphere_lamp(void **state)
 {
     (void)state;
@@ -659,10 +730,12 @@ static void block_error(const rr_image *t, const rr_image *r, double *median, do
 
 /* The hierarchical pass on scenes/cornell.json at 64 px against secondary
  * rays at 1024 spp, block by block (the issue's measure): the radiosity
- * display and the hybrid, 16 spp each. Measured: radiosity block median
- * 1.6 %, p90 4.8 %; hybrid 1.0 % and 3.2 %. Before the links' factors were
- * spread over their receivers by shape (rad_hier.c, "Shape"): 2.2 / 9.2 %
- * and 1.7 / 6.4 %. The reference's own noise is about 1 % per block. */
+ * display and the hybrid, 16 spp each, against the issue's 1.5 % and 5 %.
+ * Measured: radiosity block median 0.75 %, p90 3.01 % (1.05 / 3.96 % while
+ * the display's vertices took plain means, rad.h RAD_HIND_SWEEPS); hybrid
+ * 0.70 % and 2.55 %. Before the links' factors were spread over their
+ * receivers by shape (rad_hier.c, "Shape"): 2.2 / 9.2 % and 1.7 / 6.4 %.
+ * The reference's own noise is about 1 % per block. */
 static void test_hierarchical_cornell_blocks(void **state)
 {
     (void)state;
@@ -684,8 +757,8 @@ static void test_hierarchical_cornell_blocks(void **state)
     block_error(&fh.beauty, &ref.beauty, &med_h, &p90_h);
     print_message("cornell, hierarchical: radiosity block median %.2f %%, p90 %.2f %%; hybrid %.2f %%, %.2f %%\n",
                   100 * med_r, 100 * p90_r, 100 * med_h, 100 * p90_h);
-    assert_true(med_r < 0.02);
-    assert_true(p90_r < 0.07);
+    assert_true(med_r < 0.015);
+    assert_true(p90_r < 0.05);
     assert_true(med_h < 0.014);
     assert_true(p90_h < 0.05);
     rt_film_free(&ref);
@@ -698,6 +771,7 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_floor_under_sphere_lamp),
+        cmocka_unit_test(test_display_at_an_edge),
         cmocka_unit_test(test_point_light_planar_mirror),
         cmocka_unit_test(test_furnace_quad_lamp),
         cmocka_unit_test(test_furnace_sphere_lamp),
