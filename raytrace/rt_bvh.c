@@ -608,7 +608,12 @@ rr_status rt__accel_build_width(const scene *s, int width, rt_accel **out, rr_er
         rt__prim_bounds(s, b.list[i], &lo, &hi);
         rt__bref_set(&b.refs[i], lo, hi, (uint32_t)i);
     }
-    if (n && rt__bvh_build_binary(b.refs, n, threads, &b.nodes, &b.nnodes))
+    /* Nodes of at most RT_PK items are leaves: they fill one packet, and
+     * splitting them can only add packets; the collapse, which costs a leaf
+     * by its packets, mostly kept them whole anyway. Not splitting them
+     * takes 40-46 % of the binary tree's nodes away (notes/performance.md,
+     * "Binary leaves of one packet"). */
+    if (n && rt__bvh_build_binary(b.refs, n, RT_PK, threads, &b.nodes, &b.nnodes))
         goto nomem;
     a->scene = s;
     a->width = width;

@@ -1,7 +1,8 @@
 /* rt_bvh_binary.c - the binary BVH builder (rt__bvh_build_binary,
  * rt_internal.h): binned surface area heuristic (16 bins over the box-centre
  * bounds per axis, Wald 2007, "On fast construction of SAH-based BVHs"),
- * leaves of at most 8 items, nodes in one array in depth-first order (left
+ * leaves of at most 8 items (nodes of at most leaf_items items are leaves
+ * whatever SAH says), nodes in one array in depth-first order (left
  * child next, right child at `index`). The scene BVH collapses the tree into
  * wide nodes (rt_bvh.c); the solids' mesh leaves walk it as it is
  * (rt_solid_mesh.c). The top of the tree (nodes of RT_BUILD_TASK_MIN items
@@ -159,6 +160,7 @@ typedef struct builder {
     rt_bref *refs;
     rt_node *nodes;
     size_t next; /* the next free slot of this builder's subtree */
+    size_t leaf; /* nodes of at most this many items are leaves (rt__bvh_build_binary) */
 } builder;
 
 /* The bin grid of one SAH step: bin k of axis a holds the items whose
@@ -402,11 +404,13 @@ static size_t sah_pair(rt_bref *all, const span *sp, int *axis_out, span *l, spa
 
 /* Chooses a split of the items of sp by binned SAH and partitions them;
  * returns the number put on the left (0 = make a leaf) with the two sides'
- * spans in *l and *r. */
-static size_t sah_partition(rt_bref *all, const span *sp, int *axis_out, span *l, span *r)
+ * spans in *l and *r. A node of at most `leaf` items is a leaf. */
+static size_t sah_partition(rt_bref *all, const span *sp, size_t leaf, int *axis_out, span *l, span *r)
 {
     rt_bref *refs = all + sp->first;
     size_t count = sp->count;
+    if (count <= leaf)
+        return 0;
     if (count <= 2) /* one item: no axis to split on */
         return count == 2 ? sah_pair(all, sp, axis_out, l, r) : 0;
     grid g;
@@ -508,7 +512,7 @@ static void make_node(builder *b, const span *sp, int depth, size_t *idx, span *
 {
     *idx = b->next++;
     int axis = 0;
-    l->count = depth >= RT_STACK - 2 ? 0 : sah_partition(b->refs, sp, &axis, l, r);
+    l->count = depth >= RT_STACK - 2 ? 0 : sah_partition(b->refs, sp, b->leaf, &axis, l, r);
     rt_node *n = &b->nodes[*idx];
     set_bounds(n, sp->box);
     if (l->count == 0 || l->count == sp->count) {
@@ -568,7 +572,7 @@ static void build_par(builder *b, const span *sp, int depth, subtrees *f)
     make_node(b, sp, depth, &idx, &l, &r);
     if (l.count == 0)
         return;
-    builder L = {b->refs, b->nodes, idx + 1}, R = {b->refs, b->nodes, idx + 2 * l.count};
+    builder L = {b->refs, b->nodes, idx + 1, b->leaf}, R = {b->refs, b->nodes, idx + 2 * l.count, b->leaf};
     b->nodes[idx].index = (uint32_t)R.next;
 #pragma omp task shared(L, l) if (omp_in_parallel())
     build_par(&L, &l, depth + 1, f);
@@ -630,9 +634,9 @@ uint32_t rt__bref_item(const rt_bref *r)
     return item;
 }
 
-int rt__bvh_build_binary(rt_bref *refs, size_t n, int threads, rt_node **nodes, size_t *nnodes)
+int rt__bvh_build_binary(rt_bref *refs, size_t n, size_t leaf_items, int threads, rt_node **nodes, size_t *nnodes)
 {
-    builder b = {refs, malloc((2 * n - 1) * sizeof *b.nodes), 0};
+    builder b = {refs, malloc((2 * n - 1) * sizeof *b.nodes), 0, leaf_items};
     if (!b.nodes)
         return -1;
     if (threads <= 0)

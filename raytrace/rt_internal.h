@@ -200,7 +200,9 @@ int rt__tri_hit(const rt_ray_pre *p, rr_vec3 A, rr_vec3 B, rr_vec3 C, int cull, 
 
 /* ---- the one BVH builder (rt_bvh_binary.c) ----
  * A binary tree over refs[0..n) (n >= 1) by binned SAH, leaves of at most
- * 8 items (deeper than RT_BVH_STACK - 2: a leaf), in one array in
+ * 8 items (deeper than RT_BVH_STACK - 2: a leaf); a node of at most
+ * leaf_items items is a leaf whatever SAH says (the scene BVH: RT_PK, one
+ * packet; the solids' mesh leaves: 1, SAH alone decides), in one array in
  * depth-first order (left child next, right child at index), float bounds
  * that contain the refs' boxes; refs are reordered into leaf order (the
  * caller maps rt__bref_item back to its items). The scene BVH collapses it
@@ -208,7 +210,7 @@ int rt__tri_hit(const rt_ray_pre *p, rr_vec3 A, rr_vec3 B, rr_vec3 C, int cull, 
  * (rt_solid_mesh.c). *nodes is malloc'd. 0, or -1 when out of memory.
  * Subtrees of >= 65536 items are built by `threads` threads (0: OpenMP's
  * default) as tasks: the same nodes for any count, bytes included. */
-int rt__bvh_build_binary(rt_bref *refs, size_t n, int threads, rt_node **nodes, size_t *nnodes);
+int rt__bvh_build_binary(rt_bref *refs, size_t n, size_t leaf_items, int threads, rt_node **nodes, size_t *nnodes);
 /* Subtrees of at least this many items are built as OpenMP tasks, each in
  * slots of its own in the one node array, which is then compacted into the
  * order of the serial build (node, left subtree, right subtree): the same

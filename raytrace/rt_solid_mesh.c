@@ -317,7 +317,7 @@ static uint32_t build_leaf_tree(const scene *s, const scene_csg_node *n, struct 
     double pad = 1e-9 * ext + 1e-12 * big;
     rt_node *nodes = NULL;
     size_t nn = 0;
-    if (rt__bvh_build_binary(refs, n->tri_count, 0, &nodes, &nn))
+    if (rt__bvh_build_binary(refs, n->tri_count, 1, 0, &nodes, &nn))
         return NO_ROOT;
     uint32_t base = (uint32_t)sa->nnodes;
     for (size_t k = 0; k < nn; k++) {

@@ -14,6 +14,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "rr_rng.h"
 #include "rt.h"
 #include "rt_wide.h" /* private header of raytrace/ */
 #include "test_bvh_util.h"
@@ -391,6 +392,65 @@ static void bvh_build_threads_same_tree(void **state)
     scene_destroy(s);
 }
 
+/* Items under binary node i (a leaf's count, an inner node's two subtrees);
+ * *leaves / *small_inner count the leaves and the inner nodes of at most 4
+ * items, and seen[] each item's leaves. */
+static size_t binary_items(const rt_node *nodes, size_t i, const rt_bref *refs, unsigned char *seen, size_t *leaves,
+                           size_t *small_inner)
+{
+    const rt_node *nd = &nodes[i];
+    if (nd->count) {
+        assert_true(nd->count <= 8);
+        for (size_t k = nd->index; k < nd->index + nd->count; k++)
+            seen[rt__bref_item(&refs[k])]++;
+        (*leaves)++;
+        return nd->count;
+    }
+    size_t m = binary_items(nodes, i + 1, refs, seen, leaves, small_inner) +
+               binary_items(nodes, nd->index, refs, seen, leaves, small_inner);
+    *small_inner += m <= 4;
+    return m;
+}
+
+/* rt__bvh_build_binary's leaf_items: with RT_PK (the scene BVH's packets),
+ * no inner node holds that few items; with 1 (the solids' mesh leaves) SAH
+ * alone decides and splits such nodes (many of them in a cloud of small
+ * boxes). Every item in exactly one leaf either way. */
+static void bvh_binary_leaf_items(void **state)
+{
+    (void)state;
+    enum { N = 20000 };
+    rt_bref *refs = malloc(N * sizeof *refs);
+    unsigned char *seen = malloc(N);
+    assert_non_null(refs);
+    assert_non_null(seen);
+    for (int pass = 0; pass < 2; pass++) {
+        size_t leaf_items = pass == 0 ? RT_PK : 1;
+        rr_rng rng = rr_rng_make(11, 0);
+        for (uint32_t k = 0; k < N; k++) {
+            rr_vec3 c = rr_v3(rr_rng_uniform(&rng), rr_rng_uniform(&rng), rr_rng_uniform(&rng));
+            rr_vec3 h = rr_v3(0.002, 0.002, 0.002);
+            rt__bref_set(&refs[k], rr_v3_sub(c, h), rr_v3_add(c, h), k);
+        }
+        rt_node *nodes = NULL;
+        size_t nn = 0, leaves = 0, small_inner = 0;
+        assert_int_equal(rt__bvh_build_binary(refs, N, leaf_items, 1, &nodes, &nn), 0);
+        memset(seen, 0, N);
+        assert_int_equal(binary_items(nodes, 0, refs, seen, &leaves, &small_inner), N);
+        for (size_t k = 0; k < N; k++)
+            assert_int_equal(seen[k], 1);
+        assert_int_equal(nn, 2 * leaves - 1);
+        print_message("leaf_items %zu: %zu leaves, %zu inner nodes of <= 4 items\n", leaf_items, leaves, small_inner);
+        if (pass == 0)
+            assert_int_equal(small_inner, 0);
+        else
+            assert_true(small_inner > N / 20);
+        free(nodes);
+    }
+    free(refs);
+    free(seen);
+}
+
 static void bvh_fast_path_large_and_watertight(void **state)
 {
     (void)state;
@@ -764,6 +824,7 @@ int main(void)
         cmocka_unit_test(bvh_fast_path_matches_reference_random),
         cmocka_unit_test(bvh_fast_path_large_and_watertight),
         cmocka_unit_test(bvh_build_threads_same_tree),
+        cmocka_unit_test(bvh_binary_leaf_items),
         cmocka_unit_test(bvh_widths_agree),
         cmocka_unit_test(bvh_occluded_matches_walk),
         cmocka_unit_test(f_round_matches_nextafter),
