@@ -194,23 +194,73 @@ static void node_costs(const rt_node *bin, size_t i, const uint32_t *cnt, int wi
     }
 }
 
-/* The costs of the subtree of binary node i, nodes [i, end): backwards
- * (children after parents), the two subtrees of a large node as tasks. */
-static void collapse_costs(const rt_node *bin, size_t i, size_t end, const uint32_t *cnt, int width,
-                           collapse_table *t)
+/* A binary subtree, nodes [i, end). */
+typedef struct bspan {
+    size_t i, end;
+} bspan;
+
+static int larger_span_first(const void *a, const void *b)
 {
-    if (bin[i].count || cnt[i] < RT_BUILD_TASK_MIN || !omp_in_parallel()) {
-        for (size_t k = end; k-- > i;)
-            node_costs(bin, k, cnt, width, t);
-        return;
+    size_t x = ((const bspan *)a)->end - ((const bspan *)a)->i, y = ((const bspan *)b)->end - ((const bspan *)b)->i;
+    return (x < y) - (x > y);
+}
+
+/* Appends v to the growable array *a of *n items (capacity *cap); -1 when
+ * out of memory. */
+static int bspan_push(bspan **a, size_t *n, size_t *cap, bspan v)
+{
+    if (*n == *cap) {
+        size_t nc = *cap ? 2 * *cap : 64;
+        bspan *g = realloc(*a, nc * sizeof *g);
+        if (!g)
+            return -1;
+        *a = g;
+        *cap = nc;
     }
-    size_t r = bin[i].index;
-#pragma omp task
-    collapse_costs(bin, i + 1, r, cnt, width, t);
-#pragma omp task
-    collapse_costs(bin, r, end, cnt, width, t);
-#pragma omp taskwait
-    node_costs(bin, i, cnt, width, t);
+    (*a)[(*n)++] = v;
+    return 0;
+}
+
+/* The costs of binary nodes [0, nbin), children before parents. With
+ * threads > 1 the subtrees below RT_BUILD_TASK_MIN items are costed by a
+ * parallel loop, largest first, then the nodes above them in reverse
+ * pre-order (as OpenMP tasks, libgomp ran them on one thread, as it did the
+ * binary build's subtrees: bunny-1m's costs took as long at 2 threads as
+ * at 1). The same table for any thread count. -1 when out of memory. */
+static int collapse_costs(const rt_node *bin, size_t nbin, const uint32_t *cnt, int width, collapse_table *t,
+                          int threads)
+{
+    if (threads <= 1 || cnt[0] < RT_BUILD_TASK_MIN) {
+        for (size_t k = nbin; k-- > 0;)
+            node_costs(bin, k, cnt, width, t);
+        return 0;
+    }
+    bspan *top = NULL, *sub = NULL, *todo = NULL;
+    size_t ntop = 0, ctop = 0, nsub = 0, csub = 0, ntodo = 0, ctodo = 0;
+    int bad = bspan_push(&todo, &ntodo, &ctodo, (bspan){0, nbin});
+    while (!bad && ntodo) { /* pre-order: a node before its subtrees */
+        bspan x = todo[--ntodo];
+        if (bin[x.i].count || cnt[x.i] < RT_BUILD_TASK_MIN) {
+            bad = bspan_push(&sub, &nsub, &csub, x);
+            continue;
+        }
+        size_t r = bin[x.i].index;
+        bad = bspan_push(&top, &ntop, &ctop, x) || bspan_push(&todo, &ntodo, &ctodo, (bspan){r, x.end}) ||
+              bspan_push(&todo, &ntodo, &ctodo, (bspan){x.i + 1, r});
+    }
+    if (!bad) {
+        qsort(sub, nsub, sizeof *sub, larger_span_first); /* for the balance only */
+#pragma omp parallel for schedule(dynamic, 1) num_threads(threads)
+        for (size_t k = 0; k < nsub; k++)
+            for (size_t j = sub[k].end; j-- > sub[k].i;)
+                node_costs(bin, j, cnt, width, t);
+        for (size_t k = ntop; k-- > 0;)
+            node_costs(bin, top[k].i, cnt, width, t);
+    }
+    free(top);
+    free(sub);
+    free(todo);
+    return bad ? -1 : 0;
 }
 
 /* The choice for binary node i with j slots. */
@@ -364,9 +414,11 @@ static int collapse(const rt_node *bin, size_t nbin, size_t n, uint32_t *lcnt, u
         return -1;
     }
     int par = threads > 1 && cnt[0] >= RT_BUILD_TASK_MIN;
-#pragma omp parallel num_threads(threads) if (par)
-#pragma omp single
-    collapse_costs(bin, 0, nbin, cnt, width, &t);
+    if (collapse_costs(bin, nbin, cnt, width, &t, threads) != 0) {
+        table_free(&t);
+        free(cnt);
+        return -1;
+    }
     collapser c = {bin, cnt, first, t, lcnt, lpk, width, rt__wnode_bytes(width), NULL, 0, 0};
     int root_leaf = is_leaf(&c, 0);
     size_t total = 1;
