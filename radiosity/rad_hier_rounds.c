@@ -31,8 +31,19 @@ static void eval_link(const hctx *c, hlink *l, int revis)
         (revis ? rad__hier_revis_ee : rad__hier_eval_ee)(c, l, &rng);
 }
 
-/* Links lo .. hi - 1 evaluated in parallel, with progress (links evaluated
- * of those made so far, from one thread); stops early when interrupted. */
+/* The estimate leaves link l with the refinement's draw: its power without
+ * visibility is under half of what the partial-visibility split (the only
+ * test that reads a link's rays) needs, so no decision read its rays
+ * (rad_hier.c, "Decide, then estimate"). */
+#define REDRAW_SHARE (VIS_SHARE / 2)
+static int draw_unread(const hctx *c, const hlink *l)
+{
+    return rad__hier_link_power(c, l->r, l->s, link_way(l)) < REDRAW_SHARE * c->eps;
+}
+
+/* Links lo .. hi - 1 evaluated in parallel (revis: their visibility drawn
+ * again, where a decision read it), with progress (links evaluated of those
+ * made so far, from one thread); stops early when interrupted. */
 static void eval_links(hctx *c, size_t lo, size_t hi, int revis, void (*progress)(void *, size_t, size_t),
                        void *user)
 {
@@ -44,7 +55,8 @@ static void eval_links(hctx *c, size_t lo, size_t hi, int revis, void (*progress
         for (long i = (long)lo; i < (long)hi; i++) {
             if (interrupted(c))
                 continue;
-            eval_link(c, &c->ln[i], revis);
+            if (!revis || !draw_unread(c, &c->ln[i]))
+                eval_link(c, &c->ln[i], revis);
             size_t d;
 #pragma omp atomic capture
             d = ++done;
@@ -155,10 +167,11 @@ rr_status rad__hier_settle(hctx *c, void (*progress)(void *, size_t, size_t), vo
     return RR_OK;
 }
 
-/* Decide, then estimate: every link's visibility drawn afresh
- * (ESTIMATE_DRAW) once the refinement has settled (rad_hier.c's header);
- * the geometry is kept where it is held without visibility (cluster links,
- * near pairs: a far pair is evaluated whole). */
+/* Decide, then estimate: the visibility of every link whose rays a
+ * decision read drawn afresh (ESTIMATE_DRAW) once the refinement has
+ * settled (rad_hier.c's header); the geometry is kept where it is held
+ * without visibility (cluster links, near pairs: a far pair is evaluated
+ * whole). */
 rr_status rad__hier_estimate(hctx *c, void (*progress)(void *, size_t, size_t), void *user, rr_error *err)
 {
     c->draw = ESTIMATE_DRAW;
