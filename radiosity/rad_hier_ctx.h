@@ -396,9 +396,10 @@ int rad__hier_split_link(hctx *c, uint32_t r, uint32_t s, int receiver, unsigned
  * leaves; then splits what the visibility and first-shot tests ask for, and
  * again, until nothing changes. */
 rr_status rad__hier_settle(hctx *c, void (*progress)(void *, size_t, size_t), void *user, rr_error *err);
-/* Every link's visibility drawn afresh from the estimate's own stream once
- * the refinement has settled, the geometry kept where it is held without
- * visibility. */
+/* The visibility of every link whose rays a decision read (its power
+ * without visibility at least half the partial test's) drawn afresh from
+ * the estimate's own stream once the refinement has settled, the geometry
+ * kept where it is held without visibility. */
 rr_status rad__hier_estimate(hctx *c, void (*progress)(void *, size_t, size_t), void *user, rr_error *err);
 /* Re-tests every link with the solved radiosity; those that now carry too
  * much are replaced by refined ones. Returns whether anything changed. */

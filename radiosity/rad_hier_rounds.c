@@ -1,8 +1,9 @@
 /* rad_hier_rounds.c - the hierarchical pass's links evaluated and tested
  * again (rad_hier.c runs the rounds): every new link evaluated in parallel
  * and the split tests that read what the evaluation found (settle), the
- * visibility of every link drawn afresh once the refinement has settled
- * (estimate), and every kept link re-tested with the solved radiosity
+ * visibility of the links whose rays a decision read drawn afresh once the
+ * refinement has settled (estimate), and every kept link re-tested with the
+ * solved radiosity
  * (relink). rad_hier.c's header has the tests and why ("Links and the
  * oracle", "Decide, then estimate"). */
 #include <omp.h>
