@@ -208,14 +208,17 @@ int rt__tri_hit(const rt_ray_pre *p, rr_vec3 A, rr_vec3 B, rr_vec3 C, int cull, 
  * caller maps rt__bref_item back to its items). The scene BVH collapses it
  * into wide nodes; the solids' mesh leaves walk it as it is
  * (rt_solid_mesh.c). *nodes is malloc'd. 0, or -1 when out of memory.
- * Subtrees of >= 65536 items are built by `threads` threads (0: OpenMP's
- * default) as tasks: the same nodes for any count, bytes included. */
+ * Built by `threads` threads (0: OpenMP's default): the nodes of >= 65536
+ * items as tasks, the subtrees below them by a parallel loop: the same
+ * nodes for any count, bytes included. */
 int rt__bvh_build_binary(rt_bref *refs, size_t n, size_t leaf_items, int threads, rt_node **nodes, size_t *nnodes);
-/* Subtrees of at least this many items are built as OpenMP tasks, each in
- * slots of its own in the one node array, which is then compacted into the
- * order of the serial build (node, left subtree, right subtree): the same
- * splits, the same node array, bytes included, for any thread count. Below
- * it one thread builds the subtree (a task's cost would not pay). */
+/* Nodes of at least this many items are split as OpenMP tasks, each
+ * subtree in slots of its own in the one node array, which is then
+ * compacted into the order of the serial build (node, left subtree, right
+ * subtree): the same splits, the same node array, bytes included, for any
+ * thread count. The subtrees below it are built (and the collapse's costs
+ * computed) by a parallel loop, one thread each, largest first: as nested
+ * tasks libgomp ran them on one thread. */
 #define RT_BUILD_TASK_MIN 65536
 
 /* ---- the BVH by width (rt_bvh.c, rt_traverse.c, rt_bvh_avx2.c) ---- */
