@@ -374,6 +374,15 @@ typedef struct rad_solution {
     int memory_bound;    /* hierarchical: rad_hier_opts.max_bytes coarsened it (not cached, as the key
                             does not hold the limit) */
     double pass_bytes;   /* hierarchical: rad__hier_bytes at the output (what the pass held at its peak) */
+    /* hierarchical: wall seconds by stage, all rounds together (0 when read
+     * from a cache): setup (roots, clusters, lights), link (the first walk
+     * and the later rounds' relinking), settle (the new links' geometry and
+     * shadow rays), regeo (the kept cluster links' geometry again), estimate
+     * (the last draw of visibility), solve (every round's Jacobi sweeps, as
+     * seconds_solve), output (leaves, display, first shots) */
+    struct {
+        double setup, link, settle, regeo, estimate, solve, output;
+    } hier_seconds;
 } rad_solution;
 
 /* Patches, form factors, solve, vertex radiosity: everything the display and

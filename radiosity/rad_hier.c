@@ -530,6 +530,14 @@ static double emitted_power(const hctx *c)
 
 static rr_status hier_run(const scene *s, const rt_accel *a, const rad_pass_opts *o, rad_solution *sol, rr_error *err);
 
+/* Seconds since *mark, which moves to now. */
+static double lap(double *mark)
+{
+    double t = rr_now_seconds(), d = t - *mark;
+    *mark = t;
+    return d;
+}
+
 /* rad__hier_solve, its time added to *seconds. */
 static rr_status timed_solve(hctx *c, const rad_solve_opts *so, rad_solution *sol, double *seconds, rr_error *err)
 {
@@ -627,6 +635,8 @@ static rr_status hier_run(const scene *s, const rt_accel *a, const rad_pass_opts
     rad__hier_leaves_data(&c, nr); /* the roots, all fresh leaves */
     for (size_t i = 0; i < c.nel; i++)
         c.el[i].B = c.el[i].E;
+    double t_mark = rr_now_seconds();
+    sol->hier_seconds.setup = t_mark - t0;
     if (st == RR_OK && interrupted(&c))
         st = rr_error_set(err, RR_ERR_INTERRUPTED, "%s: radiosity pass interrupted (links)", s->path);
     double power = st == RR_OK ? emitted_power(&c) : 0.0;
@@ -635,15 +645,22 @@ static rr_status hier_run(const scene *s, const rt_accel *a, const rad_pass_opts
     c.eps = c.eps_asked = tol * power;
     for (int round = 0; round < MAX_ROUNDS && st == RR_OK; round++) {
         rad__hier_sources(&c, 0, 0);
+        int more = 1;
         if (round == 0) {
             st = first_refine(&c, power, err);
-        } else if ((rad__hier_regeo(&c), !rad__hier_relink(&c))) {
-            break;
+        } else {
+            rad__hier_regeo(&c);
+            sol->hier_seconds.regeo += lap(&t_mark);
+            more = rad__hier_relink(&c);
         }
+        sol->hier_seconds.link += lap(&t_mark);
+        if (!more)
+            break;
         if (c.nomem)
             st = rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory for %zu links", s->path, c.nln);
         if (st == RR_OK)
             st = rad__hier_settle(&c, o->ff.progress, o->ff.progress_user, err);
+        sol->hier_seconds.settle += lap(&t_mark);
         /* The rounds only guide the refinement: a loose solve (ROUND_TOL) is
          * enough there; the estimate's goes to the tolerance. */
         rad_solve_opts ro = so;
@@ -652,13 +669,16 @@ static rr_status hier_run(const scene *s, const rt_accel *a, const rad_pass_opts
         if (st == RR_OK)
             st = timed_solve(&c, &ro, sol, &t_solve, err);
         sol->refine_rounds = round + 1;
+        lap(&t_mark);
     }
     if (st == RR_OK) {
         rad__hier_sources(&c, 0, 0);
         st = rad__hier_estimate(&c, o->ff.progress, o->ff.progress_user, err);
     }
+    sol->hier_seconds.estimate = lap(&t_mark);
     if (st == RR_OK)
         st = timed_solve(&c, &so, sol, &t_solve, err);
+    lap(&t_mark);
     char cap[96], b[32];
     if (c.by_memory)
         snprintf(cap, sizeof cap, "%s (what --max-memory leaves the pass)", rr_size_text(c.max_bytes, b, sizeof b));
@@ -682,6 +702,8 @@ static rr_status hier_run(const scene *s, const rt_accel *a, const rad_pass_opts
         st = rad__hier_output(&c, roots, sol, err);
         roots = NULL; /* rad__hier_output owns it */
     }
+    sol->hier_seconds.output = lap(&t_mark);
+    sol->hier_seconds.solve = t_solve;
     rad_patches_destroy(roots);
     rt_lights_destroy(L);
     free(c.img);

@@ -475,6 +475,25 @@ static void aovs_and_metadata(void **state)
         assert_non_null(hl);
         hrays[t] = atoll(hr + strlen("\"form_factor_rays\": "));
         assert_true(atoll(hl + strlen("\"hierarchical_links\": ")) > 0);
+        /* its stages' seconds account for the pass: none negative, their
+         * sum no more than the pass's and all but what lies outside the
+         * hierarchical solver (the BVH's lights, the solution's arrays) */
+        const char *stage[] = {"setup", "link", "settle", "regeo", "estimate", "solve", "output"};
+        const char *sr = strstr(text, "\"seconds_radiosity\": "), *hs = strstr(text, "\"hierarchical_seconds\"");
+        assert_non_null(sr);
+        assert_non_null(hs);
+        double pass = atof(sr + strlen("\"seconds_radiosity\": ")), sum = 0.0;
+        for (size_t k = 0; k < sizeof stage / sizeof *stage; k++) {
+            char key[32];
+            snprintf(key, sizeof key, "\"%s\": ", stage[k]);
+            const char *v = strstr(hs, key);
+            assert_non_null(v);
+            double x = atof(v + strlen(key));
+            assert_true(x >= 0.0);
+            sum += x;
+        }
+        assert_true(sum <= pass * 1.0001 + 1e-5);
+        assert_true(sum >= 0.5 * pass);
         free(text);
     }
     assert_true(hrays[0] > 0);
