@@ -103,6 +103,10 @@ void rad__ff_free(rad_ff *F);
 struct rad_ff_opts;
 rad_ff *rad__ff_finish(const struct rad_patches *P, rad_ff *F, const struct rad_ff_opts *o);
 
+/* atan2(y, x) for y >= 0, within a few ulps (rad_ff.c): the contour
+ * integral's angles. */
+double rad__ff_angle(double y, double x);
+
 /* Sutherland-Hodgman: the part of triangle tri on the front of the plane
  * (n, p0), vertices within tol of it kept; at most 4 vertices (rad_ff.c). */
 int rad__clip_front(const rr_vec3 tri[3], rr_vec3 n, rr_vec3 p0, double tol, rr_vec3 out[4]);
