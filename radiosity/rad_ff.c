@@ -111,7 +111,7 @@ typedef struct ff_scratch {
  * weighted least squares on Chebyshev nodes in 50-digit arithmetic: its
  * relative error there is 1.6e-18 (in double, a few ulps of the angle,
  * which test_formfactor `angle_against_atan2` checks). */
-double rad__ff_angle(double y, double x)
+static inline double angle(double y, double x)
 {
     static const double P[11] = {-0.33333333333333198,  0.19999999999953702,   -0.14285714280197631,
                                  0.11111110783240968,   -0.090908977473078439, 0.076920599922309554,
@@ -122,33 +122,44 @@ double rad__ff_angle(double y, double x)
     double num = swap ? ax : y, den = swap ? y : ax;
     int big = num > 0.41421356237309503 * den;
     double nn = big ? num - den : num, dd = big ? num + den : den;
-    double u = dd > 0.0 ? nn / dd : 0.0, z = u * u, p = P[10];
-    for (int k = 9; k >= 0; k--)
-        p = p * z + P[k];
+    double u = dd > 0.0 ? nn / dd : 0.0, z = u * u, z2 = z * z, z4 = z2 * z2;
+    /* P(z) by Estrin's scheme: a third of Horner's chain of dependent steps */
+    double p = (P[0] + P[1] * z) + (P[2] + P[3] * z) * z2 +
+               ((P[4] + P[5] * z) + (P[6] + P[7] * z) * z2) * z4 + ((P[8] + P[9] * z) + P[10] * z2) * (z4 * z4);
     double a = u + u * z * p + (big ? RR_PI / 4 : 0.0);
     a = swap ? RR_PI / 2 - a : a;
     return x < 0.0 ? RR_PI - a : a;
 }
 
+double rad__ff_angle(double y, double x) { return angle(y, x); }
+
 double rad_ff_point_polygon(rr_vec3 p, rr_vec3 n, const rr_vec3 *poly, int nv)
 {
     if (nv < 3)
         return 0.0;
-    /* Unit vectors from p: the angle and the edge plane's normal depend only on
-     * directions, and normalising first keeps far or tiny polygons from
-     * overflowing or underflowing the cross products. */
-    double sum = 0.0;
-    rr_vec3 first = rr_v3_norm(rr_v3_sub(poly[0], p)), a = first;
+    /* The angle and the edge plane's normal depend only on directions:
+     * the vectors from p scaled by one factor, 1 / their largest component,
+     * keep far or tiny polygons from overflowing or underflowing the cross
+     * products (unit vectors cost a square root and a division each). */
+    double m = 0.0;
     for (int k = 0; k < nv; k++) {
-        rr_vec3 b = k + 1 < nv ? rr_v3_norm(rr_v3_sub(poly[k + 1], p)) : first;
+        rr_vec3 d = rr_v3_sub(poly[k], p);
+        m = rr_max(m, rr_max(fabs(d.x), rr_max(fabs(d.y), fabs(d.z))));
+    }
+    if (!(m > 0.0) || !isfinite(m))
+        return 0.0;
+    double im = 1.0 / m, sum = 0.0;
+    rr_vec3 first = rr_v3_scale(rr_v3_sub(poly[0], p), im), a = first;
+    for (int k = 0; k < nv; k++) {
+        rr_vec3 b = k + 1 < nv ? rr_v3_scale(rr_v3_sub(poly[k + 1], p), im) : first;
         rr_vec3 c = rr_v3_cross(a, b);
         double cl = rr_v3_len(c);
         /* A degenerate edge (repeated vertex, or p on the edge's line) spans no
          * solid angle seen from p: skip it rather than divide by zero. atan2 of
          * |a x b| and a.b is accurate for tiny and for near-pi angles alike,
          * where acos(a.b) loses half the digits. */
-        if (cl > 0.0 && rr_v3_len2(a) > 0.0 && rr_v3_len2(b) > 0.0)
-            sum += rad__ff_angle(cl, rr_v3_dot(a, b)) * (rr_v3_dot(n, c) / cl);
+        if (cl > 0.0)
+            sum += angle(cl, rr_v3_dot(a, b)) * (rr_v3_dot(n, c) / cl);
         a = b;
     }
     /* For a planar polygon in front of p the sum is +-2 pi F, the sign given by

@@ -17,8 +17,10 @@
  * pass. */
 static double node_proj_area(const hctx *c, uint32_t x, rr_vec3 u)
 {
-    if (x & CLB)
-        return nb_proj(&c->cl[CL(x)].An, u, 1);
+    if (x & CLB) {
+        const hcf *f = &c->cf[CL(x)];
+        return nbf_proj(f->Av, f->As, (f->mask >> 7) & 63u, u, 1);
+    }
     return rr_max(0.0, rr_v3_dot(el_normal(c, x), u)) * node_uarea(c, x); /* fmax is a libm call here */
 }
 
@@ -33,8 +35,10 @@ static double el_proj_area(const hctx *c, uint32_t x, rr_vec3 u)
  * of its power. */
 static double node_proj_power(const hctx *c, uint32_t x, rr_vec3 u)
 {
-    if (x & CLB)
-        return nb_proj(&c->cl[CL(x)].Dn, u, 1);
+    if (x & CLB) {
+        const hcf *f = &c->cf[CL(x)];
+        return nbf_proj(f->Dv, f->Ds, (f->mask >> 1) & 63u, u, 1);
+    }
     const hel *e = &c->el[x];
     return el_proj_area(c, x, u) * (e->src.r + e->src.g + e->src.b);
 }
@@ -199,7 +203,7 @@ static int node_sample(const hctx *c, uint32_t x, int k, int fixed, int by_power
     if (by_power && (x & CLB) && cl_dark(c, x))
         by_power = 0; /* the same draws, without the power's projections */
     while (x & CLB) {
-        const hcl *q = &c->cl[CL(x)];
+        const hcf *q = &c->cf[CL(x)];
         double a0 = 0.0, a1 = 0.0;
         if (by_power) {
             a0 = node_proj_power(c, q->child[0], u);
@@ -213,7 +217,7 @@ static int node_sample(const hctx *c, uint32_t x, int k, int fixed, int by_power
         }
         if (!(a0 + a1 > 0)) { /* nothing faces u: by area */
             a0 = node_area(c, q->child[0]);
-            a1 = q->area - a0;
+            a1 = c->cl[CL(x)].area - a0;
         }
         x = rr_rng_uniform(rng) * (a0 + a1) < a0 ? q->child[0] : q->child[1];
     }
@@ -335,20 +339,35 @@ static void visibility(const hctx *c, const rview *rv, uint32_t r, uint32_t s, r
 
 /* ---- geometry ---- */
 
-/* The cosine at x (normal nr) towards p, and their distance *L. */
-static inline double node_cos(rr_vec3 x, rr_vec3 nr, rr_vec3 p, double *L)
-{
-    rr_vec3 d = rr_v3_sub(p, x);
-    *L = rr_v3_len(d);
-    return *L > 0 ? rr_v3_dot(nr, d) / *L : 0.0;
-}
-
-/* cos_r / (d^2 + A / pi) from point x (normal nr) towards point p. */
+/* cos_r / (d^2 + A / pi) from point x (normal nr) towards point p: nr.d /
+ * (L (L^2 + A / pi)), one square root and one division. */
 static double geo_term(rr_vec3 x, rr_vec3 nr, rr_vec3 p, double A)
 {
     rr_vec3 d = rr_v3_sub(p, x);
-    double L2 = rr_v3_len2(d), L = sqrt(L2);
-    return L > 0 ? rr_max(0.0, rr_v3_dot(nr, d) / L) / (L2 + A / RR_PI) : 0.0;
+    double L2 = rr_v3_len2(d), nd = rr_v3_dot(nr, d);
+    return nd > 0.0 && L2 > 0.0 ? nd / (sqrt(L2) * (L2 + A / RR_PI)) : 0.0;
+}
+
+/* A cluster node's term cos_r I(u) / d^2 from x (normal nr) towards its
+ * point p, I its buckets' projection towards u = (x - p) / |x - p| (power:
+ * Dn; area: An); 0 behind x. Times pi (the caller divides once). The
+ * projection of a flat node's buckets is linear in u, so that there
+ * cos_r I(u) / d^2 = (nr.d) I(-d) / L^4, with no square root: the links'
+ * geometry was 17 % of room.json's pass, mostly its square roots and
+ * divisions. A curved bucket's shortfall reads the unit u. */
+static inline double cl_term(const hcf *f, int area, rr_vec3 x, rr_vec3 nr, rr_vec3 p)
+{
+    rr_vec3 d = rr_v3_sub(p, x);
+    double nd = rr_v3_dot(nr, d), L2 = rr_v3_len2(d);
+    if (!(nd > 0.0) || !(L2 > 0.0))
+        return 0.0;
+    unsigned bits = (f->mask >> (area ? 7 : 1)) & 63u;
+    const float(*v)[3] = area ? f->Av : f->Dv;
+    const float *sb = area ? f->As : f->Ds;
+    if (f->mask & 1u)
+        return nd * nbf_proj(v, sb, bits, rr_v3_neg(d), 1) / (L2 * L2);
+    double iL = 1.0 / sqrt(L2);
+    return nd * iL * iL * iL * nbf_proj(v, sb, bits, rr_v3_scale(d, -iL), 0);
 }
 
 /* The transport of element r <- cluster s per unit of s's power, for s's
@@ -403,13 +422,14 @@ static void cluster_geo(const hctx *c, const rview *rv, uint32_t s, int area_too
             uint32_t n = fr[i];
             int wide = 0;
             if (n & CLB) {
-                rr_vec3 d = rr_v3_sub(node_ctr(c, n), xr);
-                double R = node_radius(c, n);
-                wide = lev < CL_LEVELS || R > CL_THETA * rr_v3_len(d) || fabs(rr_v3_dot(nr, d)) < R;
+                const hcf *f = &c->cf[CL(n)];
+                rr_vec3 d = rr_v3_sub(cf_v3(f->ctr), xr);
+                double R = f->radius;
+                wide = lev < CL_LEVELS || R * R > CL_THETA * CL_THETA * rr_v3_len2(d) || fabs(rr_v3_dot(nr, d)) < R;
             }
             if (wide && nn + (nf - i) + 1 <= CL_NODES) {
-                nx[nn++] = c->cl[CL(n)].child[0];
-                nx[nn++] = c->cl[CL(n)].child[1];
+                nx[nn++] = c->cf[CL(n)].child[0];
+                nx[nn++] = c->cf[CL(n)].child[1];
                 grew = 1;
             } else {
                 nx[nn++] = n;
@@ -420,38 +440,34 @@ static void cluster_geo(const hctx *c, const rview *rv, uint32_t s, int area_too
         if (!grew)
             break;
     }
-    double Tp = 0.0, Ta = 0.0;
+    double Tp = 0.0, Ta = 0.0; /* times pi */
     for (int i = 0; i < nf; i++) {
         uint32_t n = fr[i];
-        int cl = (n & CLB) != 0;
-        rr_vec3 cp = cl ? c->cl[CL(n)].pc : c->el[n].ctr;
-        double Ap = 0.0, Lp = 0.0, Lr = 0.0;
-        /* an element's two centroids are one point; the disc's saturation,
-         * A / pi, for flat nodes (elements) only; a cluster's power term
-         * reads only what it sends, its area term only what it shows */
-        double cp_r = node_cos(xr, nr, cp, &Lp);
-        if (cp_r > 0.0) {
-            rr_vec3 u = rr_v3_scale(rr_v3_sub(xr, cp), 1.0 / Lp);
-            if (!cl) {
-                const hel *e = &c->el[n];
-                Ap = el_proj_area(c, n, u);
-                Tp += cp_r / (Lp * Lp + Ap / RR_PI) * (Ap * (e->src.r + e->src.g + e->src.b)) / RR_PI;
-            } else if (P > 0) { /* where s sends nothing, none of its nodes does */
-                const hcl *q = &c->cl[CL(n)];
-                Tp += cp_r / (Lp * Lp) * nb_proj(&q->Dn, u, cl_flat(q)) / RR_PI;
-            }
-        }
-        if (!by_area)
+        if (n & CLB) {
+            /* a cluster's power term reads only what it sends, its area
+             * term only what it shows */
+            const hcf *q = &c->cf[CL(n)];
+            if (P > 0) /* where s sends nothing, none of its nodes does */
+                Tp += cl_term(q, 0, xr, nr, cf_v3(q->pc));
+            if (by_area)
+                Ta += cl_term(q, 1, xr, nr, cf_v3(q->ac));
             continue;
-        if (cl) {
-            const hcl *q = &c->cl[CL(n)];
-            double ca_r = node_cos(xr, nr, q->ac, &Lr);
-            if (ca_r > 0.0)
-                Ta += ca_r / (Lr * Lr) * nb_proj(&q->An, rr_v3_scale(rr_v3_sub(xr, q->ac), 1.0 / Lr), cl_flat(q)) / RR_PI;
-        } else if (cp_r > 0.0) {
-            Ta += cp_r / (Lp * Lp + Ap / RR_PI) * Ap * (1.0 - c->R->p[c->el[n].root].mirror) / RR_PI; /* as node_uarea */
         }
+        /* an element's two centroids are one point; the disc's saturation,
+         * A / pi, for flat nodes (elements) only */
+        const hel *e = &c->el[n];
+        rr_vec3 d = rr_v3_sub(e->ctr, xr);
+        double nd = rr_v3_dot(nr, d), L2 = rr_v3_len2(d);
+        if (!(nd > 0.0) || !(L2 > 0.0))
+            continue;
+        double iL = 1.0 / sqrt(L2);
+        double Ap = el_proj_area(c, n, rr_v3_scale(d, -iL)), w = nd * iL * Ap / (L2 + Ap / RR_PI);
+        Tp += w * (e->src.r + e->src.g + e->src.b);
+        if (by_area)
+            Ta += w * (1.0 - c->R->p[e->root].mirror); /* as node_uarea */
     }
+    Tp /= RR_PI;
+    Ta /= RR_PI;
     /* Over the receiver: its 4 points against its centre, and its corners
      * (the uneven test), towards s's centroids as a whole. */
     double A = k->area, mp = 0.0, ma = 0.0;
@@ -540,5 +556,39 @@ void rad__hier_regeo(hctx *c)
         l->f = (float)(geo * way_rho(c, rv.way));
         if (c->el[l->r].bur == 0)
             set_shape(l, fk);
+    }
+}
+
+_Static_assert(sizeof(hcf) == 256, "an hcf is four cache lines");
+
+void rad__hier_cl_pack(hctx *c)
+{
+#pragma omp parallel for schedule(static)
+    for (long i = 0; i < (long)c->ncl; i++) {
+        const hcl *k = &c->cl[i];
+        hcf *f = &c->cf[i];
+        memset(f, 0, sizeof *f);
+        const double v[3][3] = {{k->ctr.x, k->ctr.y, k->ctr.z}, {k->pc.x, k->pc.y, k->pc.z}, {k->ac.x, k->ac.y, k->ac.z}};
+        for (int a = 0; a < 3; a++) {
+            f->ctr[a] = (float)v[0][a];
+            f->pc[a] = (float)v[1][a];
+            f->ac[a] = (float)v[2][a];
+        }
+        f->radius = (float)k->radius;
+        f->child[0] = k->child[0];
+        f->child[1] = k->child[1];
+        f->mask = (unsigned)cl_flat(k);
+        for (int b = 0; b < 6; b++) {
+            const rr_vec3 dv = k->Dn.v[b], av = k->An.v[b];
+            f->Dv[b][0] = (float)dv.x;
+            f->Dv[b][1] = (float)dv.y;
+            f->Dv[b][2] = (float)dv.z;
+            f->Ds[b] = (float)k->Dn.s[b];
+            f->Av[b][0] = (float)av.x;
+            f->Av[b][1] = (float)av.y;
+            f->Av[b][2] = (float)av.z;
+            f->As[b] = (float)k->An.s[b];
+            f->mask |= (k->Dn.s[b] > 0 ? 1u : 0u) << (1 + b) | (k->An.s[b] > 0 ? 1u : 0u) << (7 + b);
+        }
     }
 }

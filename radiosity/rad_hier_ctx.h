@@ -116,6 +116,45 @@ typedef struct hcl {
     nbuckets Dn;       /* its surfaces' power (all channels) by normal bucket */
 } hcl;
 
+/* What a link's geometry (rad_hier_cluster.c cluster_geo) and its shadow
+ * rays' draws (node_sample) read of a cluster, packed in float into four
+ * cache lines (rad__hier_cl_pack; an hcl spans nine or ten): those reads
+ * wait on memory, a frontier of 8 to 32 clusters per link. mask: bit 0
+ * cl_flat; bit 1 + b, Dn's bucket b holds power (its s > 0); bit 7 + b,
+ * An's bucket b holds area. */
+typedef struct hcf {
+    float ctr[3], radius;
+    uint32_t child[2];
+    float pc[3], ac[3];
+    uint32_t mask;
+    float pad[3];
+    float Dv[6][3], Ds[6];
+    float Av[6][3], As[6];
+} hcf;
+
+/* nb_proj over a packed record's buckets (bits: the record's mask shifted
+ * to the buckets that hold something). In float, a bucket's |v| and its s
+ * differ by rounding where its normals agree: a shortfall under 1e-6 of s
+ * is that, not a curve. */
+static inline double nbf_proj(const float v[6][3], const float s[6], unsigned bits, rr_vec3 u, int flat)
+{
+    double p = 0.0;
+    for (int b = 0; b < 6; b++) {
+        if (!((bits >> b) & 1u))
+            continue;
+        double vx = v[b][0], vy = v[b][1], vz = v[b][2];
+        double d = vx * u.x + vy * u.y + vz * u.z;
+        p += d > 0 ? d : 0.0;
+        if (flat)
+            continue;
+        double L = sqrt(vx * vx + vy * vy + vz * vz), sb = s[b], miss = sb - L;
+        if (miss > 1e-6 * sb)
+            p += L > 1e-9 * sb ? 0.5 * miss * (1.0 - fabs(d) / L) : 0.25 * miss;
+    }
+    return p;
+}
+static inline rr_vec3 cf_v3(const float v[3]) { return rr_v3(v[0], v[1], v[2]); }
+
 /* A cluster with no curved bucket (hcl.flat within rounding of 1): its
  * buckets send exactly what its surfaces do, and nb_proj skips the
  * shortfall's square roots. */
@@ -222,6 +261,7 @@ typedef struct hctx {
     hel *el;
     size_t nel, capel;
     hcl *cl;
+    hcf *cf; /* the clusters packed (hcf), as of the last rad__hier_cl_pack */
     size_t ncl;
     uint32_t top;
     hlink *ln;
@@ -474,6 +514,9 @@ void rad__hier_eval_cluster(const hctx *c, hlink *l, rr_rng *rng);
 void rad__hier_revis_cluster(const hctx *c, hlink *l, rr_rng *rng);
 /* The evaluated cluster links' geometry again for the current sources. */
 void rad__hier_regeo(hctx *c);
+/* The clusters' packed records (hcf) from their hcl: after the sources
+ * change, before links are evaluated or their geometry read again. */
+void rad__hier_cl_pack(hctx *c);
 
 /* ---- links by way of mirrors (rad_hier_mirror.c) ---- */
 
