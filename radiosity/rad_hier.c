@@ -630,7 +630,7 @@ static rr_status hier_run(const scene *s, const rt_accel *a, const rad_pass_opts
     }
     rad_solve_opts so = o->solve;
     if (!(so.tolerance > 0))
-        so.tolerance = s->radiosity.tolerance;
+        so.tolerance = s->radiosity.tolerance > 0 ? s->radiosity.tolerance : RAD_HIER_TOLERANCE;
     if (!so.interrupt)
         so.interrupt = o->ff.interrupt;
     /* The roots' data, their radiosity E to start from, and eps. */

@@ -608,7 +608,7 @@ rr_status rad__hier_solve(hctx *c, const rad_solve_opts *so, rad_solve_stats *st
         return rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory", c->s->path);
     }
     int maxit = so->max_iterations > 0 ? so->max_iterations : 10000;
-    double tol = so->tolerance > 0 ? so->tolerance : 1e-9;
+    double tol = so->tolerance > 0 ? so->tolerance : RAD_HIER_TOLERANCE;
     /* Two sweeps' history: the leaves' B before the last sweep and before
      * the one before (Bh[it % 2] holds B_{it - 1} during sweep it). */
     rr_rgb *Bh = malloc(2 * (c->nel ? c->nel : 1) * sizeof *Bh);

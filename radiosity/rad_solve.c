@@ -42,7 +42,6 @@
 
 #include "rad_solve_internal.h"
 
-#define RAD_DEFAULT_TOLERANCE 1e-9
 #define RAD_DEFAULT_MAX_ITERATIONS 10000
 /* Auto switches to Gauss-Seidel above this many patches. Form factors from
  * rays connect each patch to ~100-1000 others scattered over the scene, a
@@ -501,7 +500,7 @@ rr_status rad_solve(const rad_patches *P, const rad_ff *F, const rad_solve_opts 
         return st;
     if ((st = check_physics(P, o->allow_rho_ge_1, err)) != RR_OK)
         return st;
-    double tol = o->tolerance > 0.0 ? o->tolerance : RAD_DEFAULT_TOLERANCE;
+    double tol = o->tolerance > 0.0 ? o->tolerance : RAD_FLAT_TOLERANCE;
     int maxit = o->max_iterations > 0 ? o->max_iterations : RAD_DEFAULT_MAX_ITERATIONS;
     size_t direct_max = o->auto_direct_max > 0 ? o->auto_direct_max : RAD_DEFAULT_AUTO_DIRECT_MAX;
     rad_solve_stats s = {0};

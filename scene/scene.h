@@ -182,7 +182,8 @@ typedef struct scene_radiosity {
     scene_rad_solver solver; /* default auto */
     scene_rad_ff form_factors; /* default Monte Carlo */
     int ff_samples;         /* rays (Monte Carlo) or points (quadrature) per patch, default 512 */
-    double tolerance;       /* iterative solver: relative residual, default 1e-9 */
+    double tolerance;       /* the solver's stop: 0 unless set, then the method's default (rad.h:
+                             * RAD_FLAT_TOLERANCE, RAD_HIER_TOLERANCE) */
     scene_rad_method method; /* hierarchical or flat (SCENE_RAD_DEFAULT_METHOD) */
     double refine_tolerance; /* hierarchical: link error over emitted power, default 1.5e-5 */
     double min_area;        /* hierarchical: smallest element; 0 = automatic */

@@ -221,7 +221,7 @@ rr_status sp_parse_radiosity(const sp_ctx *c, const cJSON *root, scene *s)
     scene_radiosity *r = &s->radiosity;
     memset(r, 0, sizeof *r);
     r->ff_samples = 512;
-    r->tolerance = 1e-9;
+    r->tolerance = 0.0; /* the method's default (rad.h) */
     r->method = SCENE_RAD_DEFAULT_METHOD;
     r->refine_tolerance = 1.5e-5;
     r->max_links = 100e6;

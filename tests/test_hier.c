@@ -242,10 +242,13 @@ static rad_energy_row *ledger(const rad_solution *sol, size_t *nrows)
  * 2e-6 of the power by links that no open area accounted for).
  * Whether the power went where it should is the light tracer's check
  * (radray energy --check; test_energy). */
-static void ledger_balance(const char *name, double tol, double escaped_tol)
+static void ledger_balance(const char *name, double tol, double escaped_tol, const char *solve_tol)
 {
-    const char *over[1] = {"radiosity.method=hierarchical"};
-    scene *s = test_shipped_scene(name, over, 1);
+    char tset[64] = "";
+    if (solve_tol)
+        snprintf(tset, sizeof tset, "radiosity.tolerance=%s", solve_tol);
+    const char *over[2] = {"radiosity.method=hierarchical", tset};
+    scene *s = test_shipped_scene(name, over, solve_tol ? 2 : 1);
     rt_accel *a = NULL;
     rad_solution *sol = run(s, &a);
     size_t nrows = 0;
@@ -271,7 +274,10 @@ static void ledger_balance(const char *name, double tol, double escaped_tol)
 static void test_ledger_balance(void **state)
 {
     (void)state;
-    ledger_balance("cornell.json", 1e-6, 0.0);
+    /* The bookkeeping, read at a solve to 1e-9; at the default solve
+     * (RAD_HIER_TOLERANCE 1e-6), the issue's 1e-4 for closed scenes. */
+    ledger_balance("cornell.json", 1e-6, 0.0, "1e-9");
+    ledger_balance("cornell.json", 1e-4, 0.0, NULL);
     /* A closed room: escaped, what the links do not deliver, is the
      * solution's loss (the light tracer: 8e-5 of the emitted power, through
      * the back faces of the mirror's frame), held to the issue's 1e-4 for
@@ -279,12 +285,12 @@ static void test_ledger_balance(void **state)
      * their whole area, buried leaves included (rad_hier_solve.c, pull_el);
      * 2.7e-4 then; 7e-6 with the column scale (rad_hier_solve.c,
      * column_scale). */
-    ledger_balance("mirror-room.json", 1e-6, 1e-4);
+    ledger_balance("mirror-room.json", 1e-6, 1e-4, "1e-9");
     /* The cube lit by a lamp 0.01 under its ceiling: the light tracer loses
      * 2.9e-4 of the power on the lamp's back; the hierarchical solution 5.3e-3
      * before the column scale, 9.5e-4 with it (the leaves in the lamp's gap
      * take in too much: notes/radiosity.md). */
-    ledger_balance("../tests/data/scenes/energy/cube-ceiling-lit.json", 1e-6, 1.5e-3);
+    ledger_balance("../tests/data/scenes/energy/cube-ceiling-lit.json", 1e-6, 1.5e-3, "1e-9");
 }
 
 /* scenes/room.json made a closed furnace: every material rho = 0.5 and
