@@ -107,6 +107,12 @@ rad_ff *rad__ff_finish(const struct rad_patches *P, rad_ff *F, const struct rad_
  * integral's angles. */
 double rad__ff_angle(double y, double x);
 
+/* The hierarchical links' quadrature rules for near pairs (rad_hier_link.c):
+ * smooth, 7 points of degree 5; else that rule on each of the 4 children
+ * (28). Barycentrics into b, weights (summing to 1) into w; returns the
+ * count. */
+int rad__hier_near_rule(int smooth, double (*b)[3], double *w);
+
 /* Sutherland-Hodgman: the part of triangle tri on the front of the plane
  * (n, p0), vertices within tol of it kept; at most 4 vertices (rad_ff.c). */
 int rad__clip_front(const rr_vec3 tri[3], rr_vec3 n, rr_vec3 p0, double tol, rr_vec3 out[4]);
