@@ -524,7 +524,7 @@ void rad__hier_eval_cluster(const hctx *c, hlink *l, rr_rng *rng)
     if (c->el[l->r].bur == 0)
         set_shape(l, fk);
     else
-        memset(l->sh, 0, sizeof l->sh);
+        link_clear_shape(l);
     cluster_vis(c, &rv, l, rng);
     /* How much the factor per unit radiosity of s (geo_a A_s) varies over r,
      * without visibility (rad_hier.c, "Decide, then estimate"), for the

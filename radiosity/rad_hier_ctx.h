@@ -180,8 +180,15 @@ typedef struct hlink {
  * order: the corners A, B, C, then the middle; the corner children's means
  * are met exactly, the middle one reads the mean). Stored as each corner's
  * departure from the mean, d in [-1, 2], in 85ths from -1 (sh[0..2]; they
- * add up to 0 once read back), sh[3] = 1; all 0 (even) where no corner is
- * 1 % off, which the gather skips. */
+ * add up to 0 once read back), sh[3] bit 0 set; all 0 (even) where no
+ * corner is 1 % off, which the gather skips. sh[3] bit 1 is not the
+ * shape's: LINK_READ (link_mark_read), which the shape leaves as it is. */
+#define LINK_READ 2u
+static inline void link_clear_shape(hlink *l)
+{
+    l->sh[0] = l->sh[1] = l->sh[2] = 0;
+    l->sh[3] &= LINK_READ;
+}
 static inline void set_shape(hlink *l, const double fk[4])
 {
     double m = (fk[0] + fk[1] + fk[2]) / 3.0, dev = 0.0, d[3];
@@ -189,17 +196,22 @@ static inline void set_shape(hlink *l, const double fk[4])
         d[k] = m > 0 ? rr_min(2.0, rr_max(-1.0, 2.0 * (fk[k] - m) / m)) : 0.0;
         dev = rr_max(dev, fabs(d[k]));
     }
-    memset(l->sh, 0, sizeof l->sh);
+    link_clear_shape(l);
     if (!(dev > 0.01))
         return;
     for (int k = 0; k < 3; k++)
         l->sh[k] = (unsigned char)lround((d[k] + 1.0) * 85.0);
-    l->sh[3] = 1;
+    l->sh[3] |= 1u;
 }
+/* A split test read link l's shadow rays: it was kept where its rays
+ * decided (the partial-visibility split, rad_hier_rounds.c), so the
+ * estimate draws them again (rad_hier.c, "Decide, then estimate"). */
+static inline void link_mark_read(hlink *l) { l->sh[3] |= LINK_READ; }
+static inline int link_rays_read(const hlink *l) { return (l->sh[3] & LINK_READ) != 0; }
 /* The corners' departures back (adding up to 0); 0 when the link is even. */
 static inline int link_shape(const hlink *l, float d[3])
 {
-    if (!l->sh[3])
+    if (!(l->sh[3] & 1u))
         return 0;
     /* written out (no loops), so that d stays in registers in the gather */
     float d0 = (float)l->sh[0] * (1.0f / 85.0f) - 1.0f, d1 = (float)l->sh[1] * (1.0f / 85.0f) - 1.0f,

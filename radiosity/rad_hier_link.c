@@ -325,7 +325,7 @@ void rad__hier_eval_ee(const hctx *c, hlink *l, rr_rng *rng)
     if (near ? c->el[l->r].nbur == 0 : c->el[l->r].bur == 0)
         set_shape(l, fk);
     else
-        memset(l->sh, 0, sizeof l->sh);
+        link_clear_shape(l);
     set_vis(l, near, &v);
     l->dF = (float)dF; /* how much the factor varies over r */
 }

@@ -32,14 +32,22 @@ static void eval_link(const hctx *c, hlink *l, int revis)
         (revis ? rad__hier_revis_ee : rad__hier_eval_ee)(c, l, &rng);
 }
 
-/* The estimate leaves link l with the refinement's draw: its power without
- * visibility is under half of what the partial-visibility split (the only
- * test that reads a link's rays) needs, so no decision read its rays
- * (rad_hier.c, "Decide, then estimate"). */
-#define REDRAW_SHARE (VIS_SHARE / 2)
+/* The estimate leaves link l with the refinement's draw where no decision
+ * read its rays: the partial-visibility split (the only test that reads
+ * them) never found it carrying VIS_SHARE eps when it kept it
+ * (link_mark_read; rad_hier.c, "Decide, then estimate"). */
 static int draw_unread(const hctx *c, const hlink *l)
 {
-    return rad__hier_link_power(c, l->r, l->s, link_way(l)) < REDRAW_SHARE * c->eps;
+    (void)c;
+    return !link_rays_read(l);
+}
+
+/* The partial-visibility split reads link l's rays: it carries VIS_SHARE
+ * eps without visibility (whatever its rays said: all passing or all
+ * blocked keeps it, some of each splits it). */
+static int reads_rays(const hctx *c, const hlink *l)
+{
+    return rad__hier_link_power(c, l->r, l->s, link_way(l)) > VIS_SHARE * c->eps;
 }
 
 /* Links lo .. hi - 1 evaluated in parallel (revis: their visibility drawn
@@ -143,13 +151,16 @@ rr_status rad__hier_settle(hctx *c, void (*progress)(void *, size_t, size_t), vo
 #pragma omp parallel for schedule(static)
         for (long i = (long)lo; i < (long)old_end; i++) {
             const hlink *l = &c->ln[i];
-            want[i - (long)lo] = uneven(c, l) || unrepresented(c, l->r) || unevenly_exposed(c, l) ||
-                                 (l->vis > 0 && l->vis < VIS_ONE &&
-                                  rad__hier_link_power(c, l->r, l->s, link_way(l)) > VIS_SHARE * c->eps);
+            int other = uneven(c, l) || unrepresented(c, l->r) || unevenly_exposed(c, l);
+            int read = !other && reads_rays(c, l);
+            /* bit 0: split it; bit 1: kept, its rays read */
+            want[i - (long)lo] = (unsigned char)(other || (read && l->vis > 0 && l->vis < VIS_ONE) ? 1 : read ? 2 : 0);
         }
         for (size_t i = lo; i < old_end && !c->nomem; i++) {
             hlink l = c->ln[i];
-            int split = want[i - lo] && !rad__hier_past_cap(c) && rad__hier_split_link(c, l.r, l.s, 1, link_way(&l));
+            int split = (want[i - lo] & 1) && !rad__hier_past_cap(c) && rad__hier_split_link(c, l.r, l.s, 1, link_way(&l));
+            if (want[i - lo] & 2)
+                link_mark_read(&l);
             if (!split)
                 c->ln[keep++] = l;
             changed |= split;
@@ -212,12 +223,13 @@ int rad__hier_relink(hctx *c)
             split[i] = 0;
         else if (rad__hier_link_power(c, l->r, l->s, link_way(l)) > c->eps)
             split[i] = 1;
-        else if (uneven(c, l) || unrepresented(c, l->r) || unevenly_exposed(c, l) ||
-                 (l->vis > 0 && l->vis < VIS_ONE && rad__hier_link_power(c, l->r, l->s, link_way(l)) > VIS_SHARE * c->eps))
+        else if (uneven(c, l) || unrepresented(c, l->r) || unevenly_exposed(c, l))
             split[i] = 2;
+        else if (reads_rays(c, l))
+            split[i] = l->vis > 0 && l->vis < VIS_ONE ? 2 : 4; /* 4: kept, its rays read */
     }
     for (size_t i = 0; i < n; i++)
-        nsplit += split[i] != 0;
+        nsplit += split[i] == 1 || split[i] == 2;
     split_end *se = malloc((nsplit ? nsplit : 1) * sizeof *se);
     if (!se) {
         free(split);
@@ -225,10 +237,14 @@ int rad__hier_relink(hctx *c)
         return 0;
     }
     for (size_t i = 0, k = 0; i < n; i++)
-        if (split[i])
+        if (split[i] == 1 || split[i] == 2) {
             se[k++] = (split_end){c->ln[i].r, c->ln[i].s, split[i], (unsigned char)link_way(&c->ln[i])};
-        else
-            c->ln[keep++] = c->ln[i]; /* keep <= i: in place */
+        } else {
+            c->ln[keep] = c->ln[i]; /* keep <= i: in place */
+            if (split[i] == 4)
+                link_mark_read(&c->ln[keep]);
+            keep++;
+        }
     free(split);
     c->nln = keep;
     c->first_new = keep;
