@@ -417,18 +417,21 @@ size_t *rad__hier_groups(const hctx *c, size_t *ngrp)
     return g;
 }
 
-/* The largest channel of any leaf's B; NaN when one is NaN. */
+/* The largest channel of any leaf's B; NaN when one is NaN. In parallel
+ * (a maximum is the same in any order): serial, it and column_scale were a
+ * pass each over the elements per sweep on one thread. */
 static double leaves_max_B(const hctx *c)
 {
     double m = 0.0;
-    for (size_t i = 0; i < c->nel; i++)
+    int nan = 0;
+#pragma omp parallel for schedule(static) reduction(max : m) reduction(| : nan)
+    for (long i = 0; i < (long)c->nel; i++)
         if (c->el[i].child == NONE) {
             rr_rgb b = c->el[i].B;
-            if (isnan(b.r) || isnan(b.g) || isnan(b.b))
-                return NAN;
+            nan |= isnan(b.r) || isnan(b.g) || isnan(b.b);
             m = rr_max(m, rr_rgb_max(b));
         }
-    return m;
+    return nan ? NAN : m;
 }
 
 /* What the receivers under element x take in per unit of irradiance, as
@@ -547,26 +550,41 @@ static int column_sums(const hctx *c, double *D)
  * tree (notes/radiosity.md, "The column scale"). In an open scene 16 rays
  * per leaf estimate the share too loosely (Cornell: 0.2 % against what the
  * links get right to 0.01 %; a lamp over a board: 15 %). Per channel;
- * serial: one order of the sums. */
+ * summed over CS_BLOCKS runs of elements in parallel, the blocks' sums then
+ * in order: the same bits for any thread count. */
 #define CS_OPEN 0.01
+#define CS_BLOCKS 256 /* partial sums over this many runs of elements: the same sums for any thread count */
 static rr_rgb column_scale(const hctx *c, const double *D)
 {
-    double land[3] = {0, 0, 0}, sent[3] = {0, 0, 0}, all[3] = {0, 0, 0};
-    for (size_t i = 0; i < c->nel; i++) {
-        const hel *e = &c->el[i];
-        if (e->child != NONE || !(e->open > 0))
-            continue;
-        /* a leaf with open area but no open fixed point shot no closedness
-         * ray: counted as landing (leaving it out, room.json's window pane
-         * under its glazing bars sent 0.5 of its 0.38 of power uncounted) */
-        double w = e->area * e->open, l = e->land < 0.0f ? 1.0 : e->land;
-        const double r[3] = {e->B.r, e->B.g, e->B.b};
-        for (int k = 0; k < 3; k++) {
-            all[k] += w * r[k];
-            land[k] += w * r[k] * l;
-            sent[k] += w * r[k] * D[i];
+    double land[3] = {0, 0, 0}, sent[3] = {0, 0, 0}, all[3] = {0, 0, 0}, part[CS_BLOCKS][9];
+    size_t per = (c->nel + CS_BLOCKS - 1) / CS_BLOCKS;
+    memset(part, 0, sizeof part);
+#pragma omp parallel for schedule(static)
+    for (long b = 0; b < CS_BLOCKS; b++) {
+        size_t end = (size_t)(b + 1) * per < c->nel ? (size_t)(b + 1) * per : c->nel;
+        for (size_t i = (size_t)b * per; i < end; i++) {
+            const hel *e = &c->el[i];
+            if (e->child != NONE || !(e->open > 0))
+                continue;
+            /* a leaf with open area but no open fixed point shot no
+             * closedness ray: counted as landing (leaving it out, room.json's
+             * window pane under its glazing bars sent 0.5 of its 0.38 of
+             * power uncounted) */
+            double w = e->area * e->open, l = e->land < 0.0f ? 1.0 : e->land;
+            const double r[3] = {e->B.r, e->B.g, e->B.b};
+            for (int k = 0; k < 3; k++) {
+                part[b][k] += w * r[k];
+                part[b][3 + k] += w * r[k] * l;
+                part[b][6 + k] += w * r[k] * D[i];
+            }
         }
     }
+    for (int b = 0; b < CS_BLOCKS; b++) /* in block order */
+        for (int k = 0; k < 3; k++) {
+            all[k] += part[b][k];
+            land[k] += part[b][3 + k];
+            sent[k] += part[b][6 + k];
+        }
     double f[3];
     for (int k = 0; k < 3; k++)
         f[k] = all[k] > 0 && sent[k] > 0 && land[k] >= (1.0 - CS_OPEN) * all[k] ? land[k] / sent[k] : 1.0;
