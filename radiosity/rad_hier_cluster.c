@@ -542,13 +542,15 @@ void rad__hier_revis_cluster(const hctx *c, hlink *l, rr_rng *rng)
 /* The kept cluster links' geometry for the sources as solved (their
  * visibility stays): read with the power of the round that made them, a
  * ceiling dark in the first round kept its area centroid when it shone,
- * and the light it sent a floor came out 4.6 % low. */
-void rad__hier_regeo(hctx *c)
+ * and the light it sent a floor came out 4.6 % low. Links that carry
+ * under min_power without visibility keep theirs. */
+void rad__hier_regeo(hctx *c, double min_power)
 {
 #pragma omp parallel for schedule(dynamic, 1024)
     for (long i = 0; i < (long)c->nln; i++) {
         hlink *l = &c->ln[i];
-        if (!(l->s & CLB) || isnan(l->f))
+        if (!(l->s & CLB) || isnan(l->f) ||
+            (min_power > 0 && rad__hier_link_power(c, l->r, l->s, link_way(l)) < min_power))
             continue;
         double geo, geo_a, spread, fk[4];
         rview rv = rview_of(c, l->r, link_way(l));

@@ -524,8 +524,9 @@ rr_status rad__hier_output(hctx *c, rad_patches *roots, rad_solution *sol, rr_er
 void rad__hier_eval_cluster(const hctx *c, hlink *l, rr_rng *rng);
 /* Its visibility drawn again from rng, the geometry kept. */
 void rad__hier_revis_cluster(const hctx *c, hlink *l, rr_rng *rng);
-/* The evaluated cluster links' geometry again for the current sources. */
-void rad__hier_regeo(hctx *c);
+/* The evaluated cluster links' geometry again for the current sources,
+ * those that carry min_power or more without visibility (0: all). */
+void rad__hier_regeo(hctx *c, double min_power);
 /* The clusters' packed records (hcf) from their hcl: after the sources
  * change, before links are evaluated or their geometry read again. */
 void rad__hier_cl_pack(hctx *c);
