@@ -64,21 +64,22 @@
  * ESTIMATE_DRAW), and the last solve reads those: -1.4 %.
  * The split tests read nothing else of the rays: the uneven test reads the
  * factor's spread without visibility, the power test the power without it.
- * So a link whose power without visibility is under the partial test's
- * threshold (VIS_SHARE eps; half of it, for sources whose B moved between
- * rounds) was kept whatever its rays said, and its draw is unbiased as it
- * is: the estimate leaves it (58 % of room.json's links). (When the uneven
- * test still read the rays, re-drawing only the links at the threshold
- * recovered two thirds of the bias; now the furnace room is the same to
- * 1e-4 either way: notes/radiosity.md, "The estimate's redraw".)
+ * So a link that the partial test never found carrying VIS_SHARE eps
+ * without visibility when it kept it was kept whatever its rays said, and
+ * its draw is unbiased as it is: the estimate leaves it (LINK_READ, marked
+ * by the tests that read the rays; 68 % of room.json's links). (When the
+ * uneven test still read the rays, re-drawing only the links at the
+ * threshold recovered two thirds of the bias; now the furnace room is the
+ * same to 1e-4 either way: notes/radiosity.md, "The estimate's redraw".)
  *
  * Transport of a link, per channel (w the unit direction from r to s, V the
  * visibility by 4 shadow rays, q = 1 / (d^2 + A / pi) the disc formula that
  * saturates for near nodes, A the area a node shows r):
- *   element <- element: F = mean over 36 points x of r for near pairs (4
+ *   element <- element: F = mean over points x of r (near pairs: a 7-point
+ *                       rule of degree 5, or 28 points, rad_hier_link.c; 4
  *                       otherwise) of F_point(x, s clipped to r's front),
  *                       Lambert's contour integral, times V (4 rays: one per
- *                       point when 4 points, their pass share when 36);
+ *                       point when 4 points, their pass share for near pairs);
  *                       H_r += F B_s
  *   element <- cluster: H_r += g P_s, g = V_p sum_n q_n cos_r,n I_n / P_s
  *                       over s's nodes n three levels down and further
@@ -94,8 +95,9 @@
  * sources, too much at the edge and too little inside (an empty furnace
  * cube without the row-sum scale: +8 % along its edges, -2 % inside), and
  * Cornell's walls came out in steps. The factor is known at points in each
- * of the receiver's four children (a near pair's 36 points, 9 in each; the
- * 4 fixed points, the children's centroids, otherwise; for a cluster source
+ * of the receiver's four children (a near pair's 28 points, 7 in each, or
+ * the 4 fixed points, the children's centroids, as far pairs and the
+ * 7-point rule read it; for a cluster source
  * its whole-cluster term at those points), so a link keeps the linear field
  * (in barycentrics, without visibility) that meets the corner children's
  * means (hlink.sh, set_shape), the gather sums each receiver's fields at its
