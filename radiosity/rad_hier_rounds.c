@@ -50,6 +50,8 @@ static int reads_rays(const hctx *c, const hlink *l)
     return rad__hier_link_power(c, l->r, l->s, link_way(l)) > VIS_SHARE * c->eps;
 }
 
+#define EVAL_BLOCK 256
+
 /* Links lo .. hi - 1 evaluated in parallel (revis: their visibility drawn
  * again, where a decision read it), with progress (links evaluated of those
  * made so far, from one thread); stops early when interrupted. */
@@ -57,19 +59,23 @@ static void eval_links(hctx *c, size_t lo, size_t hi, int revis, void (*progress
                        void *user)
 {
     size_t done = 0;
+    long nb = (long)((hi - lo + EVAL_BLOCK - 1) / EVAL_BLOCK);
 #pragma omp parallel
     {
         rt_ray_counts before = rt_ray_counts_of_thread();
-#pragma omp for schedule(dynamic, 256)
-        for (long i = (long)lo; i < (long)hi; i++) {
-            if (interrupted(c))
-                continue;
-            if (!revis || !draw_unread(c, &c->ln[i]))
-                eval_link(c, &c->ln[i], revis);
+        /* blocks of EVAL_BLOCK links handed out in turn, the count of those
+         * done added once a block (an atomic per link is a cache line that
+         * the threads pass back and forth) */
+#pragma omp for schedule(dynamic, 1)
+        for (long b = 0; b < nb; b++) {
+            size_t b0 = lo + (size_t)b * EVAL_BLOCK, b1 = b0 + EVAL_BLOCK < hi ? b0 + EVAL_BLOCK : hi;
+            for (size_t i = b0; i < b1 && !interrupted(c); i++)
+                if (!revis || !draw_unread(c, &c->ln[i]))
+                    eval_link(c, &c->ln[i], revis);
             size_t d;
 #pragma omp atomic capture
-            d = ++done;
-            if (progress && omp_get_thread_num() == 0 && (d & 4095) == 0)
+            d = done += b1 - b0;
+            if (progress && omp_get_thread_num() == 0 && d / 4096 != (d - (b1 - b0)) / 4096)
                 progress(user, c->evaluated + d, c->evaluated + (hi - lo));
         }
         rt_ray_counts_add_since(&c->rays, before);

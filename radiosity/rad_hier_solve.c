@@ -61,8 +61,22 @@ static int bucket_sort(hlink *ln, size_t n, size_t ne)
 #pragma omp parallel for schedule(dynamic, 256)
     for (long e = 0; e < (long)ne; e++) {
         size_t lo = start[e], hi = start[e + 1];
-        if (hi - lo > 1)
+        if (hi - lo > 64) {
             qsort(ln + lo, hi - lo, sizeof *ln, cmp_source);
+            continue;
+        }
+        /* an insertion sort: a receiver's links come mostly in order of
+         * their sources (the walk visits the clusters in the order they
+         * are numbered), and qsort's calls cost more than the moves */
+        for (size_t i = lo + 1; i < hi; i++) {
+            hlink t = ln[i];
+            size_t j = i;
+            while (j > lo && cmp_source(&t, &ln[j - 1]) < 0) {
+                ln[j] = ln[j - 1];
+                j--;
+            }
+            ln[j] = t;
+        }
     }
     free(start);
     return 0;
