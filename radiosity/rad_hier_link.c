@@ -18,8 +18,8 @@
  * burial is held (hel.nbur bit k for point k). They replaced the
  * centroids of 36 similar sub-triangles, whose error falls only as 1 / M
  * along a shared edge: over 6000 random facing pairs with centres closer
- * than twice their radii, against 8100 points (test_formfactor
- * near_pair_rules), the largest relative error of the mean factor was, for
+ * than twice their radii, against 8100 points (test_hier
+ * test_near_pair_rules), the largest relative error of the mean factor was, for
  * centre distance over the radii's sum in [0, 1), [1, 1.2), [1.2, 1.45),
  * [1.45, 2): 36 points 4.8, 1.6, 1.1, 0.7 %; SMOOTH -, 0.65, 0.28, 0.08 %;
  * NEAR 4.2, 0.07, 0.008, 0.003 %. Near pairs were 41 M of room.json's

@@ -12,6 +12,7 @@
 #include <cmocka.h>
 
 #include "rad.h"
+#include "rad_ff_internal.h"
 #include "test_scenes.h"
 
 static scene *load(const char *json)
@@ -674,6 +675,126 @@ static void test_leaves(void **state)
     scene_destroy(s);
 }
 
+/* The mean of the point-to-polygon factor over a triangle r (normal nr)
+ * towards triangle s by M^2 similar sub-triangles' centroids: the reference
+ * for the near-pair rules (its error falls as 1 / M). */
+static double tri_at3(const rr_vec3 t[3], const double b[3], int k)
+{
+    const double *q[3] = {&t[0].x, &t[1].x, &t[2].x};
+    return b[0] * q[0][k] + b[1] * q[1][k] + b[2] * q[2][k];
+}
+static rr_vec3 bary_point(const rr_vec3 t[3], const double b[3])
+{
+    return rr_v3(tri_at3(t, b, 0), tri_at3(t, b, 1), tri_at3(t, b, 2));
+}
+static double uniform_mean(const rr_vec3 r[3], rr_vec3 nr, const rr_vec3 s[3], int M)
+{
+    double sum = 0.0;
+    int n = 0;
+    for (int j = 0; j < M; j++)
+        for (int i = 0; i + j < M; i++)
+            for (int h = 0; h < 2 && (h == 0 || i + j + 1 < M); h++) {
+                double u = (i + (h ? 2.0 : 1.0) / 3.0) / M, v = (j + (h ? 2.0 : 1.0) / 3.0) / M;
+                const double b[3] = {1.0 - u - v, u, v};
+                sum += rad_ff_point_polygon(bary_point(r, b), nr, s, 3);
+                n++;
+            }
+    return sum / n;
+}
+
+static double tri_radius(const rr_vec3 t[3])
+{
+    rr_vec3 c = rr_v3_scale(rr_v3_add(rr_v3_add(t[0], t[1]), t[2]), 1.0 / 3.0);
+    double m = 0.0;
+    for (int k = 0; k < 3; k++)
+        m = fmax(m, rr_v3_len(rr_v3_sub(t[k], c)));
+    return m;
+}
+
+/* The hierarchical near pairs' quadrature rules (rad_hier_link.c):
+ * - both integrate every polynomial of degree <= 5 in the barycentrics
+ *   exactly (the mean of b1^i b2^j over a triangle is 2 i! j! / (i + j +
+ *   2)!), with weights summing to 1;
+ * - on random facing pairs of triangles (sizes 1:4 to 4:1) whose centres
+ *   are closer than twice their radii, against 8100 points: the 7-point
+ *   rule within 1 % where the centres are further apart than the radii's
+ *   sum (measured 0.65 %), the 28-point rule within 0.2 % there (0.07 %)
+ *   and within 5 % closer (4.2 %; the 36 points it replaced: 4.8 %).
+ * A point or weight off in its 6th digit fails the first part. */
+static void test_near_pair_rules(void **state)
+{
+    (void)state;
+    double b[64][3], w[64];
+    for (int smooth = 0; smooth < 2; smooth++) {
+        int n = rad__hier_near_rule(smooth, b, w);
+        assert_int_equal(n, smooth ? 7 : 28);
+        for (int i = 0; i <= 5; i++)
+            for (int j = 0; i + j <= 5; j++) {
+                double q = 0.0, fi = 1.0, fj = 1.0, fij = 1.0;
+                for (int k = 0; k < n; k++)
+                    q += w[k] * pow(b[k][1], i) * pow(b[k][2], j);
+                for (int k = 2; k <= i; k++)
+                    fi *= k;
+                for (int k = 2; k <= j; k++)
+                    fj *= k;
+                for (int k = 2; k <= i + j + 2; k++)
+                    fij *= k;
+                double want = 2.0 * fi * fj / fij;
+                if (!(fabs(q - want) <= 1e-12))
+                    fail_msg("rule %d: mean of b1^%d b2^%d %.17g, exact %.17g", smooth, i, j, q, want);
+            }
+    }
+    rr_rng rng = rr_rng_make(5, 9);
+    double worst[2][2] = {{0, 0}, {0, 0}}; /* [smooth][centres further apart than the radii] */
+    int kept = 0;
+    for (int it = 0; it < 100000 && kept < 400; it++) {
+        rr_vec3 r[3] = {rr_v3(0, 0, 0), rr_v3(2 * rr_rng_uniform(&rng) - 1, 2 * rr_rng_uniform(&rng) - 1, 0),
+                        rr_v3(2 * rr_rng_uniform(&rng) - 1, 2 * rr_rng_uniform(&rng) - 1, 0)}, nr = rr_v3(0, 0, 1);
+        if (fabs(r[1].x * r[2].y - r[1].y * r[2].x) < 0.2)
+            continue;
+        double sc = pow(4.0, 2 * rr_rng_uniform(&rng) - 1);
+        rr_vec3 c = rr_v3(2 * rr_rng_uniform(&rng) - 1, 2 * rr_rng_uniform(&rng) - 1, 2.5 * rr_rng_uniform(&rng)), s[3];
+        for (int k = 0; k < 3; k++)
+            s[k] = rr_v3_add(c, rr_v3_scale(rr_v3(2 * rr_rng_uniform(&rng) - 1, 2 * rr_rng_uniform(&rng) - 1,
+                                                  2 * rr_rng_uniform(&rng) - 1), sc));
+        if (s[0].z <= 1e-3 || s[1].z <= 1e-3 || s[2].z <= 1e-3)
+            continue; /* s wholly in front of r */
+        rr_vec3 ns = rr_v3_cross(rr_v3_sub(s[1], s[0]), rr_v3_sub(s[2], s[0]));
+        double L = rr_v3_len(ns);
+        if (L < 0.05 * sc * sc)
+            continue;
+        ns = rr_v3_scale(ns, 1.0 / L);
+        double d0 = rr_v3_dot(ns, rr_v3_sub(r[0], s[0]));
+        int facing = 1;
+        for (int k = 0; k < 3; k++)
+            facing &= d0 * rr_v3_dot(ns, rr_v3_sub(r[k], s[0])) > 0 && fabs(rr_v3_dot(ns, rr_v3_sub(r[k], s[0]))) > 1e-3;
+        double rr_ = tri_radius(r), rs = tri_radius(s);
+        rr_vec3 cr = rr_v3_scale(rr_v3_add(rr_v3_add(r[0], r[1]), r[2]), 1.0 / 3.0);
+        rr_vec3 cs = rr_v3_scale(rr_v3_add(rr_v3_add(s[0], s[1]), s[2]), 1.0 / 3.0);
+        double q = rr_v3_len(rr_v3_sub(cr, cs)) / (rr_ + rs);
+        if (!facing || q >= 2.0)
+            continue;
+        double ref = uniform_mean(r, nr, s, 90);
+        if (!(ref > 1e-4))
+            continue;
+        kept++;
+        for (int smooth = 0; smooth < 2; smooth++) {
+            int n = rad__hier_near_rule(smooth, b, w);
+            double m = 0.0;
+            for (int k = 0; k < n; k++)
+                m += w[k] * rad_ff_point_polygon(bary_point(r, b[k]), nr, s, 3);
+            double e = fabs(m / ref - 1.0);
+            worst[smooth][q >= 1.0] = fmax(worst[smooth][q >= 1.0], e);
+        }
+    }
+    print_message("near-pair rules over %d pairs: 28 points %.3f / %.3f %%, 7 points (apart) %.3f %%\n", kept,
+                  100 * worst[0][0], 100 * worst[0][1], 100 * worst[1][1]);
+    assert_int_equal(kept, 400);
+    assert_true(worst[1][1] < 0.01);
+    assert_true(worst[0][1] < 0.002);
+    assert_true(worst[0][0] < 0.05);
+}
+
 /* The cache keeps a hierarchical solution: the tree comes back from its split
  * bits (same leaves, same values, bytes compared); another refinement
  * tolerance refuses the file, naming the method's settings. */
@@ -736,6 +857,7 @@ int main(void)
         cmocka_unit_test(test_memory_bound),
         cmocka_unit_test(test_leaves),
         cmocka_unit_test(test_cache),
+        cmocka_unit_test(test_near_pair_rules),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
