@@ -563,6 +563,13 @@ void rad__hier_regeo(hctx *c, double min_power)
 
 _Static_assert(sizeof(hcf) == 256, "an hcf is four cache lines");
 
+static void pack3(float o[3], rr_vec3 v)
+{
+    o[0] = (float)v.x;
+    o[1] = (float)v.y;
+    o[2] = (float)v.z;
+}
+
 void rad__hier_cl_pack(hctx *c)
 {
 #pragma omp parallel for schedule(static)
@@ -570,25 +577,17 @@ void rad__hier_cl_pack(hctx *c)
         const hcl *k = &c->cl[i];
         hcf *f = &c->cf[i];
         memset(f, 0, sizeof *f);
-        const double v[3][3] = {{k->ctr.x, k->ctr.y, k->ctr.z}, {k->pc.x, k->pc.y, k->pc.z}, {k->ac.x, k->ac.y, k->ac.z}};
-        for (int a = 0; a < 3; a++) {
-            f->ctr[a] = (float)v[0][a];
-            f->pc[a] = (float)v[1][a];
-            f->ac[a] = (float)v[2][a];
-        }
+        pack3(f->ctr, k->ctr);
+        pack3(f->pc, k->pc);
+        pack3(f->ac, k->ac);
         f->radius = (float)k->radius;
         f->child[0] = k->child[0];
         f->child[1] = k->child[1];
         f->mask = (unsigned)cl_flat(k);
         for (int b = 0; b < 6; b++) {
-            const rr_vec3 dv = k->Dn.v[b], av = k->An.v[b];
-            f->Dv[b][0] = (float)dv.x;
-            f->Dv[b][1] = (float)dv.y;
-            f->Dv[b][2] = (float)dv.z;
+            pack3(f->Dv[b], k->Dn.v[b]);
+            pack3(f->Av[b], k->An.v[b]);
             f->Ds[b] = (float)k->Dn.s[b];
-            f->Av[b][0] = (float)av.x;
-            f->Av[b][1] = (float)av.y;
-            f->Av[b][2] = (float)av.z;
             f->As[b] = (float)k->An.s[b];
             f->mask |= (k->Dn.s[b] > 0 ? 1u : 0u) << (1 + b) | (k->An.s[b] > 0 ? 1u : 0u) << (7 + b);
         }
