@@ -32,16 +32,6 @@ static void eval_link(const hctx *c, hlink *l, int revis)
         (revis ? rad__hier_revis_ee : rad__hier_eval_ee)(c, l, &rng);
 }
 
-/* The estimate leaves link l with the refinement's draw where no decision
- * read its rays: the partial-visibility split (the only test that reads
- * them) never found it carrying VIS_SHARE eps when it kept it
- * (link_mark_read; rad_hier.c, "Decide, then estimate"). */
-static int draw_unread(const hctx *c, const hlink *l)
-{
-    (void)c;
-    return !link_rays_read(l);
-}
-
 /* The partial-visibility split reads link l's rays: it carries VIS_SHARE
  * eps without visibility (whatever its rays said: all passing or all
  * blocked keeps it, some of each splits it). */
@@ -70,7 +60,12 @@ static void eval_links(hctx *c, size_t lo, size_t hi, int revis, void (*progress
         for (long b = 0; b < nb; b++) {
             size_t b0 = lo + (size_t)b * EVAL_BLOCK, b1 = b0 + EVAL_BLOCK < hi ? b0 + EVAL_BLOCK : hi;
             for (size_t i = b0; i < b1 && !interrupted(c); i++)
-                if (!revis || !draw_unread(c, &c->ln[i]))
+                /* the estimate leaves a link with the refinement's draw
+                 * where no decision read its rays: the partial-visibility
+                 * split (the only test that reads them) never found it
+                 * carrying VIS_SHARE eps when it kept it (link_mark_read;
+                 * rad_hier.c, "Decide, then estimate") */
+                if (!revis || link_rays_read(&c->ln[i]))
                     eval_link(c, &c->ln[i], revis);
             size_t d;
 #pragma omp atomic capture
