@@ -305,11 +305,11 @@ static int culled(const hctx *c, uint32_t r, uint32_t s, unsigned w)
 }
 
 /* An upper estimate of the form factor from r to s: a disc of s's area at
- * the centres' distance, with cosines raised by the nodes' angular size. */
-static double ff_estimate(const hctx *c, uint32_t r, uint32_t s, unsigned w)
+ * the centres' distance, with cosines raised by the nodes' angular size
+ * (d from r's centre to s's, L its length). */
+static double ff_estimate(const hctx *c, uint32_t r, uint32_t s, unsigned w, rr_vec3 d, double L)
 {
-    rr_vec3 d = rr_v3_sub(node_ctr(c, s), way_point(c, w, node_ctr(c, r)));
-    double L = rr_v3_len(d), As = node_area(c, s);
+    double As = node_area(c, s);
     double spread = L > 0 ? (node_radius(c, r) + node_radius(c, s)) / L : 1.0;
     double cr = 1.0, cs = 1.0;
     if (!(r & CLB) && L > 0)
@@ -334,11 +334,11 @@ double rad__hier_link_power(const hctx *c, uint32_t r, uint32_t s, unsigned w)
     /* A cluster link reads directions and distances at the centres: only
      * between nodes well apart for their size (admissible, as in the fast
      * multipole method) is that accurate whatever power it carries. */
-    if (((r & CLB) || (s & CLB)) &&
-        rr_v3_len(rr_v3_sub(node_ctr(c, s), way_point(c, w, node_ctr(c, r)))) <
-            admissible(c, r, s) * (node_radius(c, r) + node_radius(c, s)))
+    rr_vec3 d = rr_v3_sub(node_ctr(c, s), way_point(c, w, node_ctr(c, r)));
+    double L = rr_v3_len(d);
+    if (((r & CLB) || (s & CLB)) && L < admissible(c, r, s) * (node_radius(c, r) + node_radius(c, s)))
         return INFINITY;
-    return node_rho(c, r) * node_area(c, r) * ff_estimate(c, r, s, w) * node_B(c, s) * way_rho(c, w);
+    return node_rho(c, r) * node_area(c, r) * ff_estimate(c, r, s, w, d, L) * node_B(c, s) * way_rho(c, w);
 }
 
 void rad__hier_link_add(hctx *c, uint32_t r, uint32_t s, unsigned w)

@@ -220,13 +220,14 @@ int rad__hier_relink(hctx *c)
 #pragma omp parallel for schedule(static)
     for (long i = 0; i < (long)n; i++) {
         const hlink *l = &c->ln[i];
+        double p = 0.0;
         if (!(splittable(c, l->r) | splittable(c, l->s)))
             split[i] = 0;
-        else if (rad__hier_link_power(c, l->r, l->s, link_way(l)) > c->eps)
+        else if ((p = rad__hier_link_power(c, l->r, l->s, link_way(l))) > c->eps)
             split[i] = 1;
         else if (uneven(c, l) || unrepresented(c, l->r) || unevenly_exposed(c, l))
             split[i] = 2;
-        else if (reads_rays(c, l))
+        else if (p > VIS_SHARE * c->eps) /* as reads_rays, the power computed once */
             split[i] = l->vis > 0 && l->vis < VIS_ONE ? 2 : 4; /* 4: kept, its rays read */
     }
     for (size_t i = 0; i < n; i++)
