@@ -84,26 +84,6 @@ static inline void nb_add(nbuckets *nb, const nbuckets *o)
     }
 }
 
-/* What nb sends towards unit direction u; flat: every bucket's normals are
- * parallel (hcl.flat is 1), so nothing is missing. */
-static inline double nb_proj(const nbuckets *nb, rr_vec3 u, int flat)
-{
-    double p = 0.0;
-    for (int b = 0; b < 6; b++) {
-        if (!(nb->s[b] > 0))
-            continue;
-        rr_vec3 v = nb->v[b];
-        double d = v.x * u.x + v.y * u.y + v.z * u.z;
-        p += d > 0 ? d : 0.0;
-        if (flat)
-            continue;
-        double L = sqrt(v.x * v.x + v.y * v.y + v.z * v.z), miss = nb->s[b] - L;
-        if (miss > 1e-12 * nb->s[b])
-            p += L > 1e-9 * nb->s[b] ? 0.5 * miss * (1.0 - fabs(d) / L) : 0.25 * miss;
-    }
-    return p;
-}
-
 typedef struct hcl {
     rr_vec3 lo, hi, ctr;
     double radius, area, rho_max;
@@ -132,10 +112,13 @@ typedef struct hcf {
     float Av[6][3], As[6];
 } hcf;
 
-/* nb_proj over a packed record's buckets (bits: the record's mask shifted
- * to the buckets that hold something). In float, a bucket's |v| and its s
- * differ by rounding where its normals agree: a shortfall under 1e-6 of s
- * is that, not a curve. */
+/* What a cluster's buckets (a packed record's v and s; bits: the buckets
+ * that hold something, its mask shifted) send towards unit direction u:
+ * sum_b max(0, v_b . u), and where a bucket is curved (flat 0) half its
+ * shortfall s_b - |v_b| spread by |v_b . u|. flat: every bucket's normals
+ * are parallel (cl_flat), so nothing is missing. In float a bucket's |v|
+ * and its s differ by rounding where its normals agree: a shortfall under
+ * 1e-6 of s is that, not a curve. */
 static inline double nbf_proj(const float v[6][3], const float s[6], unsigned bits, rr_vec3 u, int flat)
 {
     double p = 0.0;
@@ -156,7 +139,7 @@ static inline double nbf_proj(const float v[6][3], const float s[6], unsigned bi
 static inline rr_vec3 cf_v3(const float v[3]) { return rr_v3(v[0], v[1], v[2]); }
 
 /* A cluster with no curved bucket (hcl.flat within rounding of 1): its
- * buckets send exactly what its surfaces do, and nb_proj skips the
+ * buckets send exactly what its surfaces do, and nbf_proj skips the
  * shortfall's square roots. */
 static inline int cl_flat(const hcl *k) { return k->flat >= 1.0 - 1e-12; }
 
