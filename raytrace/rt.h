@@ -495,7 +495,7 @@ typedef enum rt_filter { RT_FILTER_BOX = 0, RT_FILTER_TENT = 1 } rt_filter;
 int rt_follow_mirrors(const rt_accel *a, rr_ray ray, int max_bounces, rr_ray *last, int *escaped);
 
 typedef struct rt_render_opts {
-    int spp;          /* samples per pixel, stratified over the pixel filter */
+    int spp;          /* samples per pixel over the pixel filter: a jittered m x m grid (m = floor(sqrt(spp))), the rest uniform */
     uint64_t seed;
     int threads;      /* 0 = OpenMP default */
     int max_depth;    /* the most mirror reflections on any path (scene render.max_depth) */

@@ -354,7 +354,14 @@ static rr_rgb radiance(const render_ctx *c, rr_ray ray, int depth, int bounce, c
 
 /* Stratified sub-pixel offset for sample k of n, warped by the pixel filter:
  * box over [-0.5, 0.5]^2, or tent over [-1, 1]^2 (filter importance sampling,
- * so every sample has weight 1 and pixels stay independent). */
+ * so every sample has weight 1 and pixels stay independent). The first m^2
+ * samples (m = floor(sqrt(n))) are jittered on an m x m grid, the rest
+ * uniform over the pixel: each sample is uniform over the pixel, so the
+ * estimate is unbiased for any n. (A grid of ceil(sqrt(n)) columns filled
+ * row by row left its last row short of samples when n is not a square:
+ * at 32 spp the bottom sixth of every pixel had 2 samples instead of 5 or
+ * 6, and the edges of Cornell's lamp came out up to 29 % off per 4 x 4
+ * block against a 4096-spp reference.) */
 static double tent_warp(double u)
 {
     return u < 0.5 ? sqrt(2.0 * u) - 1.0 : 1.0 - sqrt(2.0 - 2.0 * u);
@@ -362,10 +369,19 @@ static double tent_warp(double u)
 
 static void pixel_offset(int k, int n, rt_filter filter, rr_rng *rng, double *dx, double *dy)
 {
-    int cols = (int)ceil(sqrt((double)n));
-    int rows = (n + cols - 1) / cols;
-    double u = ((double)(k % cols) + rr_rng_uniform(rng)) / cols;
-    double v = ((double)(k / cols) + rr_rng_uniform(rng)) / rows;
+    int m = (int)sqrt((double)n);
+    while ((m + 1) * (m + 1) <= n)
+        m++;
+    while (m * m > n)
+        m--;
+    double u, v;
+    if (k < m * m) {
+        u = ((double)(k % m) + rr_rng_uniform(rng)) / m;
+        v = ((double)(k / m) + rr_rng_uniform(rng)) / m;
+    } else {
+        u = rr_rng_uniform(rng);
+        v = rr_rng_uniform(rng);
+    }
     if (n == 1 && filter == RT_FILTER_BOX) {
         *dx = *dy = 0.0; /* one sample: the lecture's ray through the pixel centre */
         return;

@@ -744,6 +744,48 @@ static void cornell_colour_bleeding(void **state)
     scene_destroy(s);
 }
 
+/* Supersampling is unbiased for any spp: an emitter whose edge runs through
+ * the centres of one pixel row covers half of each of its pixels, and the
+ * row's mean comes out half the lit row's, at a square spp (16: a 4 x 4
+ * grid, exactly) and at others (5, 8, 32). The grid of ceil(sqrt(spp))
+ * columns filled row by row gave 8 spp 0.5625 (its last row held 2
+ * samples instead of 3) and 32 spp 0.55. Tolerance: at 8 spp the 4 samples
+ * past the 2 x 2 grid are uniform, a standard deviation of 0.0088 for the
+ * mean of 201 pixels; 0.03 is 3.4 of them, and half the old bias. */
+static void supersampling_unbiased(void **state)
+{
+    (void)state;
+    const char *json = "{\"format\":\"radray-scene/1\",\"camera\":{\"type\":\"lecture\",\"E\":[0,0,3],"
+                       "\"O\":[0,0,2],\"U\":[0,1,0],\"s\":0.01,\"w\":100,\"h\":2},"
+                       "\"materials\":{\"lamp\":{\"diffuse\":0,\"emission\":1}},"
+                       "\"objects\":[{\"type\":\"triangles\",\"material\":\"lamp\","
+                       "\"vertices\":[[-5,-5,0],[5,-5,0],[5,0,0],[-5,0,0]],\"indices\":[[0,1,2],[0,2,3]]}]}";
+    scene *s = NULL;
+    rr_error err;
+    assert_int_equal(scene_load_string(json, "half", "", NULL, &s, &err), RR_OK);
+    rt_accel *a = NULL;
+    assert_int_equal(rt_accel_build(s, &a, NULL), RR_OK);
+    const int spps[] = {16, 5, 8, 32};
+    for (int i = 0; i < 4; i++) {
+        rt_film f;
+        assert_int_equal(rt_film_init(&f, s->view.width, s->view.height, NULL), RR_OK);
+        rt_render_opts o = default_opts();
+        o.spp = spps[i];
+        o.indirect = RT_INDIRECT_NONE;
+        assert_int_equal(rt_render(s, a, &o, &f, NULL), RR_OK);
+        const rr_image *im = &f.layer[RT_LAYER_EMISSION];
+        double lit = region_mean(im, 0, 3, s->view.width, 4, 0), edge = region_mean(im, 0, 2, s->view.width, 3, 0);
+        assert_true(lit > 0.0);
+        assert_near(region_mean(im, 0, 1, s->view.width, 2, 0), 0.0, 0.0);
+        double tol = spps[i] == 16 ? 1e-12 : 0.03;
+        if (!(fabs(edge / lit - 0.5) <= tol))
+            fail_msg("%d spp: the half-covered row has %.4f of the lit row's mean", spps[i], edge / lit);
+        rt_film_free(&f);
+    }
+    rt_accel_destroy(a);
+    scene_destroy(s);
+}
+
 /* Sliver triangles: a unit square cut into 200 needle-thin triangles (a fan
  * from one corner, aspect ratios up to ~1e4): every ray through the square
  * hits it, with a finite unit normal, and renders no NaN. */
@@ -818,6 +860,7 @@ int main(void)
         cmocka_unit_test(mirror_corner_two),
         cmocka_unit_test(mirror_corner_three),
         cmocka_unit_test(cornell_colour_bleeding),
+        cmocka_unit_test(supersampling_unbiased),
         cmocka_unit_test(bvh_matches_reference_random),
         cmocka_unit_test(bvh_watertight_shared_edges),
         cmocka_unit_test(bvh_matches_reference_large),
