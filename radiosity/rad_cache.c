@@ -169,6 +169,9 @@ static void cache_key(const scene *s, const rad_pass_opts *o, uint64_t key[K_COU
         hash_double(&x[K_METHOD], rtol);
         hash_double(&x[K_METHOD], rad__hier_min_area(s, o));
         hash_double(&x[K_METHOD], links);
+        double rel = o->hier.relative > 0 ? o->hier.relative : s->radiosity.relative_tolerance;
+        if (rel > 0) /* (off keeps the keys of the caches made before it existed) */
+            hash_double(&x[K_METHOD], rel);
     }
     for (int k = 0; k < K_COUNT; k++)
         key[k] = x[k].h;

@@ -73,6 +73,7 @@ void rad__hier_probe_new(hctx *c)
 /* ---- leaf data: first shot and closedness ---- */
 
 #define CLOSED_RAYS 16 /* rays from a leaf that decide whether it sees a closed part of the scene */
+#define OCCL_NEAR 2.0  /* a closedness ray that meets a surface within this many root radii counts in occl */
 
 static void leaf_data(const hctx *c, uint32_t x)
 {
@@ -82,7 +83,8 @@ static void leaf_data(const hctx *c, uint32_t x)
                  : rr_rgb_make(0, 0, 0);
     e->E = rr_rgb_add(rp->emission, rr_rgb_mul(rp->rho, e->H0));
     rr_rng rng = rr_rng_make(c->seed ^ 0x9e3779b97f4a7c15ULL, x);
-    int any = open_pt(e, 0) >= 0, landed = 0, back = 0; /* from its open points */
+    int any = open_pt(e, 0) >= 0, landed = 0, back = 0, near = 0; /* from its open points */
+    double near_d = OCCL_NEAR * c->el[e->root].radius;
     for (int k = 0; k < CLOSED_RAYS && any; k++) {
         rr_vec3 xs, ns;
         int q = open_pt(e, k);
@@ -95,11 +97,13 @@ static void leaf_data(const hctx *c, uint32_t x)
         if (rt_accel_closest(c->a, ray, 0.0, INFINITY, &h)) {
             landed += h.front;
             back += !h.front;
+            near += h.t < near_d; /* dir is a unit vector */
         }
     }
     e->closed = any && landed == CLOSED_RAYS;
     e->land = any ? (float)landed / CLOSED_RAYS : -1.0f;
     e->back = any ? (float)back / CLOSED_RAYS : -1.0f;
+    e->occl = any ? (float)near / CLOSED_RAYS : -1.0f;
     e->fresh = 0;
 }
 
@@ -118,8 +122,8 @@ void rad__hier_leaves_data(hctx *c, size_t ne)
 
 /* Each element's least and most exposure over its leaves (xlo, xhi), an
  * exposure being 1 - back, the share of a leaf's closedness rays that did
- * not meet a surface's back; leaves with no data yet, or no open point, are
- * left out (xlo > xhi when none is left). */
+ * not meet a surface's back, and the same of occl (olo, ohi); leaves with no
+ * data yet, or no open point, are left out (xlo > xhi when none is left). */
 static void exposure(hctx *c, uint32_t x)
 {
     hel *e = &c->el[x];
@@ -127,14 +131,19 @@ static void exposure(hctx *c, uint32_t x)
         int known = !e->fresh && e->back >= 0.0f;
         e->xlo = known ? 1.0f - e->back : 1.0f;
         e->xhi = known ? 1.0f - e->back : 0.0f;
+        e->olo = known ? e->occl : 1.0f;
+        e->ohi = known ? e->occl : 0.0f;
         return;
     }
-    e->xlo = 1.0f;
-    e->xhi = 0.0f;
+    e->xlo = e->olo = 1.0f;
+    e->xhi = e->ohi = 0.0f;
     for (uint32_t k = 0; k < 4; k++) {
+        const hel *ch = &c->el[e->child + k];
         exposure(c, e->child + k);
-        e->xlo = fminf(e->xlo, c->el[e->child + k].xlo);
-        e->xhi = fmaxf(e->xhi, c->el[e->child + k].xhi);
+        e->xlo = fminf(e->xlo, ch->xlo);
+        e->xhi = fmaxf(e->xhi, ch->xhi);
+        e->olo = fminf(e->olo, ch->olo);
+        e->ohi = fmaxf(e->ohi, ch->ohi);
     }
 }
 

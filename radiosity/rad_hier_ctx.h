@@ -31,6 +31,8 @@ typedef struct hel {
     float land;     /* leaf: the share of its closedness rays that landed on fronts; -1: it has no open point */
     float back;     /* leaf: the share that met a surface's back (no light comes from there); -1 as land */
     float xlo, xhi; /* the least and most of 1 - back over its leaves (rad__hier_exposure) */
+    float occl;     /* leaf: the share of its closedness rays that met a surface within OCCL_NEAR root radii; -1 as land */
+    float olo, ohi; /* the least and most occl over its leaves (rad__hier_exposure) */
     int partial;    /* it has a partly visible link (rad__hier_gather of B = 1) */
 } hel;
 
@@ -267,6 +269,7 @@ typedef struct hctx {
     rt_ray_counts rays; /* rays traced while linking (sol->ff_rays): every parallel region that traces adds its own */
     double eps, min_area;
     double eps_asked; /* eps as radiosity.refine_tolerance asks it (eps grows under --max-memory) */
+    double rel;       /* radiosity.relative_tolerance, once the receivers' B is known (receiver_eps); 0: off */
     size_t max_links;
     double max_bytes; /* the pass's own arrays at most this (rad_hier_opts.max_bytes); 0: no limit */
     int capped, nomem;
@@ -339,6 +342,17 @@ static inline double node_B(const hctx *c, uint32_t x)
         return k->area > 0 ? rr_rgb_max(k->P) / k->area : 0.0;
     }
     return rr_rgb_max(c->el[x].src); /* the area mean of its leaves' B (rad__hier_sources) */
+}
+static inline double node_area(const hctx *c, uint32_t x);
+/* The receiver-first tests' threshold for receiver r (an element): eps, or
+ * less where the share rel of r's own power is less (rad_hier.c, "Light near
+ * occluders"). */
+static inline double receiver_eps(const hctx *c, uint32_t r)
+{
+    if (!(c->rel > 0) || (r & CLB))
+        return c->eps;
+    double e = c->rel * node_area(c, r) * node_B(c, r);
+    return e < c->eps ? e : c->eps;
 }
 /* Node x can be split: a cluster, or an element whose children keep min_area. */
 static inline int splittable(const hctx *c, uint32_t x) { return (x & CLB) || c->el[x].area * 0.25 >= c->min_area; }

@@ -37,7 +37,7 @@ static void eval_link(const hctx *c, hlink *l, int revis)
  * blocked keeps it, some of each splits it). */
 static int reads_rays(const hctx *c, const hlink *l)
 {
-    return rad__hier_link_power(c, l->r, l->s, link_way(l)) > VIS_SHARE * c->eps;
+    return rad__hier_link_power(c, l->r, l->s, link_way(l)) > VIS_SHARE * receiver_eps(c, l->r);
 }
 
 #define EVAL_BLOCK 256
@@ -84,7 +84,7 @@ static void eval_links(hctx *c, size_t lo, size_t hi, int revis, void (*progress
  * power: rho A_r (F_max - F_min) B_s over its quadrature points. */
 static int uneven(const hctx *c, const hlink *l)
 {
-    return node_rho(c, l->r) * node_area(c, l->r) * l->dF * node_B(c, l->s) > c->eps;
+    return node_rho(c, l->r) * node_area(c, l->r) * l->dF * node_B(c, l->s) > receiver_eps(c, l->r);
 }
 
 /* Receiver r's leaves are exposed unevenly: some see the backs of
@@ -98,8 +98,15 @@ static int unevenly_exposed(const hctx *c, const hlink *l)
     if (l->r & CLB)
         return 0;
     const hel *e = &c->el[l->r];
-    return e->child != NONE && e->xhi > e->xlo &&
-           (e->xhi - e->xlo) * rad__hier_link_power(c, l->r, l->s, link_way(l)) > VIS_SHARE * c->eps;
+    if (e->child == NONE)
+        return 0;
+    double eps = VIS_SHARE * receiver_eps(c, l->r), spread = e->xhi - e->xlo;
+    /* Unevenly occluded (radiosity.relative_tolerance only): some of r's
+     * leaves have surfaces close by, others not, so what r's fixed points
+     * see of s is not what all of it sees ("Light near occluders"). */
+    if (c->rel > 0 && e->ohi - e->olo > spread)
+        spread = e->ohi - e->olo;
+    return spread > 0 && spread * rad__hier_link_power(c, l->r, l->s, link_way(l)) > eps;
 }
 
 /* Receiver r has an open part but all four of its fixed points, where it
@@ -227,7 +234,7 @@ int rad__hier_relink(hctx *c)
             split[i] = 1;
         else if (uneven(c, l) || unrepresented(c, l->r) || unevenly_exposed(c, l))
             split[i] = 2;
-        else if (p > VIS_SHARE * c->eps) /* as reads_rays, the power computed once */
+        else if (p > VIS_SHARE * receiver_eps(c, l->r)) /* as reads_rays, the power computed once */
             split[i] = l->vis > 0 && l->vis < VIS_ONE ? 2 : 4; /* 4: kept, its rays read */
     }
     for (size_t i = 0; i < n; i++)

@@ -187,6 +187,7 @@ typedef struct scene_radiosity {
     scene_rad_method method; /* hierarchical or flat (SCENE_RAD_DEFAULT_METHOD) */
     double refine_tolerance; /* hierarchical: link error over emitted power, default 1.5e-5 */
     double min_area;        /* hierarchical: smallest element; 0 = automatic */
+    double relative_tolerance; /* hierarchical: receiver splits also at this share of the receiver's own power; 0 = off */
     double max_links;       /* hierarchical: links at most, default 1e8 */
 } scene_radiosity;
 

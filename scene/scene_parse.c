@@ -190,7 +190,7 @@ rr_status sp_parse_render(const sp_ctx *c, const cJSON *root, scene *s)
 
 static const char *const k_radiosity[] = {"patch_area", "patch_edge", "solver", "form_factors",
                                           "ff_samples", "tolerance",  "method",
-                                          "refine_tolerance", "min_area", "max_links", NULL};
+                                          "refine_tolerance", "min_area", "max_links", "relative_tolerance", NULL};
 
 /* Looks a string value up in names (NULL-terminated); missing keeps *out. */
 static rr_status parse_choice(const sp_ctx *c, const cJSON *obj, const char *path, const char *key,
@@ -247,7 +247,9 @@ rr_status sp_parse_radiosity(const sp_ctx *c, const cJSON *root, scene *s)
         (st = sp_number_range(c, v, "radiosity", "refine_tolerance", SP_OPTIONAL, 1e-12, 1.0, &r->refine_tolerance)) !=
             RR_OK ||
         (st = sp_number_range(c, v, "radiosity", "min_area", SP_OPTIONAL, 1e-300, INFINITY, &r->min_area)) != RR_OK ||
-        (st = sp_int(c, v, "radiosity", "max_links", SP_OPTIONAL, 1000, 4e9, &r->max_links)) != RR_OK)
+        (st = sp_int(c, v, "radiosity", "max_links", SP_OPTIONAL, 1000, 4e9, &r->max_links)) != RR_OK ||
+        (st = sp_number_range(c, v, "radiosity", "relative_tolerance", SP_OPTIONAL, 0.0, 1.0,
+                              &r->relative_tolerance)) != RR_OK)
         return st;
     r->method = (scene_rad_method)method;
     r->solver = (scene_rad_solver)solver;
