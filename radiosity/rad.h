@@ -332,9 +332,10 @@ typedef struct rad_hier_opts {
                           is under tolerance x the scene's emitted power; <= 0: from the scene */
     double min_area;   /* elements are not split below this area; <= 0: from the scene / automatic */
     double relative;   /* > 0: the receiver-first splits (partly visible, uneven, unevenly exposed or
-                          occluded) also where a link may carry this share of its receiver's own power
-                          (radiosity.relative_tolerance; rad_hier.c, "Light near occluders"); <= 0:
-                          from the scene, whose default 0 is off */
+                          occluded) also where a link may carry this share of its receiver's own power,
+                          and leaves at contacts below min_area for the uneven test, down to a
+                          sixteenth of it (radiosity.relative_tolerance; rad_hier.c, "Light near
+                          occluders"); <= 0: from the scene, whose default 0 is off */
     size_t max_links;  /* the most links: past it the tolerance is raised 4x at a time (with a
                           warning); RR_ERR_INVALID where the cluster links that admissibility
                           needs do not fit; 0: from the scene */

@@ -69,11 +69,15 @@
  * B is known), and adds a fourth: a link goes to r's children while some
  * of r's leaves met a surface within OCCL_NEAR root radii with their
  * closedness rays and others did not (hel.olo, ohi), by as much of its
- * power as that spread carries. At 0.02 the floor is 4.2 % off (7.2 % at
- * most); Cornell's hybrid at 256 px 0.0345 -> 0.0216 against a 4096-spp
- * reference, its pass 0.73 -> 2.0 s. In a furnished room nearly every
- * surface is dark by that measure: room.json at 0.05 took 117 s and 51.5 M
- * links instead of 9.9 s and 4.4 M, which is why it is not the default.
+ * power as that spread carries. At 0.02 the floor is 4.7 % off on average.
+ * What was left were the last units beside the contact, under min_area:
+ * there a leaf whose closedness rays meet a surface within its own radius
+ * (a fifth of them: hel.touch) may split down to min_area / 16 for the
+ * uneven test (contact_splittable). Cornell's hybrid at 256 px, 16 spp,
+ * against a 4096-spp reference: 0.034 -> 0.0195 at 0.04, in 2.72 s (its pass
+ * 0.74 -> 1.6 s). In a furnished room nearly every surface is dark by that
+ * measure: room.json at 0.05 took 117 s and 51.5 M links instead of 9.9 s
+ * and 4.4 M (before the contact splits), which is why it is not the default.
  *
  * Decide, then estimate. The partial-visibility split reads a link's own
  * shadow rays, so the links it keeps are those whose rays came out all
@@ -413,10 +417,12 @@ static void refine(hctx *c, uint32_t r, uint32_t s, unsigned w);
 /* Splits r or s (the larger that can be split, or r first when receiver) and
  * refines the children's links; 0 when neither can be split. A shadow's edge
  * lies on the receiver: splitting the source there only shrinks the link's
- * power until it passes, leaving the shadow as coarse as the receiver. */
+ * power until it passes, leaving the shadow as coarse as the receiver.
+ * receiver 2: the uneven test's, for which a leaf at a contact may go below
+ * min_area (contact_splittable). */
 int rad__hier_split_link(hctx *c, uint32_t r, uint32_t s, int receiver, unsigned w)
 {
-    int sr = splittable(c, r), ss = splittable(c, s);
+    int sr = splittable(c, r) || (receiver == 2 && contact_splittable(c, r)), ss = splittable(c, s);
     if (!sr && !ss)
         return 0;
     int side = receiver && sr ? 0 : (sr && ss ? node_radius(c, s) > node_radius(c, r) : ss);

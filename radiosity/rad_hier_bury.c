@@ -83,7 +83,8 @@ static void leaf_data(const hctx *c, uint32_t x)
                  : rr_rgb_make(0, 0, 0);
     e->E = rr_rgb_add(rp->emission, rr_rgb_mul(rp->rho, e->H0));
     rr_rng rng = rr_rng_make(c->seed ^ 0x9e3779b97f4a7c15ULL, x);
-    int any = open_pt(e, 0) >= 0, landed = 0, back = 0, near = 0; /* from its open points */
+    int any = open_pt(e, 0) >= 0, landed = 0, back = 0, near = 0, touch = 0; /* from its open points */
+    double touch_d = e->radius;
     double near_d = OCCL_NEAR * c->el[e->root].radius;
     for (int k = 0; k < CLOSED_RAYS && any; k++) {
         rr_vec3 xs, ns;
@@ -98,12 +99,14 @@ static void leaf_data(const hctx *c, uint32_t x)
             landed += h.front;
             back += !h.front;
             near += h.t < near_d; /* dir is a unit vector */
+            touch += h.t < touch_d;
         }
     }
     e->closed = any && landed == CLOSED_RAYS;
     e->land = any ? (float)landed / CLOSED_RAYS : -1.0f;
     e->back = any ? (float)back / CLOSED_RAYS : -1.0f;
     e->occl = any ? (float)near / CLOSED_RAYS : -1.0f;
+    e->touch = any ? (float)touch / CLOSED_RAYS : 0.0f;
     e->fresh = 0;
 }
 

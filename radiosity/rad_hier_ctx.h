@@ -33,6 +33,7 @@ typedef struct hel {
     float xlo, xhi; /* the least and most of 1 - back over its leaves (rad__hier_exposure) */
     float occl;     /* leaf: the share of its closedness rays that met a surface within OCCL_NEAR root radii; -1 as land */
     float olo, ohi; /* the least and most occl over its leaves (rad__hier_exposure) */
+    float touch;    /* leaf: the share of its closedness rays that met a surface within its own radius (a contact) */
     int partial;    /* it has a partly visible link (rad__hier_gather of B = 1) */
 } hel;
 
@@ -356,6 +357,18 @@ static inline double receiver_eps(const hctx *c, uint32_t r)
 }
 /* Node x can be split: a cluster, or an element whose children keep min_area. */
 static inline int splittable(const hctx *c, uint32_t x) { return (x & CLB) || c->el[x].area * 0.25 >= c->min_area; }
+#define CONTACT_SHARE 0.2 /* a leaf at a contact: more of its closedness rays than this meet a surface within its radius */
+#define CONTACT_AREA 16.0 /* such a leaf may split down to min_area / CONTACT_AREA (radiosity.relative_tolerance) */
+/* Under radiosity.relative_tolerance, a leaf at a contact may be split
+ * below min_area for the uneven test (rad_hier.c, "Light near occluders"):
+ * the light falls within a few units of the edge where two surfaces meet. */
+static inline int contact_splittable(const hctx *c, uint32_t x)
+{
+    if (!(c->rel > 0) || (x & CLB))
+        return 0;
+    const hel *e = &c->el[x];
+    return e->child == NONE && e->touch > CONTACT_SHARE && e->area * 0.25 >= c->min_area / CONTACT_AREA;
+}
 
 static inline double node_area(const hctx *c, uint32_t x) { return x & CLB ? c->cl[CL(x)].area : c->el[x].area; }
 static inline double node_radius(const hctx *c, uint32_t x) { return x & CLB ? c->cl[CL(x)].radius : c->el[x].radius; }
@@ -435,8 +448,9 @@ void rad__hier_link_add(hctx *c, uint32_t r, uint32_t s, unsigned w);
 /* Whether the links have reached radiosity.max_links or the pass's share of
  * --max-memory (then c->by_memory is set). */
 int rad__hier_past_cap(hctx *c);
-/* Splits r or s (the larger that can be split, r first when receiver) and
- * refines the children's links; 0 when neither can be split. */
+/* Splits r or s (the larger that can be split, r first when receiver: 1, or
+ * 2 for the uneven test, which may split a leaf at a contact below min_area)
+ * and refines the children's links; 0 when neither can be split. */
 int rad__hier_split_link(hctx *c, uint32_t r, uint32_t s, int receiver, unsigned w);
 
 /* ---- the links evaluated and re-tested (rad_hier_rounds.c) ---- */

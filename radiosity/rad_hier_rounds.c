@@ -159,14 +159,16 @@ rr_status rad__hier_settle(hctx *c, void (*progress)(void *, size_t, size_t), vo
 #pragma omp parallel for schedule(static)
         for (long i = (long)lo; i < (long)old_end; i++) {
             const hlink *l = &c->ln[i];
-            int other = uneven(c, l) || unrepresented(c, l->r) || unevenly_exposed(c, l);
+            int fine = uneven(c, l);
+            int other = fine || unrepresented(c, l->r) || unevenly_exposed(c, l);
             int read = !other && reads_rays(c, l);
-            /* bit 0: split it; bit 1: kept, its rays read */
-            want[i - (long)lo] = (unsigned char)(other || (read && l->vis > 0 && l->vis < VIS_ONE) ? 1 : read ? 2 : 0);
+            /* bit 0: split it; bit 1: kept, its rays read; bit 2: uneven */
+            want[i - (long)lo] = (unsigned char)((other || (read && l->vis > 0 && l->vis < VIS_ONE) ? 1 : read ? 2 : 0) | (fine ? 4 : 0));
         }
         for (size_t i = lo; i < old_end && !c->nomem; i++) {
             hlink l = c->ln[i];
-            int split = (want[i - lo] & 1) && !rad__hier_past_cap(c) && rad__hier_split_link(c, l.r, l.s, 1, link_way(&l));
+            int split = (want[i - lo] & 1) && !rad__hier_past_cap(c) &&
+                        rad__hier_split_link(c, l.r, l.s, want[i - lo] & 4 ? 2 : 1, link_way(&l));
             if (want[i - lo] & 2)
                 link_mark_read(&l);
             if (!split)
@@ -229,16 +231,18 @@ int rad__hier_relink(hctx *c)
         const hlink *l = &c->ln[i];
         double p = 0.0;
         if (!(splittable(c, l->r) | splittable(c, l->s)))
-            split[i] = 0;
+            split[i] = contact_splittable(c, l->r) && uneven(c, l) ? 3 : 0;
         else if ((p = rad__hier_link_power(c, l->r, l->s, link_way(l))) > c->eps)
             split[i] = 1;
-        else if (uneven(c, l) || unrepresented(c, l->r) || unevenly_exposed(c, l))
+        else if (uneven(c, l))
+            split[i] = 3;
+        else if (unrepresented(c, l->r) || unevenly_exposed(c, l))
             split[i] = 2;
         else if (p > VIS_SHARE * receiver_eps(c, l->r)) /* as reads_rays, the power computed once */
             split[i] = l->vis > 0 && l->vis < VIS_ONE ? 2 : 4; /* 4: kept, its rays read */
     }
     for (size_t i = 0; i < n; i++)
-        nsplit += split[i] == 1 || split[i] == 2;
+        nsplit += split[i] == 1 || split[i] == 2 || split[i] == 3;
     split_end *se = malloc((nsplit ? nsplit : 1) * sizeof *se);
     if (!se) {
         free(split);
@@ -246,7 +250,7 @@ int rad__hier_relink(hctx *c)
         return 0;
     }
     for (size_t i = 0, k = 0; i < n; i++)
-        if (split[i] == 1 || split[i] == 2) {
+        if (split[i] == 1 || split[i] == 2 || split[i] == 3) {
             se[k++] = (split_end){c->ln[i].r, c->ln[i].s, split[i], (unsigned char)link_way(&c->ln[i])};
         } else {
             c->ln[keep] = c->ln[i]; /* keep <= i: in place */
@@ -259,7 +263,7 @@ int rad__hier_relink(hctx *c)
     c->first_new = keep;
     for (size_t k = 0; k < nsplit && !c->nomem; k++)
         if (!rad__hier_past_cap(c)) {
-            rad__hier_split_link(c, se[k].r, se[k].s, se[k].how == 2, se[k].way);
+            rad__hier_split_link(c, se[k].r, se[k].s, se[k].how == 3 ? 2 : se[k].how == 2, se[k].way);
             changed = 1;
         } else {
             /* kept whole past the cap, and evaluated again (changed: the
