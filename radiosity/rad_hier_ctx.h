@@ -361,13 +361,14 @@ static inline int splittable(const hctx *c, uint32_t x) { return (x & CLB) || c-
 #define CONTACT_AREA 16.0 /* such a leaf may split down to min_area / CONTACT_AREA (radiosity.relative_tolerance) */
 /* Under radiosity.relative_tolerance, a leaf at a contact may be split
  * below min_area for the uneven test (rad_hier.c, "Light near occluders"):
- * the light falls within a few units of the edge where two surfaces meet. */
+ * the light falls within a few units of the edge where two surfaces meet.
+ * An element split so already passes its links on to its children. */
 static inline int contact_splittable(const hctx *c, uint32_t x)
 {
     if (!(c->rel > 0) || (x & CLB))
         return 0;
     const hel *e = &c->el[x];
-    return e->child == NONE && e->touch > CONTACT_SHARE && e->area * 0.25 >= c->min_area / CONTACT_AREA;
+    return e->area * 0.25 >= c->min_area / CONTACT_AREA && (e->child != NONE || e->touch > CONTACT_SHARE);
 }
 
 static inline double node_area(const hctx *c, uint32_t x) { return x & CLB ? c->cl[CL(x)].area : c->el[x].area; }
