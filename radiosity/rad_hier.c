@@ -74,7 +74,7 @@
  * there a leaf whose closedness rays meet a surface within its own radius
  * (a fifth of them: hel.touch) may split down to min_area / 16 for the
  * uneven test (contact_splittable). Cornell's hybrid at 256 px, 16 spp,
- * against a 4096-spp reference: 0.034 -> 0.0195 at 0.04, in 2.72 s (its pass
+ * against a 4096-spp reference: 0.034 -> 0.0196 at 0.04, in 2.72 s (its pass
  * 0.74 -> 1.6 s). In a furnished room nearly every surface is dark by that
  * measure: room.json at 0.05 took 117 s and 51.5 M links instead of 9.9 s
  * and 4.4 M (before the contact splits), which is why it is not the default.
