@@ -312,6 +312,14 @@ static void wnode_clear(wstage *wn)
 /* Child slot i of wn := binary node bi as a leaf (its packets: lpk). */
 static void set_leaf(collapser *c, wstage *wn, int i, uint32_t bi) { wn->child[i] = RT_LEAF | c->lpk[c->first[bi]]; }
 
+/* The collapse's walks (count_rec, collapse_at) hand wide subtrees of this
+ * many items and more to other threads as tasks. At RT_BUILD_TASK_MIN,
+ * room-100k's (102 k items, two halves of 51 k under the root) ran on one
+ * thread: 2.4 ms at 1 and 2 threads; at 8192, 1.5-1.8 ms at 2 (a throwaway
+ * phase timer, radray-bench --quick); the 1M-item scenes, already split,
+ * the same. The nodes' places come from the counts, so the same nodes. */
+#define RT_COLLAPSE_TASK_MIN 8192
+
 /* The wide nodes that collapse_at writes for binary inner node bi and its
  * subtree, into wc[bi] (and wc of every inner node below that becomes a wide
  * node); returns it. Large subtrees as tasks. */
@@ -325,7 +333,7 @@ static uint32_t count_rec(const collapser *c, uint32_t bi, uint32_t *wc)
             continue;
         }
         uint32_t k = kids[i];
-#pragma omp task shared(sub) firstprivate(i, k) if (omp_in_parallel() && c->cnt[k] >= RT_BUILD_TASK_MIN)
+#pragma omp task shared(sub) firstprivate(i, k) if (omp_in_parallel() && c->cnt[k] >= RT_COLLAPSE_TASK_MIN)
         sub[i] = count_rec(c, k, wc);
     }
 #pragma omp taskwait
@@ -359,7 +367,7 @@ static void collapse_at(collapser *c, uint32_t bi, size_t idx, const uint32_t *w
         uint32_t k = kids[i];
         size_t at = next;
         wn.child[i] = (uint32_t)at;
-#pragma omp task firstprivate(k, at) if (omp_in_parallel() && c->cnt[k] >= RT_BUILD_TASK_MIN)
+#pragma omp task firstprivate(k, at) if (omp_in_parallel() && c->cnt[k] >= RT_COLLAPSE_TASK_MIN)
         collapse_at(c, k, at, wc);
         next += wc[k];
     }
