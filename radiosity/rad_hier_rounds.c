@@ -159,11 +159,12 @@ rr_status rad__hier_settle(hctx *c, void (*progress)(void *, size_t, size_t), vo
 #pragma omp parallel for schedule(static)
         for (long i = (long)lo; i < (long)old_end; i++) {
             const hlink *l = &c->ln[i];
-            int fine = uneven(c, l);
-            int other = fine || unrepresented(c, l->r) || unevenly_exposed(c, l);
+            int unev = uneven(c, l);
+            int other = unev || unrepresented(c, l->r) || unevenly_exposed(c, l);
             int read = !other && reads_rays(c, l);
-            /* bit 0: split it; bit 1: kept, its rays read; bit 2: uneven */
-            want[i - (long)lo] = (unsigned char)((other || (read && l->vis > 0 && l->vis < VIS_ONE) ? 1 : read ? 2 : 0) | (fine ? 4 : 0));
+            /* bit 0: split it; bit 1: kept, its rays read; bit 2: uneven (a leaf
+             * at a contact may then split below min_area: contact_splittable) */
+            want[i - (long)lo] = (unsigned char)((other || (read && l->vis > 0 && l->vis < VIS_ONE) ? 1 : read ? 2 : 0) | (unev ? 4 : 0));
         }
         for (size_t i = lo; i < old_end && !c->nomem; i++) {
             hlink l = c->ln[i];
@@ -223,8 +224,9 @@ int rad__hier_relink(hctx *c)
         c->nomem = 1;
         return 0;
     }
-    /* 1: too much power (split the larger end); 2: uneven or partly hidden
-     * (split the receiver first), as settle tests new links. */
+    /* 1: too much power (split the larger end); 2: partly hidden (split the
+     * receiver first); 3: uneven (the receiver first, a leaf at a contact
+     * below min_area too); as settle tests new links. */
     rad__hier_exposures(c);
 #pragma omp parallel for schedule(static)
     for (long i = 0; i < (long)n; i++) {
@@ -242,7 +244,7 @@ int rad__hier_relink(hctx *c)
             split[i] = l->vis > 0 && l->vis < VIS_ONE ? 2 : 4; /* 4: kept, its rays read */
     }
     for (size_t i = 0; i < n; i++)
-        nsplit += split[i] == 1 || split[i] == 2 || split[i] == 3;
+        nsplit += split[i] >= 1 && split[i] <= 3;
     split_end *se = malloc((nsplit ? nsplit : 1) * sizeof *se);
     if (!se) {
         free(split);
@@ -250,7 +252,7 @@ int rad__hier_relink(hctx *c)
         return 0;
     }
     for (size_t i = 0, k = 0; i < n; i++)
-        if (split[i] == 1 || split[i] == 2 || split[i] == 3) {
+        if (split[i] >= 1 && split[i] <= 3) {
             se[k++] = (split_end){c->ln[i].r, c->ln[i].s, split[i], (unsigned char)link_way(&c->ln[i])};
         } else {
             c->ln[keep] = c->ln[i]; /* keep <= i: in place */
@@ -263,7 +265,8 @@ int rad__hier_relink(hctx *c)
     c->first_new = keep;
     for (size_t k = 0; k < nsplit && !c->nomem; k++)
         if (!rad__hier_past_cap(c)) {
-            rad__hier_split_link(c, se[k].r, se[k].s, se[k].how == 3 ? 2 : se[k].how == 2, se[k].way);
+            /* how 1, 2, 3: the larger end, the receiver first, and at contacts */
+            rad__hier_split_link(c, se[k].r, se[k].s, se[k].how - 1, se[k].way);
             changed = 1;
         } else {
             /* kept whole past the cap, and evaluated again (changed: the
