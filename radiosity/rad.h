@@ -217,6 +217,10 @@ void rad_ff_destroy(rad_ff *F);
  * with r_k = poly[k] - p. The polygon's side facing p is what counts; a
  * polygon behind the tangent plane of p must be clipped by the caller. */
 double rad_ff_point_polygon(rr_vec3 p, rr_vec3 n, const rr_vec3 *poly, int nv);
+/* The same sum as a vector, turned towards the polygon (the irradiance
+ * vector of a unit-radiosity polygon at p): the factor for a normal n is
+ * n . v wherever the polygon lies in front of p's plane for n. */
+rr_vec3 rad_ff_point_polygon_vec(rr_vec3 p, const rr_vec3 *poly, int nv);
 
 /* ---- solving ---- */
 

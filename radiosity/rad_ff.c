@@ -167,6 +167,33 @@ double rad_ff_point_polygon(rr_vec3 p, rr_vec3 n, const rr_vec3 *poly, int nv)
     return fabs(sum) / (2.0 * RR_PI);
 }
 
+rr_vec3 rad_ff_point_polygon_vec(rr_vec3 p, const rr_vec3 *poly, int nv)
+{
+    rr_vec3 v = rr_v3(0, 0, 0), ctr = rr_v3(0, 0, 0);
+    if (nv < 3)
+        return v;
+    double m = 0.0; /* as rad_ff_point_polygon: the vectors scaled by their largest component */
+    for (int k = 0; k < nv; k++) {
+        rr_vec3 d = rr_v3_sub(poly[k], p);
+        ctr = rr_v3_add(ctr, d);
+        m = rr_max(m, rr_max(fabs(d.x), rr_max(fabs(d.y), fabs(d.z))));
+    }
+    if (!(m > 0.0) || !isfinite(m))
+        return v;
+    double im = 1.0 / m;
+    rr_vec3 first = rr_v3_scale(rr_v3_sub(poly[0], p), im), a = first;
+    for (int k = 0; k < nv; k++) {
+        rr_vec3 b = k + 1 < nv ? rr_v3_scale(rr_v3_sub(poly[k + 1], p), im) : first;
+        rr_vec3 c = rr_v3_cross(a, b);
+        double cl = rr_v3_len(c);
+        if (cl > 0.0)
+            v = rr_v3_add(v, rr_v3_scale(c, angle(cl, rr_v3_dot(a, b)) / cl));
+        a = b;
+    }
+    v = rr_v3_scale(v, 1.0 / (2.0 * RR_PI));
+    return rr_v3_dot(v, ctr) < 0.0 ? rr_v3_neg(v) : v; /* towards the polygon, whatever its winding */
+}
+
 /* ---- ray ends ---- */
 
 static rr_vec3 patch_point(const rad_patches *P, const rad_patch *q, double u, double v)

@@ -367,6 +367,15 @@ double rad__hier_link_power(const hctx *c, uint32_t r, uint32_t s, unsigned w)
     return node_rho(c, r) * node_area(c, r) * ff_estimate(c, r, s, w, d, L) * node_B(c, s) * way_rho(c, w);
 }
 
+/* The same estimate without the admissibility: what a link between nodes
+ * close for their size carries at most, about (the disc's saturation keeps
+ * it finite). */
+static double near_power(const hctx *c, uint32_t r, uint32_t s)
+{
+    rr_vec3 d = rr_v3_sub(node_ctr(c, s), node_ctr(c, r));
+    return node_rho(c, r) * node_area(c, r) * ff_estimate(c, r, s, 0, d, rr_v3_len(d)) * node_B(c, s);
+}
+
 void rad__hier_link_add(hctx *c, uint32_t r, uint32_t s, unsigned w)
 {
     if (c->nln == c->capln) {
@@ -414,6 +423,9 @@ int rad__hier_past_cap(hctx *c)
 
 static void refine(hctx *c, uint32_t r, uint32_t s, unsigned w);
 
+#define RLC_AUTO_LINKS 200.0 /* links a root too small to split takes as an element receiver, about */
+#define RLC_NEAR_SHARE 0.125 /* a receiving leaf cluster keeps a link closer than admissible under this share of eps */
+
 /* Splits r or s (the larger that can be split, or r first when receiver) and
  * refines the children's links; 0 when neither can be split. A shadow's edge
  * lies on the receiver: splitting the source there only shrinks the link's
@@ -422,12 +434,13 @@ static void refine(hctx *c, uint32_t r, uint32_t s, unsigned w);
  * min_area (contact_splittable). */
 int rad__hier_split_link(hctx *c, uint32_t r, uint32_t s, int receiver, unsigned w)
 {
+    int rl = is_rlc(c, r) && !w; /* a receiving leaf cluster: the larger end splits */
     int sr = splittable(c, r) || (receiver == 2 && contact_splittable(c, r)), ss = splittable(c, s);
     if (!sr && !ss)
         return 0;
-    int side = receiver && sr ? 0 : (sr && ss ? node_radius(c, s) > node_radius(c, r) : ss);
-    if (r & CLB)
-        side = 0; /* receivers are elements */
+    int side = receiver && sr && !rl ? 0 : (sr && ss ? node_radius(c, s) > node_radius(c, r) : ss);
+    if ((r & CLB) && !rl)
+        side = 0; /* receivers are elements (or receiving leaf clusters) */
     uint32_t x = side ? s : r;
     uint32_t kids[4];
     int nk;
@@ -467,7 +480,7 @@ static void refine(hctx *c, uint32_t r, uint32_t s, unsigned w)
     }
     if (culled(c, r, s, w))
         return;
-    if (r & CLB) { /* receivers are elements: a cluster passes the link to its children */
+    if ((r & CLB) && !(is_rlc(c, r) && !w)) { /* receivers are elements: a cluster passes the link to its children */
         refine(c, c->cl[CL(r)].child[0], s, w);
         refine(c, c->cl[CL(r)].child[1], s, w);
         return;
@@ -483,6 +496,8 @@ static void refine(hctx *c, uint32_t r, uint32_t s, unsigned w)
         return;
     }
     double p = rad__hier_link_power(c, r, s, w); /* INFINITY where not admissible */
+    if (isinf(p) && is_rlc(c, r) && !w && near_power(c, r, s) <= RLC_NEAR_SHARE * c->eps)
+        p = 0.0; /* a receiving leaf cluster takes a near link that carries little as it is */
     if (past && p > c->eps)
         c->capped = 1;
     if ((isinf(p) || (p > c->eps && !past)) && rad__hier_split_link(c, r, s, 0, w))
@@ -531,6 +546,19 @@ static rr_status first_refine(hctx *c, double power, rr_error *err)
         c->first = 0;
         if (c->nomem || interrupted(c))
             return RR_OK;
+        if (c->over && c->eps >= power && c->rlc_auto) {
+            /* even the coarsest does not fit: roots too small to split
+             * receive as clusters (radiosity.receiving_clusters, automatic),
+             * and the walk starts again at its coarsest */
+            c->rlc_auto = 0;
+            if (rad__hier_mark_rlc(c, c->rlc_radius) != 0)
+                return rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory", c->s->path);
+            if (c->rlc) {
+                c->by_memory = 0;
+                unwalk(c);
+                continue;
+            }
+        }
         if (!c->over) {
             if (coarsest_fits || c->eps < power || asked * 4.0 >= power)
                 return RR_OK;
@@ -682,6 +710,21 @@ static rr_status hier_run(const scene *s, const rt_accel *a, const rad_pass_opts
     if (st == RR_OK && !(power > 0))
         st = rr_error_set(err, RR_ERR_INVALID, "%s: radiosity: nothing emits light", s->path);
     c.eps = c.eps_asked = tol * power;
+    /* Receiving leaf clusters: asked for, or (automatic) where the roots too
+     * small to split are so many that their links would not fit (about 200
+     * a root, measured on the bunny rooms), or the first walk does not fit
+     * without them (first_refine). */
+    double rcl = s->radiosity.receiving_clusters;
+    c.rlc_radius = (rcl > 0 ? rcl : 1.0) * sqrt(c.min_area);
+    c.rlc_auto = rcl == 0.0;
+    size_t nsmall = 0;
+    for (size_t i = 0; i < nr; i++)
+        nsmall += !splittable(&c, (uint32_t)i);
+    if (st == RR_OK && (rcl > 0 || (c.rlc_auto && (double)nsmall * RLC_AUTO_LINKS > 0.5 * (double)c.max_links))) {
+        c.rlc_auto = 0;
+        if (rad__hier_mark_rlc(&c, c.rlc_radius) != 0)
+            st = rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory", s->path);
+    }
     for (int round = 0; round < MAX_ROUNDS && st == RR_OK; round++) {
         rad__hier_sources(&c, 0, 0);
         rad__hier_cl_pack(&c);
@@ -756,6 +799,7 @@ static rr_status hier_run(const scene *s, const rt_accel *a, const rad_pass_opts
     free(c.el);
     free(c.cl);
     free(c.cf);
+    free(c.rlc);
     free(c.ln);
     free(c.sv);
     sol->stats.used = RAD_SOLVER_ITERATIVE;

@@ -404,15 +404,12 @@ static inline double cl_term(const hcf *f, int area, rr_vec3 x, rr_vec3 nr, rr_v
 #define CL_THETA 0.15  /* and deeper where a node's radius exceeds this share of its distance */
 #define CL_NODES 32    /* the most nodes it reads */
 
-static void cluster_geo(const hctx *c, const rview *rv, uint32_t s, int area_too, double *geo, double *geo_a,
-                        double *spread, double fk[4])
+/* The sums of cluster_geo: cluster s's terms from point xr (normal nr)
+ * over its nodes, times pi: *Tp of its current power, *Ta (by_area) of its
+ * area. */
+static void cluster_sums(const hctx *c, uint32_t s, rr_vec3 xr, rr_vec3 nr, double P, int by_area, double *Tp_out,
+                         double *Ta_out)
 {
-    const hcl *k = &c->cl[CL(s)];
-    rr_vec3 xr = rv->ctr, nr = rv->n;
-    double P = k->P.r + k->P.g + k->P.b;
-    /* *geo_a and *spread are what a new link needs; *geo alone reads them
-     * only where s sends nothing */
-    int by_area = area_too || !(P > 0);
     uint32_t fr[CL_NODES] = {s};
     int nf = 1;
     for (int lev = 0;; lev++) {
@@ -466,6 +463,79 @@ static void cluster_geo(const hctx *c, const rview *rv, uint32_t s, int area_too
         if (by_area)
             Ta += w * (1.0 - c->R->p[e->root].mirror); /* as node_uarea */
     }
+    *Tp_out = Tp;
+    *Ta_out = Ta;
+}
+
+/* The irradiance vector at x of cluster s's current power (times pi): over
+ * cluster_sums's nodes (chosen as for a receiver of normal nr), each node's
+ * intensity towards x over d^2 along the direction to it, the nodes behind
+ * x's plane for nr left out. A receiving leaf cluster's link reads it, so
+ * that its roots, of other normals than nr, read the nodes' spread of
+ * directions (rad__hier_eval_rlc). */
+static rr_vec3 cluster_vec(const hctx *c, uint32_t s, rr_vec3 xr, rr_vec3 nr)
+{
+    uint32_t fr[CL_NODES] = {s};
+    int nf = 1;
+    for (int lev = 0;; lev++) {
+        uint32_t nx[CL_NODES];
+        int nn = 0, grew = 0;
+        for (int i = 0; i < nf; i++) {
+            uint32_t n = fr[i];
+            int wide = 0;
+            if (n & CLB) {
+                const hcf *f = &c->cf[CL(n)];
+                rr_vec3 d = rr_v3_sub(cf_v3(f->ctr), xr);
+                double R = f->radius;
+                wide = lev < CL_LEVELS || R * R > CL_THETA * CL_THETA * rr_v3_len2(d) || fabs(rr_v3_dot(nr, d)) < R;
+            }
+            if (wide && nn + (nf - i) + 1 <= CL_NODES) {
+                nx[nn++] = c->cf[CL(n)].child[0];
+                nx[nn++] = c->cf[CL(n)].child[1];
+                grew = 1;
+            } else {
+                nx[nn++] = n;
+            }
+        }
+        memcpy(fr, nx, (size_t)nn * sizeof *nx);
+        nf = nn;
+        if (!grew)
+            break;
+    }
+    rr_vec3 V = rr_v3(0, 0, 0);
+    for (int i = 0; i < nf; i++) {
+        uint32_t n = fr[i];
+        rr_vec3 p = n & CLB ? cf_v3(c->cf[CL(n)].pc) : c->el[n].ctr, d = rr_v3_sub(p, xr);
+        double L2 = rr_v3_len2(d);
+        if (!(rr_v3_dot(nr, d) > 0.0) || !(L2 > 0.0))
+            continue;
+        double iL = 1.0 / sqrt(L2);
+        rr_vec3 u = rr_v3_scale(d, iL);
+        double t;
+        if (n & CLB) {
+            const hcf *q = &c->cf[CL(n)];
+            t = nbf_proj(q->Dv, q->Ds, (q->mask >> 1) & 63u, rr_v3_neg(u), (int)(q->mask & 1u)) / L2;
+        } else {
+            const hel *e = &c->el[n];
+            double Ap = el_proj_area(c, n, rr_v3_neg(u));
+            t = Ap / (L2 + Ap / RR_PI) * (e->src.r + e->src.g + e->src.b);
+        }
+        V = rr_v3_add(V, rr_v3_scale(u, t));
+    }
+    return V;
+}
+
+static void cluster_geo(const hctx *c, const rview *rv, uint32_t s, int area_too, double *geo, double *geo_a,
+                        double *spread, double fk[4])
+{
+    const hcl *k = &c->cl[CL(s)];
+    rr_vec3 xr = rv->ctr, nr = rv->n;
+    double P = k->P.r + k->P.g + k->P.b;
+    /* *geo_a and *spread are what a new link needs; *geo alone reads them
+     * only where s sends nothing */
+    int by_area = area_too || !(P > 0);
+    double Tp, Ta;
+    cluster_sums(c, s, xr, nr, P, by_area, &Tp, &Ta);
     Tp /= RR_PI;
     Ta /= RR_PI;
     /* Over the receiver: its 4 points against its centre, and its corners
@@ -552,6 +622,11 @@ void rad__hier_regeo(hctx *c, double min_power)
         if (!(l->s & CLB) || isnan(l->f) ||
             (min_power > 0 && rad__hier_link_power(c, l->r, l->s, link_way(l)) < min_power))
             continue;
+        if (l->r & CLB) { /* into a receiving leaf cluster: evaluated again, on the stream it was drawn from */
+            rr_rng rng = rr_rng_make(c->seed ^ c->draw, ((uint64_t)l->r << 32) | l->s);
+            rad__hier_eval_rlc(c, l, &rng, 0);
+            continue;
+        }
         double geo, geo_a, spread, fk[4];
         rview rv = rview_of(c, l->r, link_way(l));
         cluster_geo(c, &rv, l->s, 0, &geo, &geo_a, &spread, fk); /* the power's part only */
@@ -592,4 +667,150 @@ void rad__hier_cl_pack(hctx *c)
             f->mask |= (k->Dn.s[b] > 0 ? 1u : 0u) << (1 + b) | (k->An.s[b] > 0 ? 1u : 0u) << (7 + b);
         }
     }
+}
+
+/* ---- receiving leaf clusters (rad_hier.c, "Receiving leaf clusters") ---- */
+
+/* Whether every root under x is too small to split (and no mirror); marks
+ * rlc[k] = 1 for the clusters of such roots within the radius. */
+static int rlc_small(hctx *c, uint32_t x, double radius)
+{
+    if (!(x & CLB))
+        return !splittable(c, x) && !(c->R->p[c->el[x].root].mirror > 0);
+    const hcl *k = &c->cl[CL(x)];
+    int a = rlc_small(c, k->child[0], radius), b = rlc_small(c, k->child[1], radius);
+    c->rlc[CL(x)] = a && b && k->radius <= radius;
+    return a && b;
+}
+
+/* The highest of them marked 2 (rlc_top: the gather's walks start there). */
+static void rlc_top(hctx *c, uint32_t x, int above)
+{
+    if (!(x & CLB))
+        return;
+    int here = c->rlc[CL(x)] != 0;
+    if (here && !above)
+        c->rlc[CL(x)] = 2;
+    rlc_top(c, c->cl[CL(x)].child[0], above || here);
+    rlc_top(c, c->cl[CL(x)].child[1], above || here);
+}
+
+int rad__hier_mark_rlc(hctx *c, double radius)
+{
+    free(c->rlc);
+    c->rlc = calloc(c->ncl ? c->ncl : 1, 1);
+    c->nrlc = 0;
+    if (!c->rlc)
+        return -1;
+    rlc_small(c, c->top, radius);
+    rlc_top(c, c->top, 0);
+    for (size_t i = 0; i < c->ncl; i++)
+        c->nrlc += c->rlc[i] == 2;
+    if (c->nrlc == 0) {
+        free(c->rlc);
+        c->rlc = NULL;
+    }
+    return 0;
+}
+
+rr_vec3 rad__hier_rlc_dir(const hctx *c, uint32_t r, uint32_t s)
+{
+    rr_vec3 p = s & CLB ? c->cl[CL(s)].pc : c->el[s].ctr;
+    return rr_v3_norm(rr_v3_sub(p, c->cl[CL(r)].ac));
+}
+
+double rad__hier_rlc_take(const hctx *c, uint32_t r, rr_vec3 u)
+{
+    const hcf *f = &c->cf[CL(r)];
+    return nbf_proj(f->Av, f->As, (f->mask >> 7) & 63u, u, (int)(f->mask & 1u));
+}
+
+/* Link l into receiving leaf cluster r = l->r from s = l->s: at VIS_RAYS
+ * points of r's roots that face s (drawn by the area they show s), the
+ * factor a surface facing s's centroid receives (the contour integral for
+ * an element source, cluster_sums for a cluster, per unit of what the
+ * gather reads of s: its B, or its power), and one shadow ray from each
+ * point to a point of s that faces it (drawn by power for a cluster). The
+ * gather gives each root that factor times the cosine of its normal with
+ * the link's direction (rad__hier_gather). The same for B = 1 (fa, va). */
+void rad__hier_eval_rlc(const hctx *c, hlink *l, rr_rng *rng, int revis)
+{
+    (void)revis; /* a far pair: evaluated whole (rad_hier.c, "Decide, then estimate") */
+    uint32_t r = l->r, s = l->s;
+    rr_vec3 u0 = rad__hier_rlc_dir(c, r, s), ps = s & CLB ? c->cl[CL(s)].pc : c->el[s].ctr;
+    const hcl *ks = s & CLB ? &c->cl[CL(s)] : NULL;
+    double P = ks ? ks->P.r + ks->P.g + ks->P.b : 0.0;
+    double f = 0.0, fa = 0.0;
+    rr_vec3 dir = rr_v3(0, 0, 0);
+    int n = 0, seen = 0, pass = 0;
+    for (int k = 0; k < VIS_RAYS; k++) {
+        rr_vec3 x, nx, y, ny;
+        uint32_t yroot = 0;
+        int ok = 0;
+        for (int t = 0; t < BACK_DRAWS && !ok; t++) {
+            int buried = node_sample(c, r, k, 0, 0, u0, rng, &x, &nx, NULL);
+            ok = !buried && rr_v3_dot(nx, rr_v3_sub(ps, x)) > 0.0;
+        }
+        if (!ok)
+            continue; /* no open point of r faces s */
+        n++;
+        rr_vec3 u = rr_v3_norm(rr_v3_sub(ps, x));
+        double g, ga;
+        if (ks) {
+            double Tp, Ta;
+            cluster_sums(c, s, x, u, P, 1, &Tp, &Ta);
+            ga = ks->uarea > 0 ? Ta / (RR_PI * ks->uarea) : 0.0;
+            g = ga;
+            if (P > 0) { /* the power's irradiance vector: its direction and size */
+                rr_vec3 v = cluster_vec(c, s, x, nx);
+                g = rr_v3_len(v) / (RR_PI * P);
+                if (g > 0)
+                    u = rr_v3_norm(v);
+            }
+        } else {
+            /* a near element's light comes from where it lies, not from its
+             * centroid: its irradiance vector (a floor element under a
+             * bunny, read from its far centroid, gave the bunny's underside
+             * a third of its light) */
+            rr_vec3 v = rad__hier_rlc_vec(c, x, nx, s); /* s's part in front of the root drawn */
+            g = ga = rr_v3_len(v);
+            if (g > 0)
+                u = rr_v3_scale(v, 1.0 / g);
+        }
+        f += g;
+        fa += ga;
+        dir = rr_v3_add(dir, rr_v3_scale(u, g > 0 ? g : ga));
+        if (!(g > 0.0 || ga > 0.0))
+            continue;
+        int buried = 0, faces = 0;
+        for (int t = 0; t < BACK_DRAWS && !faces; t++) {
+            if (ks) {
+                buried = node_sample(c, s, k % 4, 0, 1, rr_v3_neg(u), rng, &y, &ny, &yroot);
+            } else {
+                rad_patch_surface(c->R, c->s, c->a, c->el[s].root, tri_random(c->el[s].c, rng), &y, &ny);
+                yroot = c->el[s].root;
+                buried = c->el[s].open < 1.0 && rad__hier_buried(c, &c->el[s], y, ny);
+            }
+            /* the end faces x, and lies in front of x's root: a ray to a
+             * point of s behind that root's plane would cross the root's
+             * own object, and that root takes nothing from there anyway */
+            faces = end_faces(c, 0, ny, x, y) && rr_v3_dot(nx, rr_v3_sub(y, x)) > 0.0;
+        }
+        if (!faces)
+            continue;
+        seen++;
+        if (buried)
+            continue;
+        rad__hier_sphere_end(c, yroot, x, &y, &ny);
+        rr_vec3 d = rr_v3_sub(y, x);
+        rr_vec3 o = rt_offset_origin(c->ext, x, nx, d), t = rt_offset_origin(c->ext, y, ny, rr_v3_neg(d));
+        rr_ray ray = {o, rr_v3_sub(t, o)};
+        pass += !rt_accel_occluded(c->a, ray, 0.0, RT_SHADOW_END);
+    }
+    l->f = n ? (float)(f / n) : 0.0f;
+    l->fa = n ? (float)(fa / n) : 0.0f;
+    l->v = l->va = l->vis = seen ? vis_twelfths(pass, seen) : VIS_ONE;
+    link_set_partial(l, pass > 0 && pass < seen);
+    link_clear_shape(l);
+    l->dF = dir_pack(rr_v3_len(dir) > 0 ? rr_v3_norm(dir) : u0);
 }

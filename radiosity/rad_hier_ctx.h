@@ -282,7 +282,50 @@ typedef struct hctx {
     uint64_t seed;
     uint64_t draw;  /* which shadow rays the links draw: 0 while refining, ESTIMATE_DRAW for the estimate */
     const volatile sig_atomic_t *interrupt;
+    /* Receiving leaf clusters (radiosity.receiving_clusters; rad_hier.c,
+     * "Receiving leaf clusters"): rlc[k] is 1 for the clusters that receive
+     * as one, NULL when there are none. */
+    unsigned char *rlc;
+    size_t nrlc;
+    double rlc_radius; /* their largest radius */
+    int rlc_auto;      /* made only where the first walk does not fit without them (first_refine) */
 } hctx;
+
+/* A unit direction packed into a float's 32 bits (octahedral, 16 bits a
+ * coordinate: within 1e-4 rad), and back: a receiving leaf cluster's link
+ * keeps the direction its light comes from in hlink.dF (rad__hier_eval_rlc). */
+static inline float dir_pack(rr_vec3 u)
+{
+    double l1 = fabs(u.x) + fabs(u.y) + fabs(u.z);
+    double x = l1 > 0 ? u.x / l1 : 0.0, y = l1 > 0 ? u.y / l1 : 0.0;
+    if (u.z < 0) {
+        double ox = (1.0 - fabs(y)) * (x < 0 ? -1.0 : 1.0), oy = (1.0 - fabs(x)) * (y < 0 ? -1.0 : 1.0);
+        x = ox;
+        y = oy;
+    }
+    uint32_t qx = (uint32_t)lround((x * 0.5 + 0.5) * 65535.0), qy = (uint32_t)lround((y * 0.5 + 0.5) * 65535.0);
+    uint32_t b = qx | qy << 16;
+    float f;
+    memcpy(&f, &b, sizeof f);
+    return f;
+}
+static inline rr_vec3 dir_unpack(float f)
+{
+    uint32_t b;
+    memcpy(&b, &f, sizeof b);
+    double x = (double)(b & 0xffffu) / 65535.0 * 2.0 - 1.0, y = (double)(b >> 16) / 65535.0 * 2.0 - 1.0;
+    double z = 1.0 - fabs(x) - fabs(y);
+    if (z < 0) {
+        double ox = (1.0 - fabs(y)) * (x < 0 ? -1.0 : 1.0), oy = (1.0 - fabs(x)) * (y < 0 ? -1.0 : 1.0);
+        x = ox;
+        y = oy;
+    }
+    return rr_v3_norm(rr_v3(x, y, z));
+}
+
+/* Node x is a receiving leaf cluster: links to it stop there, and each root
+ * under it reads their light with its own normal (rad__hier_gather). */
+static inline int is_rlc(const hctx *c, uint32_t x) { return (x & CLB) && c->rlc && c->rlc[CL(x)]; }
 
 static inline int interrupted(const hctx *c) { return c->interrupt && *c->interrupt; }
 
@@ -539,6 +582,23 @@ void rad__hier_revis_cluster(const hctx *c, hlink *l, rr_rng *rng);
 /* The evaluated cluster links' geometry again for the current sources,
  * those that carry min_power or more without visibility (0: all). */
 void rad__hier_regeo(hctx *c, double min_power);
+/* A link into a receiving leaf cluster (l->r is_rlc): evaluated whole, or
+ * (revis) its visibility drawn again (rad_hier_cluster.c). */
+void rad__hier_eval_rlc(const hctx *c, hlink *l, rr_rng *rng, int revis);
+/* What the roots of receiving leaf cluster r take in of a unit irradiance
+ * from direction u (unit), as the gather reads it: their area times the
+ * cosine, by r's normal buckets. */
+double rad__hier_rlc_take(const hctx *c, uint32_t r, rr_vec3 u);
+/* The direction a link into a receiving leaf cluster reads: from r's centre
+ * towards s's power centroid (s's centre for an element), unit. */
+rr_vec3 rad__hier_rlc_dir(const hctx *c, uint32_t r, uint32_t s);
+/* The unoccluded irradiance vector at point x from element s of unit
+ * radiosity, s clipped to the front of x's plane for u (rad_hier_link.c). */
+rr_vec3 rad__hier_rlc_vec(const hctx *c, rr_vec3 x, rr_vec3 u, uint32_t s);
+/* Marks the receiving leaf clusters: the highest clusters of roots too
+ * small to split whose radius is at most `radius` (c->rlc, c->nrlc); -1
+ * when out of memory. */
+int rad__hier_mark_rlc(hctx *c, double radius);
 /* The clusters' packed records (hcf) from their hcl: after the sources
  * change, before links are evaluated or their geometry read again. */
 void rad__hier_cl_pack(hctx *c);

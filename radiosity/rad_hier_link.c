@@ -342,3 +342,13 @@ void rad__hier_revis_ee(const hctx *c, hlink *l, rr_rng *rng)
         near_vis(c, &rv, l->s, rng, &v);
     set_vis(l, 1, &v);
 }
+
+rr_vec3 rad__hier_rlc_vec(const hctx *c, rr_vec3 x, rr_vec3 u, uint32_t s)
+{
+    const hel *es = &c->el[s];
+    if (!(rr_v3_dot(el_normal(c, s), rr_v3_sub(x, es->ctr)) > c->plane_tol))
+        return rr_v3(0, 0, 0);
+    rr_vec3 poly[4];
+    int nv = rad__clip_front(es->c, u, x, c->plane_tol, poly);
+    return nv < 3 ? rr_v3(0, 0, 0) : rr_v3_scale(rad_ff_point_polygon_vec(x, poly, nv), facet_scale(c, s));
+}

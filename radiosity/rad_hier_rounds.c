@@ -26,7 +26,9 @@ static void eval_link(const hctx *c, hlink *l, int revis)
 {
     unsigned w = link_way(l);
     rr_rng rng = rr_rng_make(c->seed ^ c->draw ^ (w ? 0x9e3779b97f4a7c15ULL * w : 0), ((uint64_t)l->r << 32) | l->s);
-    if (l->s & CLB)
+    if (l->r & CLB)
+        rad__hier_eval_rlc(c, l, &rng, revis);
+    else if (l->s & CLB)
         (revis ? rad__hier_revis_cluster : rad__hier_eval_cluster)(c, l, &rng);
     else
         (revis ? rad__hier_revis_ee : rad__hier_eval_ee)(c, l, &rng);
@@ -84,6 +86,8 @@ static void eval_links(hctx *c, size_t lo, size_t hi, int revis, void (*progress
  * power: rho A_r (F_max - F_min) B_s over its quadrature points. */
 static int uneven(const hctx *c, const hlink *l)
 {
+    if (l->r & CLB)
+        return 0; /* a receiving leaf cluster's: dF holds its direction, and it is not split */
     return node_rho(c, l->r) * node_area(c, l->r) * l->dF * node_B(c, l->s) > receiver_eps(c, l->r);
 }
 

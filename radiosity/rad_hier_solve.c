@@ -23,6 +23,10 @@ static int cmp_source(const void *a, const void *b)
     return (link_way(x) > link_way(y)) - (link_way(x) < link_way(y));
 }
 
+/* A receiver's bucket in the sorts: elements, then receiving leaf clusters
+ * (the same order as link_less's). */
+static inline size_t rkey(uint32_t r, size_t ne) { return r & CLB ? ne + CL(r) : r; }
+
 static int link_less(const hlink *x, const hlink *y)
 {
     return x->r < y->r || (x->r == y->r && (x->s < y->s || (x->s == y->s && link_way(x) < link_way(y))));
@@ -33,22 +37,22 @@ static int link_less(const hlink *x, const hlink *y)
  * then each receiver's links by source, receivers in parallel (a serial
  * qsort of room.json's 3.7 M links took 0.4 s a solve). -1 when out of
  * memory. */
-static int bucket_sort(hlink *ln, size_t n, size_t ne)
+static int bucket_sort(hlink *ln, size_t n, size_t ne, size_t nk)
 {
-    size_t *start = calloc(ne + 1, sizeof *start), *next = malloc((ne ? ne : 1) * sizeof *next);
+    size_t *start = calloc(nk + 1, sizeof *start), *next = malloc((nk ? nk : 1) * sizeof *next);
     if (!start || !next) {
         free(start);
         free(next);
         return -1;
     }
     for (size_t i = 0; i < n; i++)
-        start[ln[i].r + 1]++;
-    for (size_t e = 0; e < ne; e++)
+        start[rkey(ln[i].r, ne) + 1]++;
+    for (size_t e = 0; e < nk; e++)
         start[e + 1] += start[e];
-    memcpy(next, start, ne * sizeof *next);
-    for (size_t e = 0; e < ne; e++)
+    memcpy(next, start, nk * sizeof *next);
+    for (size_t e = 0; e < nk; e++)
         while (next[e] < start[e + 1]) {
-            uint32_t t = ln[next[e]].r;
+            size_t t = rkey(ln[next[e]].r, ne);
             if (t == e) {
                 next[e]++;
                 continue;
@@ -59,7 +63,7 @@ static int bucket_sort(hlink *ln, size_t n, size_t ne)
         }
     free(next);
 #pragma omp parallel for schedule(dynamic, 256)
-    for (long e = 0; e < (long)ne; e++) {
+    for (long e = 0; e < (long)nk; e++) {
         size_t lo = start[e], hi = start[e + 1];
         if (hi - lo > 64) {
             qsort(ln + lo, hi - lo, sizeof *ln, cmp_source);
@@ -87,24 +91,24 @@ static int bucket_sort(hlink *ln, size_t n, size_t ne)
  * through the array where the bucket sort's swaps jump), then each part
  * bucket-sorted by a thread of its own. The first round's sort of room.json
  * was 3 % of its samples on one thread. The same order: it is total. */
-static int bucket_sort2(hlink *ln, size_t n, size_t ne)
+static int bucket_sort2(hlink *ln, size_t n, size_t ne, size_t nk)
 {
     if (n < ((size_t)1 << 16) || omp_get_max_threads() < 2)
-        return bucket_sort(ln, n, ne);
-    size_t *count = calloc(ne + 1, sizeof *count);
+        return bucket_sort(ln, n, ne, nk);
+    size_t *count = calloc(nk + 1, sizeof *count);
     if (!count)
         return -1;
     for (size_t i = 0; i < n; i++)
-        count[ln[i].r]++;
-    uint32_t mid = 0;
-    for (size_t acc = 0; mid < ne && acc + count[mid] <= n / 2; mid++)
+        count[rkey(ln[i].r, ne)]++;
+    size_t mid = 0;
+    for (size_t acc = 0; mid < nk && acc + count[mid] <= n / 2; mid++)
         acc += count[mid];
     free(count);
     size_t i = 0, j = n;
     for (;;) {
-        while (i < j && ln[i].r < mid)
+        while (i < j && rkey(ln[i].r, ne) < mid)
             i++;
-        while (i < j && ln[j - 1].r >= mid)
+        while (i < j && rkey(ln[j - 1].r, ne) >= mid)
             j--;
         if (i >= j)
             break;
@@ -115,7 +119,7 @@ static int bucket_sort2(hlink *ln, size_t n, size_t ne)
     int rc[2] = {0, 0};
 #pragma omp parallel for num_threads(2) schedule(static, 1)
     for (int h = 0; h < 2; h++)
-        rc[h] = h == 0 ? bucket_sort(ln, i, ne) : bucket_sort(ln + i, n - i, ne);
+        rc[h] = h == 0 ? bucket_sort(ln, i, ne, nk) : bucket_sort(ln + i, n - i, ne, nk);
     return rc[0] || rc[1] ? -1 : 0;
 }
 
@@ -135,7 +139,7 @@ static int bucket_sort2(hlink *ln, size_t n, size_t ne)
  * when out of memory. */
 static int sort_links(hctx *c)
 {
-    size_t n = c->nln, ne = c->nel;
+    size_t n = c->nln, ne = c->nel, nk = ne + (c->rlc ? c->ncl : 0);
     if (n && c->capln > n) {
         hlink *t = realloc(c->ln, n * sizeof *t);
         if (t) {
@@ -153,8 +157,8 @@ static int sort_links(hctx *c)
     hlink *tail = k > 0 && (double)m * sizeof *ln <= 0.75 * RAD_PATCH_BYTES * (double)ne ? malloc(m * sizeof *tail)
                                                                                         : NULL;
     if (!tail)
-        return bucket_sort2(ln, n, ne);
-    if (bucket_sort2(ln + k, m, ne) != 0) {
+        return bucket_sort2(ln, n, ne, nk);
+    if (bucket_sort2(ln + k, m, ne, nk) != 0) {
         free(tail);
         return -1;
     }
@@ -291,6 +295,114 @@ static int reserve_sources(hctx *c)
     return 0;
 }
 
+/* ---- receiving leaf clusters (rad_hier.c, "Receiving leaf clusters") ----
+ *
+ * A cluster's links summed per direction bucket (the cube face the
+ * direction to the source points to) as a vector and a scalar per channel,
+ * sum v u and sum v (v the irradiance a surface facing the source would get,
+ * u the unit direction), and each root under it reading them with its
+ * normal n: per bucket max(0, n . V) and, where the bucket's directions
+ * spread (|V| < S), half the shortfall S - |V| by 1 - |cos| (nbf_proj's
+ * rule for the sources' normal buckets). Exact for sources in front of
+ * every root; a source behind a root's horizon gives it nothing. */
+typedef struct rlc_acc {
+    double V[6][3][3], S[6][3]; /* [bucket][channel][axis], [bucket][channel] */
+} rlc_acc;
+
+static double rlc_read(const rlc_acc *a, int ch, rr_vec3 n)
+{
+    double p = 0.0;
+    for (int b = 0; b < 6; b++) {
+        double sb = a->S[b][ch];
+        if (!(sb > 0))
+            continue;
+        const double *v = a->V[b][ch];
+        double d = v[0] * n.x + v[1] * n.y + v[2] * n.z;
+        p += d > 0 ? d : 0.0;
+        double L = sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]), miss = sb - L;
+        if (miss > 1e-9 * sb)
+            p += L > 1e-9 * sb ? 0.5 * miss * (1.0 - fabs(d) / L) : 0.25 * miss;
+    }
+    return p;
+}
+
+/* Links lo .. hi - 1 (into one receiving leaf cluster) added to a. */
+static void rlc_add(const hctx *c, size_t lo, size_t hi, rlc_acc *a)
+{
+    const rr_rgb *sv = c->sv, *svc = c->sv + c->nel;
+    for (size_t j = lo; j < hi; j++) {
+        const hlink *l = &c->ln[j];
+        rr_rgb v = rr_rgb_scale(l->s & CLB ? svc[CL(l->s)] : sv[l->s], c->unit ? link_ga(l) : link_g(l));
+        rr_vec3 u = dir_unpack(l->dF);
+        int b = normal_bucket(u);
+        const double vc[3] = {v.r, v.g, v.b};
+        for (int ch = 0; ch < 3; ch++) {
+            a->V[b][ch][0] += vc[ch] * u.x;
+            a->V[b][ch][1] += vc[ch] * u.y;
+            a->V[b][ch][2] += vc[ch] * u.z;
+            a->S[b][ch] += vc[ch];
+        }
+    }
+}
+
+/* The group of receiving leaf cluster x's links among grp[g0 .. ngrp) (the
+ * clusters' groups, in order of their index), or SIZE_MAX. */
+static size_t rlc_group(const hctx *c, uint32_t x, const size_t *grp, size_t g0, size_t ngrp)
+{
+    size_t lo = g0, hi = ngrp;
+    while (lo < hi) {
+        size_t m = lo + (hi - lo) / 2;
+        uint32_t r = c->ln[grp[m]].r;
+        if (r == x)
+            return m;
+        if (r < x)
+            lo = m + 1;
+        else
+            hi = m;
+    }
+    return SIZE_MAX;
+}
+
+/* Down from x: what its receiving ancestors' links bring (up), its own
+ * added, read by each root with its normal. The sums in one order (the path
+ * from the top): the same bits for any thread count. */
+static void rlc_push(hctx *c, uint32_t x, const rlc_acc *up, int any, const size_t *grp, size_t g0, size_t ngrp)
+{
+    if (!(x & CLB)) {
+        if (!any)
+            return;
+        hel *e = &c->el[x];
+        rr_vec3 n = el_normal(c, x);
+        e->H = rr_rgb_add(e->H, rr_rgb_make(rlc_read(up, 0, n), rlc_read(up, 1, n), rlc_read(up, 2, n)));
+        if (c->unit)
+            e->partial = 1; /* no row-sum scale: the bins' reading is not the quadrature it corrects */
+        return;
+    }
+    rlc_acc a = *up;
+    size_t g = rlc_group(c, x, grp, g0, ngrp);
+    if (g != SIZE_MAX) {
+        rlc_add(c, grp[g], grp[g + 1], &a);
+        any = 1;
+    }
+    rlc_push(c, c->cl[CL(x)].child[0], &a, any, grp, g0, ngrp);
+    rlc_push(c, c->cl[CL(x)].child[1], &a, any, grp, g0, ngrp);
+}
+
+static void rlc_gather(hctx *c, const size_t *grp, size_t ngrp)
+{
+    size_t g0 = ngrp; /* the first cluster receiver's group (they sort after the elements') */
+    while (g0 > 0 && (c->ln[grp[g0 - 1]].r & CLB))
+        g0--;
+#pragma omp parallel for schedule(dynamic, 16)
+    for (long k = 0; k < (long)c->ncl; k++) {
+        if (c->rlc[k] != 2)
+            continue;
+        rlc_acc a;
+        memset(&a, 0, sizeof a);
+        rlc_push(c, CLB | (uint32_t)k, &a, 0, grp, g0, ngrp);
+    }
+}
+
 /* Every link's transport into its receiver (links sorted by receiver). The
  * sources' values are copied first into one dense array (c->sv: elements,
  * then clusters, sized by rad__hier_solve): read through the links from the
@@ -311,6 +423,8 @@ void rad__hier_gather(hctx *c, const size_t *grp, size_t ngrp)
         svc[i] = c->cl[i].P;
 #pragma omp parallel for schedule(dynamic, 64)
     for (long gi = 0; gi < (long)ngrp; gi++) {
+        if (c->ln[grp[gi]].r & CLB)
+            continue; /* a receiving leaf cluster's: below, once the elements' are in */
         rr_rgb H = rr_rgb_make(0, 0, 0), Hc[3] = {{0, 0, 0}, {0, 0, 0}, {0, 0, 0}};
         int partial = 0;
         hel *e = &c->el[c->ln[grp[gi]].r];
@@ -332,6 +446,8 @@ void rad__hier_gather(hctx *c, const size_t *grp, size_t ngrp)
         if (c->unit)
             e->partial = partial;
     }
+    if (c->rlc)
+        rlc_gather(c, grp, ngrp);
 }
 
 static rr_rgb mid(rr_rgb a, rr_rgb b) { return rr_rgb_scale(rr_rgb_add(a, b), 0.5); }
@@ -534,11 +650,16 @@ static int column_sums(const hctx *c, double *D)
         taken(c, (uint32_t)r, tk);
     for (size_t i = 0; i < c->nln; i++) { /* serial: the sums in one order */
         const hlink *l = &c->ln[i];
-        const double *t = tk + 4 * (size_t)l->r;
-        double w = t[0];
-        float sh[3];
-        if (c->el[l->r].child != NONE && link_shape(l, sh)) /* as the gather reads it */
-            w += sh[0] * t[1] + sh[1] * t[2] + sh[2] * t[3];
+        double w;
+        if (l->r & CLB) { /* its roots' area times their cosine, as rlc_gather reads it */
+            w = rad__hier_rlc_take(c, l->r, dir_unpack(l->dF));
+        } else {
+            const double *t = tk + 4 * (size_t)l->r;
+            w = t[0];
+            float sh[3];
+            if (c->el[l->r].child != NONE && link_shape(l, sh)) /* as the gather reads it */
+                w += sh[0] * t[1] + sh[1] * t[2] + sh[2] * t[3];
+        }
         double g = (double)link_g(l) * w;
         if (l->s & CLB)
             d[c->nel + CL(l->s)] += g;

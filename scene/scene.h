@@ -189,6 +189,9 @@ typedef struct scene_radiosity {
     double min_area;        /* hierarchical: smallest element; 0 = automatic */
     double relative_tolerance; /* hierarchical: receiver splits also at this share of the receiver's own power; 0 = off */
     double max_links;       /* hierarchical: links at most, default 1e8 */
+    double receiving_clusters; /* hierarchical: clusters of roots too small to split, of radius up to this
+                                * times sqrt(min_area), receive as one; 0 = automatic (on, at 1, where the
+                                * links would not fit otherwise), < 0 = never (the file's 0) */
 } scene_radiosity;
 
 /* The camera as the file gave it (view is always the lecture's form). */

@@ -190,7 +190,8 @@ rr_status sp_parse_render(const sp_ctx *c, const cJSON *root, scene *s)
 
 static const char *const k_radiosity[] = {"patch_area", "patch_edge", "solver", "form_factors",
                                           "ff_samples", "tolerance",  "method",
-                                          "refine_tolerance", "min_area", "max_links", "relative_tolerance", NULL};
+                                          "refine_tolerance", "min_area", "max_links", "relative_tolerance",
+                                          "receiving_clusters", NULL};
 
 /* Looks a string value up in names (NULL-terminated); missing keeps *out. */
 static rr_status parse_choice(const sp_ctx *c, const cJSON *obj, const char *path, const char *key,
@@ -251,6 +252,10 @@ rr_status sp_parse_radiosity(const sp_ctx *c, const cJSON *root, scene *s)
         (st = sp_number_range(c, v, "radiosity", "relative_tolerance", SP_OPTIONAL, 0.0, 1.0,
                               &r->relative_tolerance)) != RR_OK)
         return st;
+    double rc = -1.0; /* absent: automatic (0 in the settings) */
+    if ((st = sp_number_range(c, v, "radiosity", "receiving_clusters", SP_OPTIONAL, 0.0, 1e3, &rc)) != RR_OK)
+        return st;
+    r->receiving_clusters = rc < 0 ? 0.0 : rc > 0 ? rc : -1.0;
     r->method = (scene_rad_method)method;
     r->solver = (scene_rad_solver)solver;
     r->form_factors = (scene_rad_ff)ff;
