@@ -800,6 +800,7 @@ static rr_status hier_run(const scene *s, const rt_accel *a, const rad_pass_opts
     free(c.cl);
     free(c.cf);
     free(c.rlc);
+    free(c.rg);
     free(c.ln);
     free(c.sv);
     sol->stats.used = RAD_SOLVER_ITERATIVE;

@@ -473,7 +473,7 @@ static void cluster_sums(const hctx *c, uint32_t s, rr_vec3 xr, rr_vec3 nr, doub
  * x's plane for nr left out. A receiving leaf cluster's link reads it, so
  * that its roots, of other normals than nr, read the nodes' spread of
  * directions (rad__hier_eval_rlc). */
-static rr_vec3 cluster_vec(const hctx *c, uint32_t s, rr_vec3 xr, rr_vec3 nr)
+static rr_vec3 cluster_vec(const hctx *c, uint32_t s, rr_vec3 xr, rr_vec3 nr, int area_too, rr_vec3 *area)
 {
     uint32_t fr[CL_NODES] = {s};
     int nf = 1;
@@ -502,26 +502,36 @@ static rr_vec3 cluster_vec(const hctx *c, uint32_t s, rr_vec3 xr, rr_vec3 nr)
         if (!grew)
             break;
     }
-    rr_vec3 V = rr_v3(0, 0, 0);
+    rr_vec3 V = rr_v3(0, 0, 0), Va = V;
     for (int i = 0; i < nf; i++) {
         uint32_t n = fr[i];
-        rr_vec3 p = n & CLB ? cf_v3(c->cf[CL(n)].pc) : c->el[n].ctr, d = rr_v3_sub(p, xr);
-        double L2 = rr_v3_len2(d);
-        if (!(rr_v3_dot(nr, d) > 0.0) || !(L2 > 0.0))
-            continue;
-        double iL = 1.0 / sqrt(L2);
-        rr_vec3 u = rr_v3_scale(d, iL);
-        double t;
-        if (n & CLB) {
-            const hcf *q = &c->cf[CL(n)];
-            t = nbf_proj(q->Dv, q->Ds, (q->mask >> 1) & 63u, rr_v3_neg(u), (int)(q->mask & 1u)) / L2;
-        } else {
-            const hel *e = &c->el[n];
-            double Ap = el_proj_area(c, n, rr_v3_neg(u));
-            t = Ap / (L2 + Ap / RR_PI) * (e->src.r + e->src.g + e->src.b);
+        for (int k = 0; k < 1 + area_too; k++) { /* the power's terms, then (area_too) the area's */
+            rr_vec3 p = n & CLB ? cf_v3(k ? c->cf[CL(n)].ac : c->cf[CL(n)].pc) : c->el[n].ctr, d = rr_v3_sub(p, xr);
+            double L2 = rr_v3_len2(d);
+            if (!(rr_v3_dot(nr, d) > 0.0) || !(L2 > 0.0))
+                continue;
+            double iL = 1.0 / sqrt(L2);
+            rr_vec3 u = rr_v3_scale(d, iL);
+            double t;
+            if (n & CLB) {
+                const hcf *q = &c->cf[CL(n)];
+                t = (k ? nbf_proj(q->Av, q->As, (q->mask >> 7) & 63u, rr_v3_neg(u), (int)(q->mask & 1u))
+                       : nbf_proj(q->Dv, q->Ds, (q->mask >> 1) & 63u, rr_v3_neg(u), (int)(q->mask & 1u))) /
+                    L2;
+            } else {
+                const hel *e = &c->el[n];
+                double Ap = el_proj_area(c, n, rr_v3_neg(u));
+                t = Ap / (L2 + Ap / RR_PI) *
+                    (k ? 1.0 - c->R->p[e->root].mirror : e->src.r + e->src.g + e->src.b); /* as node_uarea */
+            }
+            if (k)
+                Va = rr_v3_add(Va, rr_v3_scale(u, t));
+            else
+                V = rr_v3_add(V, rr_v3_scale(u, t));
         }
-        V = rr_v3_add(V, rr_v3_scale(u, t));
     }
+    if (area)
+        *area = Va;
     return V;
 }
 
@@ -622,9 +632,9 @@ void rad__hier_regeo(hctx *c, double min_power)
         if (!(l->s & CLB) || isnan(l->f) ||
             (min_power > 0 && rad__hier_link_power(c, l->r, l->s, link_way(l)) < min_power))
             continue;
-        if (l->r & CLB) { /* into a receiving leaf cluster: evaluated again, on the stream it was drawn from */
+        if (l->r & CLB) { /* into a receiving leaf cluster: its points drawn again on the stream it was drawn from */
             rr_rng rng = rr_rng_make(c->seed ^ c->draw, ((uint64_t)l->r << 32) | l->s);
-            rad__hier_eval_rlc(c, l, &rng, 0);
+            rad__hier_eval_rlc(c, l, &rng, RLC_GEO);
             continue;
         }
         double geo, geo_a, spread, fk[4];
@@ -719,12 +729,6 @@ rr_vec3 rad__hier_rlc_dir(const hctx *c, uint32_t r, uint32_t s)
     return rr_v3_norm(rr_v3_sub(p, c->cl[CL(r)].ac));
 }
 
-double rad__hier_rlc_take(const hctx *c, uint32_t r, rr_vec3 u)
-{
-    const hcf *f = &c->cf[CL(r)];
-    return nbf_proj(f->Av, f->As, (f->mask >> 7) & 63u, u, (int)(f->mask & 1u));
-}
-
 /* Link l into receiving leaf cluster r = l->r from s = l->s: at VIS_RAYS
  * points of r's roots that face s (drawn by the area they show s), the
  * factor a surface facing s's centroid receives (the contour integral for
@@ -733,9 +737,8 @@ double rad__hier_rlc_take(const hctx *c, uint32_t r, rr_vec3 u)
  * point to a point of s that faces it (drawn by power for a cluster). The
  * gather gives each root that factor times the cosine of its normal with
  * the link's direction (rad__hier_gather). The same for B = 1 (fa, va). */
-void rad__hier_eval_rlc(const hctx *c, hlink *l, rr_rng *rng, int revis)
+void rad__hier_eval_rlc(const hctx *c, hlink *l, rr_rng *rng, int mode)
 {
-    (void)revis; /* a far pair: evaluated whole (rad_hier.c, "Decide, then estimate") */
     uint32_t r = l->r, s = l->s;
     rr_vec3 u0 = rad__hier_rlc_dir(c, r, s), ps = s & CLB ? c->cl[CL(s)].pc : c->el[s].ctr;
     const hcl *ks = s & CLB ? &c->cl[CL(s)] : NULL;
@@ -757,16 +760,14 @@ void rad__hier_eval_rlc(const hctx *c, hlink *l, rr_rng *rng, int revis)
         rr_vec3 u = rr_v3_norm(rr_v3_sub(ps, x));
         double g, ga;
         if (ks) {
-            double Tp, Ta;
-            cluster_sums(c, s, x, u, P, 1, &Tp, &Ta);
-            ga = ks->uarea > 0 ? Ta / (RR_PI * ks->uarea) : 0.0;
-            g = ga;
-            if (P > 0) { /* the power's irradiance vector: its direction and size */
-                rr_vec3 v = cluster_vec(c, s, x, nx);
-                g = rr_v3_len(v) / (RR_PI * P);
-                if (g > 0)
-                    u = rr_v3_norm(v);
-            }
+            /* the irradiance vectors of s's power and (B = 1) of its area: their
+             * sizes per unit of each, the power's direction */
+            rr_vec3 va, v = cluster_vec(c, s, x, nx, mode != RLC_GEO || !(P > 0), &va);
+            ga = mode != RLC_GEO || !(P > 0) ? (ks->uarea > 0 ? rr_v3_len(va) / (RR_PI * ks->uarea) : 0.0) : 0.0;
+            g = P > 0 ? rr_v3_len(v) / (RR_PI * P) : ga;
+            rr_vec3 w = P > 0 ? v : va;
+            if (rr_v3_len2(w) > 0)
+                u = rr_v3_norm(w);
         } else {
             /* a near element's light comes from where it lies, not from its
              * centroid: its irradiance vector (a floor element under a
@@ -780,8 +781,8 @@ void rad__hier_eval_rlc(const hctx *c, hlink *l, rr_rng *rng, int revis)
         f += g;
         fa += ga;
         dir = rr_v3_add(dir, rr_v3_scale(u, g > 0 ? g : ga));
-        if (!(g > 0.0 || ga > 0.0))
-            continue;
+        if (!(ks && P > 0 ? g > 0.0 : ga > 0.0))
+            continue; /* (by g alone where s has power, so that RLC_GEO, without ga, draws what this drew) */
         int buried = 0, faces = 0;
         for (int t = 0; t < BACK_DRAWS && !faces; t++) {
             if (ks) {
@@ -802,12 +803,18 @@ void rad__hier_eval_rlc(const hctx *c, hlink *l, rr_rng *rng, int revis)
         if (buried)
             continue;
         rad__hier_sphere_end(c, yroot, x, &y, &ny);
+        if (mode == RLC_GEO)
+            continue; /* the geometry again: the same points drawn, no rays */
         rr_vec3 d = rr_v3_sub(y, x);
         rr_vec3 o = rt_offset_origin(c->ext, x, nx, d), t = rt_offset_origin(c->ext, y, ny, rr_v3_neg(d));
         rr_ray ray = {o, rr_v3_sub(t, o)};
         pass += !rt_accel_occluded(c->a, ray, 0.0, RT_SHADOW_END);
     }
     l->f = n ? (float)(f / n) : 0.0f;
+    if (mode == RLC_GEO) {
+        l->dF = dir_pack(rr_v3_len(dir) > 0 ? rr_v3_norm(dir) : u0);
+        return; /* its B = 1 geometry and its visibility stay */
+    }
     l->fa = n ? (float)(fa / n) : 0.0f;
     l->v = l->va = l->vis = seen ? vis_twelfths(pass, seen) : VIS_ONE;
     link_set_partial(l, pass > 0 && pass < seen);

@@ -288,6 +288,8 @@ typedef struct hctx {
     unsigned char *rlc;
     size_t nrlc;
     double rlc_radius; /* their largest radius */
+    struct rlc_geo *rg; /* per receiving leaf cluster's group of links, from rg0 on (rad__hier_groups) */
+    size_t rg0;
     int rlc_auto;      /* made only where the first walk does not fit without them (first_refine) */
 } hctx;
 
@@ -582,13 +584,12 @@ void rad__hier_revis_cluster(const hctx *c, hlink *l, rr_rng *rng);
 /* The evaluated cluster links' geometry again for the current sources,
  * those that carry min_power or more without visibility (0: all). */
 void rad__hier_regeo(hctx *c, double min_power);
-/* A link into a receiving leaf cluster (l->r is_rlc): evaluated whole, or
- * (revis) its visibility drawn again (rad_hier_cluster.c). */
-void rad__hier_eval_rlc(const hctx *c, hlink *l, rr_rng *rng, int revis);
-/* What the roots of receiving leaf cluster r take in of a unit irradiance
- * from direction u (unit), as the gather reads it: their area times the
- * cosine, by r's normal buckets. */
-double rad__hier_rlc_take(const hctx *c, uint32_t r, rr_vec3 u);
+/* A link into a receiving leaf cluster (l->r is_rlc): evaluated whole
+ * (mode 0, and the estimate's redraw, 1), or its power's geometry alone
+ * again (RLC_GEO, the kept links' regeo: the same stream draws the same
+ * points, and no shadow ray is traced) (rad_hier_cluster.c). */
+#define RLC_GEO 2
+void rad__hier_eval_rlc(const hctx *c, hlink *l, rr_rng *rng, int mode);
 /* The direction a link into a receiving leaf cluster reads: from r's centre
  * towards s's power centroid (s's centre for an element), unit. */
 rr_vec3 rad__hier_rlc_dir(const hctx *c, uint32_t r, uint32_t s);
@@ -627,8 +628,10 @@ typedef enum push_mode { PUSH_SOLVE, PUSH_SIGMA, PUSH_KEEP } push_mode;
  * the clusters. */
 void rad__hier_sources(hctx *c, int unit, int indirect);
 /* Receiver groups of the links sorted by receiver: grp[0..ngrp] (one past
- * the end); NULL when out of memory (free() it). */
-size_t *rad__hier_groups(const hctx *c, size_t *ngrp);
+ * the end); NULL when out of memory (free() it). With receiving leaf
+ * clusters, also their groups' bucket geometry (c->rg, rad_hier_solve.c),
+ * made again when prepare (else kept from the last call that made it). */
+size_t *rad__hier_groups(hctx *c, size_t *ngrp, int prepare);
 /* Every link's transport into its receiver's H (receivers are elements);
  * after a rad__hier_solve of the same hierarchy (which sizes c->sv). */
 void rad__hier_gather(hctx *c, const size_t *grp, size_t ngrp);

@@ -297,55 +297,36 @@ static int reserve_sources(hctx *c)
 
 /* ---- receiving leaf clusters (rad_hier.c, "Receiving leaf clusters") ----
  *
- * A cluster's links summed per direction bucket (the cube face the
- * direction to the source points to) as a vector and a scalar per channel,
- * sum v u and sum v (v the irradiance a surface facing the source would get,
- * u the unit direction), and each root under it reading them with its
- * normal n: per bucket max(0, n . V) and, where the bucket's directions
- * spread (|V| < S), half the shortfall S - |V| by 1 - |cos| (nbf_proj's
- * rule for the sources' normal buckets). Exact for sources in front of
- * every root; a source behind a root's horizon gives it nothing. */
-typedef struct rlc_acc {
-    double V[6][3][3], S[6][3]; /* [bucket][channel][axis], [bucket][channel] */
-} rlc_acc;
+ * A receiving leaf cluster x's links in each direction bucket (the cube
+ * face the direction to the source points to) are read by every root under
+ * x as one source in the direction d_b of their geometry's sum (sum g u /
+ * |sum g u|, g = link_g), with the spread m_b = |sum g u| / sum g: a root of
+ * normal n takes of the bucket's light S_b (the links' irradiance for a
+ * surface facing their sources) the share w_b(n) = m_b max(0, n . d_b) +
+ * (1 - m_b) (1 - |n . d_b|) / 2 (the spread's part as nbf_proj spreads a
+ * curved bucket's shortfall). Linear in the sources, so what x's roots take
+ * in of a bucket's unit irradiance, sum A w_b, is what the links deliver:
+ * the ledger balances (column_sums). d_b, m_b and that take are read once
+ * per rad__hier_groups from the links' geometry. */
+typedef struct rlc_geo {
+    float d[6][3], m[6];
+    double take[6];
+} rlc_geo;
 
-static double rlc_read(const rlc_acc *a, int ch, rr_vec3 n)
+static double rlc_w(const rlc_geo *q, int b, rr_vec3 n)
 {
-    double p = 0.0;
-    for (int b = 0; b < 6; b++) {
-        double sb = a->S[b][ch];
-        if (!(sb > 0))
-            continue;
-        const double *v = a->V[b][ch];
-        double d = v[0] * n.x + v[1] * n.y + v[2] * n.z;
-        p += d > 0 ? d : 0.0;
-        double L = sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]), miss = sb - L;
-        if (miss > 1e-9 * sb)
-            p += L > 1e-9 * sb ? 0.5 * miss * (1.0 - fabs(d) / L) : 0.25 * miss;
-    }
-    return p;
+    double c = n.x * q->d[b][0] + n.y * q->d[b][1] + n.z * q->d[b][2], m = q->m[b];
+    return m * (c > 0 ? c : 0.0) + 0.5 * (1.0 - m) * (1.0 - fabs(c));
 }
 
-/* Links lo .. hi - 1 (into one receiving leaf cluster) added to a. */
-static void rlc_add(const hctx *c, size_t lo, size_t hi, rlc_acc *a)
+static double rlc_take(const hctx *c, uint32_t x, const rlc_geo *q, int b)
 {
-    const rr_rgb *sv = c->sv, *svc = c->sv + c->nel;
-    for (size_t j = lo; j < hi; j++) {
-        const hlink *l = &c->ln[j];
-        rr_rgb v = rr_rgb_scale(l->s & CLB ? svc[CL(l->s)] : sv[l->s], c->unit ? link_ga(l) : link_g(l));
-        rr_vec3 u = dir_unpack(l->dF);
-        int b = normal_bucket(u);
-        const double vc[3] = {v.r, v.g, v.b};
-        for (int ch = 0; ch < 3; ch++) {
-            a->V[b][ch][0] += vc[ch] * u.x;
-            a->V[b][ch][1] += vc[ch] * u.y;
-            a->V[b][ch][2] += vc[ch] * u.z;
-            a->S[b][ch] += vc[ch];
-        }
-    }
+    if (x & CLB)
+        return rlc_take(c, c->cl[CL(x)].child[0], q, b) + rlc_take(c, c->cl[CL(x)].child[1], q, b);
+    return node_uarea(c, x) * rlc_w(q, b, el_normal(c, x));
 }
 
-/* The group of receiving leaf cluster x's links among grp[g0 .. ngrp) (the
+/* The group of receiving leaf cluster x among grp[g0 .. ngrp) (the
  * clusters' groups, in order of their index), or SIZE_MAX. */
 static size_t rlc_group(const hctx *c, uint32_t x, const size_t *grp, size_t g0, size_t ngrp)
 {
@@ -363,43 +344,108 @@ static size_t rlc_group(const hctx *c, uint32_t x, const size_t *grp, size_t g0,
     return SIZE_MAX;
 }
 
-/* Down from x: what its receiving ancestors' links bring (up), its own
- * added, read by each root with its normal. The sums in one order (the path
- * from the top): the same bits for any thread count. */
-static void rlc_push(hctx *c, uint32_t x, const rlc_acc *up, int any, const size_t *grp, size_t g0, size_t ngrp)
+/* c->rg for the groups grp[c->rg0 .. ngrp); -1 when out of memory. */
+static int rlc_prepare(hctx *c, const size_t *grp, size_t ngrp)
+{
+    free(c->rg);
+    c->rg = NULL;
+    size_t g0 = ngrp;
+    while (g0 > 0 && (c->ln[grp[g0 - 1]].r & CLB))
+        g0--;
+    c->rg0 = g0;
+    if (g0 == ngrp)
+        return 0;
+    c->rg = malloc((ngrp - g0) * sizeof *c->rg);
+    if (!c->rg)
+        return -1;
+#pragma omp parallel for schedule(dynamic, 16)
+    for (long g = (long)g0; g < (long)ngrp; g++) {
+        rlc_geo *q = &c->rg[g - (long)g0];
+        double V[6][3] = {{0}}, S[6] = {0};
+        for (size_t j = grp[g]; j < grp[g + 1]; j++) {
+            const hlink *l = &c->ln[j];
+            rr_vec3 u = dir_unpack(l->dF);
+            int b = normal_bucket(u);
+            /* by the light it brings as the sources now stand (a lamp's
+             * direction, not its dim ceiling's), by geometry where they are dark */
+            rr_rgb v = l->s & CLB ? c->cl[CL(l->s)].P : c->el[l->s].src;
+            double w = (link_g(l) > 0 ? link_g(l) : link_ga(l)) * (v.r + v.g + v.b + 1e-30);
+            V[b][0] += w * u.x;
+            V[b][1] += w * u.y;
+            V[b][2] += w * u.z;
+            S[b] += w;
+        }
+        uint32_t x = c->ln[grp[g]].r;
+        for (int b = 0; b < 6; b++) {
+            double L = sqrt(V[b][0] * V[b][0] + V[b][1] * V[b][1] + V[b][2] * V[b][2]);
+            for (int k = 0; k < 3; k++)
+                q->d[b][k] = L > 0 ? (float)(V[b][k] / L) : 0.0f;
+            q->m[b] = S[b] > 0 ? (float)rr_min(1.0, L / S[b]) : 1.0f;
+            q->take[b] = S[b] > 0 ? rlc_take(c, x, q, b) : 0.0;
+        }
+    }
+    return 0;
+}
+
+/* Down from x: the buckets of its receiving ancestors' links (path[0 ..
+ * np), their light S per channel), its own added, read by each root with
+ * its normal. The sums in one order (the path from the top): the same bits
+ * for any thread count. */
+#define RLC_DEPTH 64 /* receiving leaf clusters nested on one path, at most (a cluster tree's depth) */
+typedef struct rlc_step {
+    const rlc_geo *q;
+    double S[6][3];
+} rlc_step;
+
+static void rlc_push(hctx *c, uint32_t x, rlc_step *path, int np, const size_t *grp, size_t ngrp)
 {
     if (!(x & CLB)) {
-        if (!any)
+        if (np == 0)
             return;
         hel *e = &c->el[x];
         rr_vec3 n = el_normal(c, x);
-        e->H = rr_rgb_add(e->H, rr_rgb_make(rlc_read(up, 0, n), rlc_read(up, 1, n), rlc_read(up, 2, n)));
+        double H[3] = {0, 0, 0};
+        for (int k = 0; k < np; k++)
+            for (int b = 0; b < 6; b++) {
+                if (!(path[k].S[b][0] > 0 || path[k].S[b][1] > 0 || path[k].S[b][2] > 0))
+                    continue;
+                double w = rlc_w(path[k].q, b, n);
+                for (int ch = 0; ch < 3; ch++)
+                    H[ch] += w * path[k].S[b][ch];
+            }
+        e->H = rr_rgb_add(e->H, rr_rgb_make(H[0], H[1], H[2]));
         if (c->unit)
-            e->partial = 1; /* no row-sum scale: the bins' reading is not the quadrature it corrects */
+            e->partial = 1; /* no row-sum scale: the buckets' reading is not the quadrature it corrects */
         return;
     }
-    rlc_acc a = *up;
-    size_t g = rlc_group(c, x, grp, g0, ngrp);
+    size_t g = rlc_group(c, x, grp, c->rg0, ngrp);
     if (g != SIZE_MAX) {
-        rlc_add(c, grp[g], grp[g + 1], &a);
-        any = 1;
+        RR_CHECK(np < RLC_DEPTH);
+        rlc_step *st = &path[np++];
+        st->q = &c->rg[g - c->rg0];
+        memset(st->S, 0, sizeof st->S);
+        const rr_rgb *sv = c->sv, *svc = c->sv + c->nel;
+        for (size_t j = grp[g]; j < grp[g + 1]; j++) {
+            const hlink *l = &c->ln[j];
+            rr_rgb v = rr_rgb_scale(l->s & CLB ? svc[CL(l->s)] : sv[l->s], c->unit ? link_ga(l) : link_g(l));
+            int b = normal_bucket(dir_unpack(l->dF));
+            st->S[b][0] += v.r;
+            st->S[b][1] += v.g;
+            st->S[b][2] += v.b;
+        }
     }
-    rlc_push(c, c->cl[CL(x)].child[0], &a, any, grp, g0, ngrp);
-    rlc_push(c, c->cl[CL(x)].child[1], &a, any, grp, g0, ngrp);
+    rlc_push(c, c->cl[CL(x)].child[0], path, np, grp, ngrp);
+    rlc_push(c, c->cl[CL(x)].child[1], path, np, grp, ngrp);
 }
 
 static void rlc_gather(hctx *c, const size_t *grp, size_t ngrp)
 {
-    size_t g0 = ngrp; /* the first cluster receiver's group (they sort after the elements') */
-    while (g0 > 0 && (c->ln[grp[g0 - 1]].r & CLB))
-        g0--;
 #pragma omp parallel for schedule(dynamic, 16)
     for (long k = 0; k < (long)c->ncl; k++) {
         if (c->rlc[k] != 2)
             continue;
-        rlc_acc a;
-        memset(&a, 0, sizeof a);
-        rlc_push(c, CLB | (uint32_t)k, &a, 0, grp, g0, ngrp);
+        rlc_step path[RLC_DEPTH];
+        rlc_push(c, CLB | (uint32_t)k, path, 0, grp, ngrp);
     }
 }
 
@@ -534,7 +580,7 @@ double rad__hier_push(hctx *c, push_mode mode)
 }
 
 /* Receiver groups of the sorted links: grp[0..ngrp] (one past the end). */
-size_t *rad__hier_groups(const hctx *c, size_t *ngrp)
+size_t *rad__hier_groups(hctx *c, size_t *ngrp, int prepare)
 {
     size_t *g = malloc((c->nln + 1) * sizeof *g), n = 0;
     if (!g)
@@ -544,6 +590,10 @@ size_t *rad__hier_groups(const hctx *c, size_t *ngrp)
             g[n++] = i;
     g[n] = c->nln;
     *ngrp = n;
+    if (c->rlc && (prepare || !c->rg) && rlc_prepare(c, g, n) != 0) {
+        free(g);
+        return NULL;
+    }
     return g;
 }
 
@@ -636,7 +686,7 @@ static void columns_down(const hctx *c, uint32_t x, double acc, int in_cluster, 
  * receivers take in (taken) x its source's power, splits among the leaves
  * exactly, whatever their B (a cluster's by its roots' shares). -1 when
  * out of memory. */
-static int column_sums(const hctx *c, double *D)
+static int column_sums(const hctx *c, const size_t *grp, size_t ngrp, double *D)
 {
     size_t nn = c->nel + c->ncl;
     double *tk = malloc(4 * (c->nel ? c->nel : 1) * sizeof *tk), *d = calloc(nn ? nn : 1, sizeof *d);
@@ -648,11 +698,14 @@ static int column_sums(const hctx *c, double *D)
 #pragma omp parallel for schedule(dynamic, 64)
     for (long r = 0; r < (long)c->R->n; r++)
         taken(c, (uint32_t)r, tk);
+    size_t gi = 0; /* link i's group (receiving leaf clusters') */
     for (size_t i = 0; i < c->nln; i++) { /* serial: the sums in one order */
         const hlink *l = &c->ln[i];
         double w;
-        if (l->r & CLB) { /* its roots' area times their cosine, as rlc_gather reads it */
-            w = rad__hier_rlc_take(c, l->r, dir_unpack(l->dF));
+        if (l->r & CLB) { /* what its roots take in of its bucket's light, as rlc_gather reads it */
+            while (gi + 1 < ngrp && grp[gi + 1] <= i)
+                gi++;
+            w = c->rg[gi - c->rg0].take[normal_bucket(dir_unpack(l->dF))];
         } else {
             const double *t = tk + 4 * (size_t)l->r;
             w = t[0];
@@ -748,14 +801,14 @@ rr_status rad__hier_solve(hctx *c, const rad_solve_opts *so, rad_solve_stats *st
     if (sort_links(c) != 0 || reserve_sources(c) != 0)
         return rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory", c->s->path);
     size_t ngrp;
-    size_t *grp = rad__hier_groups(c, &ngrp);
+    size_t *grp = rad__hier_groups(c, &ngrp, 1);
     if (!grp)
         return rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory", c->s->path);
     rad__hier_sources(c, 1, 0);
     rad__hier_gather(c, grp, ngrp);
     rad__hier_push(c, PUSH_SIGMA);
     double *D = malloc((c->nel ? c->nel : 1) * sizeof *D);
-    if (!D || column_sums(c, D) != 0) {
+    if (!D || column_sums(c, grp, ngrp, D) != 0) {
         free(D);
         free(grp);
         return rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory", c->s->path);
@@ -899,7 +952,7 @@ rr_status rad__hier_output(hctx *c, rad_patches *roots, rad_solution *sol, rr_er
     /* The gathers the ledger and the hybrid read: all that arrives (B), what
      * arrives after a reflection (B - E), and the row sums (B = 1). */
     size_t ngrp;
-    size_t *grp = rad__hier_groups(c, &ngrp);
+    size_t *grp = rad__hier_groups(c, &ngrp, 0); /* the last solve's buckets */
     if (!grp) {
         free(leaf);
         free(Hind);
@@ -915,7 +968,6 @@ rr_status rad__hier_output(hctx *c, rad_patches *roots, rad_solution *sol, rr_er
     rad__hier_push(c, PUSH_KEEP);
     for (size_t i = 0; i < nleaf; i++)
         Hind[i] = c->el[leaf[i]].H;
-    free(grp);
     /* The ledger's escaped column, B A (1 - fsum) (A its open area): fsum,
      * the share of a leaf's B that its links deliver, cs D (column_sums:
      * the total is the gather's; read from each leaf's own row sum, the
@@ -923,12 +975,14 @@ rr_status rad__hier_output(hctx *c, rad_patches *roots, rad_solution *sol, rr_er
      * not: Cornell 7.8e-4 off, a closed room with a lamp of reflectance 0
      * 2.6 %). */
     double *D = malloc((c->nel ? c->nel : 1) * sizeof *D);
-    if (!D || column_sums(c, D) != 0) {
+    if (!D || column_sums(c, grp, ngrp, D) != 0) {
         free(D);
+        free(grp);
         free(leaf);
         free(Hind);
         return rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory", c->s->path);
     }
+    free(grp);
     for (size_t i = 0; i < nleaf; i++) {
         const hel *e = &c->el[leaf[i]];
         sol->hier_fsum[i] = e->open > 0 ? rr_rgb_scale(c->cs, D[leaf[i]]) : rr_rgb_make(0, 0, 0);
