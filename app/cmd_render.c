@@ -591,12 +591,13 @@ static int write_stats(const char *path, const render_args *A, const scene *sc, 
         fprintf(f, "\"patches\": %zu, \"form_factors\": %zu, \"radiosity_cached\": %s, "
                    "\"seconds_radiosity\": %.6g, \"seconds_patches\": %.6g, \"seconds_form_factors\": %.6g, "
                    "\"seconds_solve\": %.6g, \"solver_iterations\": %d, \"form_factor_rays\": %llu, "
-                   "\"hierarchical_links\": %zu, \"hierarchical_bytes\": %.0f, "
+                   "\"hierarchical_links\": %zu, \"hierarchical_receiving_clusters\": %zu, \"hierarchical_bytes\": %.0f, "
                    "\"hierarchical_seconds\": {\"setup\": %.6g, \"link\": %.6g, \"settle\": %.6g, \"regeo\": %.6g, "
                    "\"estimate\": %.6g, \"solve\": %.6g, \"output\": %.6g}}\n",
                 sol->P->n, sol->nnz, ses->sol_cached ? "true" : "false", ses->seconds_pass, sol->seconds_patches,
                 sol->seconds_ff, sol->seconds_solve, sol->stats.iterations,
-                (unsigned long long)(sol->ff_rays.closest + sol->ff_rays.occluded), sol->links, sol->pass_bytes,
+                (unsigned long long)(sol->ff_rays.closest + sol->ff_rays.occluded), sol->links, sol->receiving_clusters,
+                sol->pass_bytes,
                 sol->hier_seconds.setup, sol->hier_seconds.link, sol->hier_seconds.settle, sol->hier_seconds.regeo,
                 sol->hier_seconds.estimate, sol->hier_seconds.solve, sol->hier_seconds.output);
     else

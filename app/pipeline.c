@@ -168,19 +168,26 @@ rr_status app_session_field(ig_session *s, int quiet, rr_error *err)
     if (st != RR_OK)
         return st;
     const rad_solution *sol = s->sol;
-    if (s->sol_cached && !quiet)
+    if (quiet)
+        return RR_OK;
+    if (s->sol_cached) {
         fprintf(stderr, "radiosity: %zu patches, solution read from %s\n", sol->P->n, s->cache_path);
-    else if (!quiet && sol->links)
+    } else if (sol->links) {
         fprintf(stderr,
                 "radiosity: %zu leaves, %zu links (hierarchical, %d rounds; refinement %.2f s), Jacobi %d sweep(s) in "
                 "the last solve, residual %.2g (solves %.2f s)\n",
                 sol->P->n, sol->links, sol->refine_rounds, sol->seconds_ff, sol->stats.iterations, sol->stats.residual,
                 sol->seconds_solve);
-    else if (!quiet)
+        if (sol->receiving_clusters)
+            fprintf(stderr, "radiosity: %zu receiving leaf clusters took their small surfaces' links as one "
+                            "(radiosity.receiving_clusters)\n",
+                    sol->receiving_clusters);
+    } else {
         fprintf(stderr,
                 "radiosity: %zu patches, %zu form factors (%.2f s), %s solver %d iteration(s), residual %.2g (%.2f s)\n",
                 sol->P->n, sol->nnz, sol->seconds_ff, sol->stats.used == RAD_SOLVER_DIRECT ? "direct" : "iterative",
                 sol->stats.iterations, sol->stats.residual, sol->seconds_solve);
+    }
     return RR_OK;
 }
 

@@ -387,6 +387,8 @@ typedef struct rad_solution {
     rr_rgb *hier_H;
     rr_rgb *hier_fsum;
     size_t links;        /* hierarchical: links of the final hierarchy */
+    size_t receiving_clusters; /* hierarchical: the receiving leaf clusters that took links as one (the
+                                  highest; radiosity.receiving_clusters); 0 when there were none */
     size_t elements;     /* hierarchical: elements and clusters made */
     int refine_rounds;
     int memory_bound;    /* hierarchical: rad_hier_opts.max_bytes coarsened it (not cached, as the key

@@ -172,6 +172,8 @@ static void cache_key(const scene *s, const rad_pass_opts *o, uint64_t key[K_COU
         double rel = o->hier.relative > 0 ? o->hier.relative : s->radiosity.relative_tolerance;
         if (rel > 0) /* (off keeps the keys of the caches made before it existed) */
             hash_double(&x[K_METHOD], rel);
+        if (s->radiosity.receiving_clusters != 0.0) /* (automatic, the default, keeps them too) */
+            hash_double(&x[K_METHOD], 1e6 + s->radiosity.receiving_clusters);
     }
     for (int k = 0; k < K_COUNT; k++)
         key[k] = x[k].h;

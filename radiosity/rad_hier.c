@@ -785,6 +785,7 @@ static rr_status hier_run(const scene *s, const rt_accel *a, const rad_pass_opts
     sol->pass_bytes = rad__hier_bytes((double)c.nln, (double)c.nel, (double)c.ncl);
     sol->ff_rays = c.rays;
     sol->links = c.nln;
+    sol->receiving_clusters = c.nrlc;
     sol->elements = c.nel + c.ncl;
     sol->nnz = c.nln;
     if (st == RR_OK) {
