@@ -482,11 +482,16 @@ static void radiosity_block(void **state)
     assert_int_equal(scene_load_string(text, "r.json", "", NULL, &s, &err), RR_OK);
     assert_true(s->radiosity.patch_area == 0 && s->radiosity.ff_samples == 512);
     assert_true(s->radiosity.relative_tolerance == 0.0); /* off */
+    assert_true(s->radiosity.receiving_clusters == 0.0);  /* automatic */
     assert_int_equal(s->radiosity.solver, SCENE_RAD_AUTO);
+    scene_destroy(s);
+    snprintf(text, sizeof text, "%s,\"radiosity\":{\"receiving_clusters\":0}}", head);
+    assert_int_equal(scene_load_string(text, "r.json", "", NULL, &s, &err), RR_OK);
+    assert_true(s->radiosity.receiving_clusters < 0.0); /* never */
     scene_destroy(s);
     snprintf(text, sizeof text,
              "%s,\"radiosity\":{\"patch_area\":0.01,\"patch_edge\":0.2,\"solver\":\"direct\","
-             "\"form_factors\":\"quadrature\",\"ff_samples\":64,\"tolerance\":1e-7,\"relative_tolerance\":0.05}}",
+             "\"form_factors\":\"quadrature\",\"ff_samples\":64,\"tolerance\":1e-7,\"relative_tolerance\":0.05,\"receiving_clusters\":1.5}}",
              head);
     assert_int_equal(scene_load_string(text, "r.json", "", NULL, &s, &err), RR_OK);
     assert_true(s->radiosity.patch_area == 0.01 && s->radiosity.patch_edge == 0.2);
@@ -494,6 +499,7 @@ static void radiosity_block(void **state)
     assert_int_equal(s->radiosity.form_factors, SCENE_FF_QUADRATURE);
     assert_int_equal(s->radiosity.ff_samples, 64);
     assert_true(s->radiosity.relative_tolerance == 0.05);
+    assert_true(s->radiosity.receiving_clusters == 1.5);
     scene_destroy(s);
     static const struct {
         const char *block, *want;
@@ -505,6 +511,8 @@ static void radiosity_block(void **state)
         {"{\"patches\":3}", "r.json: radiosity: unknown key 'patches'"},
         {"{\"relative_tolerance\":-0.1}", "r.json: radiosity.relative_tolerance"},
         {"{\"relative_tolerance\":2}", "r.json: radiosity.relative_tolerance"},
+        {"{\"receiving_clusters\":-1}", "r.json: radiosity.receiving_clusters"},
+        {"{\"receiving_clusters\":true}", "r.json: radiosity.receiving_clusters"},
         {"[]", "r.json: radiosity: expected an object"},
     };
     for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
