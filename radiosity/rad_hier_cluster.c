@@ -404,13 +404,13 @@ static inline double cl_term(const hcf *f, int area, rr_vec3 x, rr_vec3 nr, rr_v
 #define CL_THETA 0.15  /* and deeper where a node's radius exceeds this share of its distance */
 #define CL_NODES 32    /* the most nodes it reads */
 
-/* The sums of cluster_geo: cluster s's terms from point xr (normal nr)
- * over its nodes, times pi: *Tp of its current power, *Ta (by_area) of its
- * area. */
-static void cluster_sums(const hctx *c, uint32_t s, rr_vec3 xr, rr_vec3 nr, double P, int by_area, double *Tp_out,
-                         double *Ta_out)
+/* The nodes cluster_geo reads of cluster s from point xr (normal nr): s's
+ * tree CL_LEVELS levels down, and further (up to CL_NODES) where a node is
+ * wide for its distance or its sphere crosses xr's plane. Returns how many
+ * (fr[0 ..)). */
+static int cluster_frontier(const hctx *c, uint32_t s, rr_vec3 xr, rr_vec3 nr, uint32_t fr[CL_NODES])
 {
-    uint32_t fr[CL_NODES] = {s};
+    fr[0] = s;
     int nf = 1;
     for (int lev = 0;; lev++) {
         uint32_t nx[CL_NODES];
@@ -435,8 +435,18 @@ static void cluster_sums(const hctx *c, uint32_t s, rr_vec3 xr, rr_vec3 nr, doub
         memcpy(fr, nx, (size_t)nn * sizeof *nx);
         nf = nn;
         if (!grew)
-            break;
+            return nf;
     }
+}
+
+/* The sums of cluster_geo: cluster s's terms from point xr (normal nr)
+ * over its nodes, times pi: *Tp of its current power, *Ta (by_area) of its
+ * area. */
+static void cluster_sums(const hctx *c, uint32_t s, rr_vec3 xr, rr_vec3 nr, double P, int by_area, double *Tp_out,
+                         double *Ta_out)
+{
+    uint32_t fr[CL_NODES];
+    int nf = cluster_frontier(c, s, xr, nr, fr);
     double Tp = 0.0, Ta = 0.0; /* times pi */
     for (int i = 0; i < nf; i++) {
         uint32_t n = fr[i];
@@ -475,33 +485,8 @@ static void cluster_sums(const hctx *c, uint32_t s, rr_vec3 xr, rr_vec3 nr, doub
  * directions (rad__hier_eval_rlc). */
 static rr_vec3 cluster_vec(const hctx *c, uint32_t s, rr_vec3 xr, rr_vec3 nr, int area_too, rr_vec3 *area)
 {
-    uint32_t fr[CL_NODES] = {s};
-    int nf = 1;
-    for (int lev = 0;; lev++) {
-        uint32_t nx[CL_NODES];
-        int nn = 0, grew = 0;
-        for (int i = 0; i < nf; i++) {
-            uint32_t n = fr[i];
-            int wide = 0;
-            if (n & CLB) {
-                const hcf *f = &c->cf[CL(n)];
-                rr_vec3 d = rr_v3_sub(cf_v3(f->ctr), xr);
-                double R = f->radius;
-                wide = lev < CL_LEVELS || R * R > CL_THETA * CL_THETA * rr_v3_len2(d) || fabs(rr_v3_dot(nr, d)) < R;
-            }
-            if (wide && nn + (nf - i) + 1 <= CL_NODES) {
-                nx[nn++] = c->cf[CL(n)].child[0];
-                nx[nn++] = c->cf[CL(n)].child[1];
-                grew = 1;
-            } else {
-                nx[nn++] = n;
-            }
-        }
-        memcpy(fr, nx, (size_t)nn * sizeof *nx);
-        nf = nn;
-        if (!grew)
-            break;
-    }
+    uint32_t fr[CL_NODES];
+    int nf = cluster_frontier(c, s, xr, nr, fr);
     rr_vec3 V = rr_v3(0, 0, 0), Va = V;
     for (int i = 0; i < nf; i++) {
         uint32_t n = fr[i];
