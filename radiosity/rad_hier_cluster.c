@@ -617,7 +617,7 @@ void rad__hier_regeo(hctx *c, double min_power)
         if (!(l->s & CLB) || isnan(l->f) ||
             (min_power > 0 && rad__hier_link_power(c, l->r, l->s, link_way(l)) < min_power))
             continue;
-        if (l->r & CLB) { /* into a receiving leaf cluster: its points drawn again on the stream it was drawn from */
+        if (l->r & CLB) { /* into a receiving leaf cluster (no draws: the stream is not read) */
             rr_rng rng = rr_rng_make(c->seed ^ c->draw, ((uint64_t)l->r << 32) | l->s);
             rad__hier_eval_rlc(c, l, &rng, RLC_GEO);
             continue;
@@ -714,14 +714,16 @@ rr_vec3 rad__hier_rlc_dir(const hctx *c, uint32_t r, uint32_t s)
     return rr_v3_norm(rr_v3_sub(p, c->cl[CL(r)].ac));
 }
 
-/* Link l into receiving leaf cluster r = l->r from s = l->s: at VIS_RAYS
- * points of r's roots that face s (drawn by the area they show s), the
- * factor a surface facing s's centroid receives (the contour integral for
- * an element source, cluster_sums for a cluster, per unit of what the
- * gather reads of s: its B, or its power), and one shadow ray from each
- * point to a point of s that faces it (drawn by power for a cluster). The
- * gather gives each root that factor times the cosine of its normal with
- * the link's direction (rad__hier_gather). The same for B = 1 (fa, va). */
+/* Link l into receiving leaf cluster r = l->r from s = l->s: the
+ * irradiance a surface facing s receives, per unit of what the gather reads
+ * of s (its B, or a cluster's power), and its direction (the irradiance
+ * vector's: for an element source the contour integral's vector form at
+ * VIS_RAYS points of r's roots that face s, drawn by the area they show it;
+ * for a cluster, admissible, cluster_vec at r's area centroid), and one
+ * shadow ray from each of those points to a point of s that faces it (drawn
+ * by power for a cluster). The gather reads it per direction bucket with
+ * each root's normal (rad_hier_solve.c, rlc_push). The same for B = 1
+ * (fa, va). */
 void rad__hier_eval_rlc(const hctx *c, hlink *l, rr_rng *rng, int mode)
 {
     uint32_t r = l->r, s = l->s;
@@ -731,6 +733,31 @@ void rad__hier_eval_rlc(const hctx *c, hlink *l, rr_rng *rng, int mode)
     double f = 0.0, fa = 0.0;
     rr_vec3 dir = rr_v3(0, 0, 0);
     int n = 0, seen = 0, pass = 0;
+    if (ks) {
+        /* A cluster source is admissible: its irradiance vectors (of its
+         * power, and for B = 1 of its area; their sizes per unit of each)
+         * read once, at r's area centroid, as cluster_geo reads an element
+         * receiver's centre. */
+        int area = mode != RLC_GEO || !(P > 0);
+        rr_vec3 va, v = cluster_vec(c, s, c->cl[CL(r)].ac, u0, area, &va);
+        fa = area && ks->uarea > 0 ? rr_v3_len(va) / (RR_PI * ks->uarea) : 0.0;
+        f = P > 0 ? rr_v3_len(v) / (RR_PI * P) : fa;
+        dir = P > 0 ? v : va;
+        if (mode == RLC_GEO) { /* its B = 1 geometry and its visibility stay */
+            l->f = (float)f;
+            l->dF = dir_pack(rr_v3_len2(dir) > 0 ? rr_v3_norm(dir) : u0);
+            return;
+        }
+        if (!(f > 0.0 || fa > 0.0)) {
+            l->f = l->fa = 0.0f;
+            l->v = l->va = l->vis = VIS_ONE;
+            link_set_partial(l, 0);
+            link_clear_shape(l);
+            l->dF = dir_pack(u0);
+            return;
+        }
+    }
+    rr_vec3 us = rr_v3_len2(dir) > 0 ? rr_v3_norm(dir) : u0; /* towards a cluster source */
     for (int k = 0; k < VIS_RAYS; k++) {
         rr_vec3 x, nx, y, ny;
         uint32_t yroot = 0;
@@ -741,33 +768,21 @@ void rad__hier_eval_rlc(const hctx *c, hlink *l, rr_rng *rng, int mode)
         }
         if (!ok)
             continue; /* no open point of r faces s */
-        n++;
-        rr_vec3 u = rr_v3_norm(rr_v3_sub(ps, x));
-        double g, ga;
-        if (ks) {
-            /* the irradiance vectors of s's power and (B = 1) of its area: their
-             * sizes per unit of each, the power's direction */
-            rr_vec3 va, v = cluster_vec(c, s, x, nx, mode != RLC_GEO || !(P > 0), &va);
-            ga = mode != RLC_GEO || !(P > 0) ? (ks->uarea > 0 ? rr_v3_len(va) / (RR_PI * ks->uarea) : 0.0) : 0.0;
-            g = P > 0 ? rr_v3_len(v) / (RR_PI * P) : ga;
-            rr_vec3 w = P > 0 ? v : va;
-            if (rr_v3_len2(w) > 0)
-                u = rr_v3_norm(w);
-        } else {
+        rr_vec3 u = us;
+        if (!ks) {
             /* a near element's light comes from where it lies, not from its
-             * centroid: its irradiance vector (a floor element under a
-             * bunny, read from its far centroid, gave the bunny's underside
-             * a third of its light) */
-            rr_vec3 v = rad__hier_rlc_vec(c, x, nx, s); /* s's part in front of the root drawn */
-            g = ga = rr_v3_len(v);
-            if (g > 0)
-                u = rr_v3_scale(v, 1.0 / g);
+             * centroid: its irradiance vector at the point (a floor element
+             * under a bunny, read from its far centroid, gave the bunny's
+             * underside a third of its light), s's part in front of the root */
+            n++;
+            rr_vec3 v = rad__hier_rlc_vec(c, x, nx, s);
+            double g = rr_v3_len(v);
+            f += g;
+            dir = rr_v3_add(dir, v);
+            if (!(g > 0.0))
+                continue;
+            u = rr_v3_scale(v, 1.0 / g);
         }
-        f += g;
-        fa += ga;
-        dir = rr_v3_add(dir, rr_v3_scale(u, g > 0 ? g : ga));
-        if (!(ks && P > 0 ? g > 0.0 : ga > 0.0))
-            continue; /* (by g alone where s has power, so that RLC_GEO, without ga, draws what this drew) */
         int buried = 0, faces = 0;
         for (int t = 0; t < BACK_DRAWS && !faces; t++) {
             if (ks) {
@@ -788,21 +803,19 @@ void rad__hier_eval_rlc(const hctx *c, hlink *l, rr_rng *rng, int mode)
         if (buried)
             continue;
         rad__hier_sphere_end(c, yroot, x, &y, &ny);
-        if (mode == RLC_GEO)
-            continue; /* the geometry again: the same points drawn, no rays */
         rr_vec3 d = rr_v3_sub(y, x);
         rr_vec3 o = rt_offset_origin(c->ext, x, nx, d), t = rt_offset_origin(c->ext, y, ny, rr_v3_neg(d));
         rr_ray ray = {o, rr_v3_sub(t, o)};
         pass += !rt_accel_occluded(c->a, ray, 0.0, RT_SHADOW_END);
     }
-    l->f = n ? (float)(f / n) : 0.0f;
-    if (mode == RLC_GEO) {
-        l->dF = dir_pack(rr_v3_len(dir) > 0 ? rr_v3_norm(dir) : u0);
-        return; /* its B = 1 geometry and its visibility stay */
+    if (!ks) { /* the points' mean */
+        f = n ? f / n : 0.0;
+        fa = f;
     }
-    l->fa = n ? (float)(fa / n) : 0.0f;
+    l->f = (float)f;
+    l->fa = (float)fa;
     l->v = l->va = l->vis = seen ? vis_twelfths(pass, seen) : VIS_ONE;
     link_set_partial(l, pass > 0 && pass < seen);
     link_clear_shape(l);
-    l->dF = dir_pack(rr_v3_len(dir) > 0 ? rr_v3_norm(dir) : u0);
+    l->dF = dir_pack(rr_v3_len2(dir) > 0 ? rr_v3_norm(dir) : u0);
 }

@@ -585,9 +585,9 @@ void rad__hier_revis_cluster(const hctx *c, hlink *l, rr_rng *rng);
  * those that carry min_power or more without visibility (0: all). */
 void rad__hier_regeo(hctx *c, double min_power);
 /* A link into a receiving leaf cluster (l->r is_rlc): evaluated whole
- * (mode 0, and the estimate's redraw, 1), or its power's geometry alone
- * again (RLC_GEO, the kept links' regeo: the same stream draws the same
- * points, and no shadow ray is traced) (rad_hier_cluster.c). */
+ * (mode 0, and the estimate's redraw, 1), or the geometry of a cluster
+ * source's power alone again (RLC_GEO, the kept links' regeo: read at the
+ * receiver's centroid, no point drawn, no shadow ray) (rad_hier_cluster.c). */
 #define RLC_GEO 2
 void rad__hier_eval_rlc(const hctx *c, hlink *l, rr_rng *rng, int mode);
 /* The direction a link into a receiving leaf cluster reads: from r's centre
