@@ -826,6 +826,7 @@ static rr_status hier_run(const scene *s, const rt_accel *a, const rad_pass_opts
     free(c.cf);
     free(c.rlc);
     free(c.rg);
+    free(c.rgi);
     free(c.ln);
     free(c.sv);
     sol->stats.used = RAD_SOLVER_ITERATIVE;

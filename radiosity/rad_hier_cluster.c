@@ -718,7 +718,10 @@ rr_vec3 rad__hier_rlc_dir(const hctx *c, uint32_t r, uint32_t s)
  * irradiance a surface facing s receives, per unit of what the gather reads
  * of s (its B, or a cluster's power), and its direction (the irradiance
  * vector's: for an element source the contour integral's vector form at
- * VIS_RAYS points of r's roots that face s, drawn by the area they show it;
+ * VIS_RAYS points of r's roots that face s, drawn by the area they show it
+ * (drawn by plain area and again where they faced away, 8 bunnies came out
+ * 1.8 % darker on average, 3.5 % at most, for 8 % of the 81-bunny room's
+ * settle);
  * for a cluster, admissible, cluster_vec at r's area centroid), and one
  * shadow ray from each of those points to a point of s that faces it (drawn
  * by power for a cluster). The gather reads it per direction bucket with

@@ -289,6 +289,7 @@ typedef struct hctx {
     size_t nrlc;
     double rlc_radius; /* their largest radius */
     struct rlc_geo *rg; /* per receiving leaf cluster's group of links, from rg0 on (rad__hier_groups) */
+    uint32_t *rgi;      /* per cluster: its group's index in rg, NONE where it has no links */
     size_t rg0;
     int rlc_auto;      /* made only where the first walk does not fit without them (first_refine) */
 } hctx;

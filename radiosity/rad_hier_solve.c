@@ -326,24 +326,6 @@ static double rlc_take(const hctx *c, uint32_t x, const rlc_geo *q, int b)
     return node_uarea(c, x) * rlc_w(q, b, el_normal(c, x));
 }
 
-/* The group of receiving leaf cluster x among grp[g0 .. ngrp) (the
- * clusters' groups, in order of their index), or SIZE_MAX. */
-static size_t rlc_group(const hctx *c, uint32_t x, const size_t *grp, size_t g0, size_t ngrp)
-{
-    size_t lo = g0, hi = ngrp;
-    while (lo < hi) {
-        size_t m = lo + (hi - lo) / 2;
-        uint32_t r = c->ln[grp[m]].r;
-        if (r == x)
-            return m;
-        if (r < x)
-            lo = m + 1;
-        else
-            hi = m;
-    }
-    return SIZE_MAX;
-}
-
 /* c->rg for the groups grp[c->rg0 .. ngrp); -1 when out of memory. */
 static int rlc_prepare(hctx *c, const size_t *grp, size_t ngrp)
 {
@@ -353,11 +335,17 @@ static int rlc_prepare(hctx *c, const size_t *grp, size_t ngrp)
     while (g0 > 0 && (c->ln[grp[g0 - 1]].r & CLB))
         g0--;
     c->rg0 = g0;
+    if (!c->rgi && !(c->rgi = malloc((c->ncl ? c->ncl : 1) * sizeof *c->rgi)))
+        return -1;
+    for (size_t k = 0; k < c->ncl; k++)
+        c->rgi[k] = NONE;
     if (g0 == ngrp)
         return 0;
     c->rg = malloc((ngrp - g0) * sizeof *c->rg);
     if (!c->rg)
         return -1;
+    for (size_t g = g0; g < ngrp; g++)
+        c->rgi[CL(c->ln[grp[g]].r)] = (uint32_t)(g - g0);
 #pragma omp parallel for schedule(dynamic, 16)
     for (long g = (long)g0; g < (long)ngrp; g++) {
         rlc_geo *q = &c->rg[g - (long)g0];
@@ -418,11 +406,12 @@ static void rlc_push(hctx *c, uint32_t x, rlc_step *path, int np, const size_t *
             e->partial = 1; /* no row-sum scale: the buckets' reading is not the quadrature it corrects */
         return;
     }
-    size_t g = rlc_group(c, x, grp, c->rg0, ngrp);
-    if (g != SIZE_MAX) {
+    uint32_t gi = c->rgi[CL(x)];
+    if (gi != NONE) {
+        size_t g = c->rg0 + gi;
         RR_CHECK(np < RLC_DEPTH);
         rlc_step *st = &path[np++];
-        st->q = &c->rg[g - c->rg0];
+        st->q = &c->rg[gi];
         memset(st->S, 0, sizeof st->S);
         const rr_rgb *sv = c->sv, *svc = c->sv + c->nel;
         for (size_t j = grp[g]; j < grp[g + 1]; j++) {
