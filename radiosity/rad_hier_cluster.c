@@ -748,7 +748,7 @@ void rad__hier_eval_rlc(const hctx *c, hlink *l, rr_rng *rng, int mode)
         dir = P > 0 ? v : va;
         if (mode == RLC_GEO) { /* its B = 1 geometry and its visibility stay */
             l->f = (float)f;
-            l->dF = dir_pack(rr_v3_len2(dir) > 0 ? rr_v3_norm(dir) : u0);
+            rlc_set_dir(l, rr_v3_len2(dir) > 0 ? rr_v3_norm(dir) : u0);
             return;
         }
         if (!(f > 0.0 || fa > 0.0)) {
@@ -756,7 +756,7 @@ void rad__hier_eval_rlc(const hctx *c, hlink *l, rr_rng *rng, int mode)
             l->v = l->va = l->vis = VIS_ONE;
             link_set_partial(l, 0);
             link_clear_shape(l);
-            l->dF = dir_pack(u0);
+            rlc_set_dir(l, u0);
             return;
         }
     }
@@ -820,5 +820,5 @@ void rad__hier_eval_rlc(const hctx *c, hlink *l, rr_rng *rng, int mode)
     l->v = l->va = l->vis = seen ? vis_twelfths(pass, seen) : VIS_ONE;
     link_set_partial(l, pass > 0 && pass < seen);
     link_clear_shape(l);
-    l->dF = dir_pack(rr_v3_len2(dir) > 0 ? rr_v3_norm(dir) : u0);
+    rlc_set_dir(l, rr_v3_len2(dir) > 0 ? rr_v3_norm(dir) : u0);
 }

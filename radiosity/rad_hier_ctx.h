@@ -326,6 +326,16 @@ static inline rr_vec3 dir_unpack(float f)
     return rr_v3_norm(rr_v3(x, y, z));
 }
 
+/* A receiving leaf cluster's link's direction u, kept in hlink.dF, and its
+ * bucket (normal_bucket(u)) in sh[0], which such a link's shape leaves
+ * free (it has none): the gather reads the bucket every sweep. */
+static inline void rlc_set_dir(hlink *l, rr_vec3 u)
+{
+    l->dF = dir_pack(u);
+    l->sh[0] = (unsigned char)normal_bucket(u);
+}
+static inline int rlc_bucket(const hlink *l) { return l->sh[0]; }
+
 /* Node x is a receiving leaf cluster: links to it stop there, and each root
  * under it reads their light with its own normal (rad__hier_gather). */
 static inline int is_rlc(const hctx *c, uint32_t x) { return (x & CLB) && c->rlc && c->rlc[CL(x)]; }

@@ -353,7 +353,7 @@ static int rlc_prepare(hctx *c, const size_t *grp, size_t ngrp)
         for (size_t j = grp[g]; j < grp[g + 1]; j++) {
             const hlink *l = &c->ln[j];
             rr_vec3 u = dir_unpack(l->dF);
-            int b = normal_bucket(u);
+            int b = rlc_bucket(l);
             /* by the light it brings as the sources now stand (a lamp's
              * direction, not its dim ceiling's), by geometry where they are dark */
             rr_rgb v = l->s & CLB ? c->cl[CL(l->s)].P : c->el[l->s].src;
@@ -417,7 +417,7 @@ static void rlc_push(hctx *c, uint32_t x, rlc_step *path, int np, const size_t *
         for (size_t j = grp[g]; j < grp[g + 1]; j++) {
             const hlink *l = &c->ln[j];
             rr_rgb v = rr_rgb_scale(l->s & CLB ? svc[CL(l->s)] : sv[l->s], c->unit ? link_ga(l) : link_g(l));
-            int b = normal_bucket(dir_unpack(l->dF));
+            int b = rlc_bucket(l);
             st->S[b][0] += v.r;
             st->S[b][1] += v.g;
             st->S[b][2] += v.b;
@@ -694,7 +694,7 @@ static int column_sums(const hctx *c, const size_t *grp, size_t ngrp, double *D)
         if (l->r & CLB) { /* what its roots take in of its bucket's light, as rlc_gather reads it */
             while (gi + 1 < ngrp && grp[gi + 1] <= i)
                 gi++;
-            w = c->rg[gi - c->rg0].take[normal_bucket(dir_unpack(l->dF))];
+            w = c->rg[gi - c->rg0].take[rlc_bucket(l)];
         } else {
             const double *t = tk + 4 * (size_t)l->r;
             w = t[0];
