@@ -283,8 +283,9 @@ typedef struct hctx {
     uint64_t draw;  /* which shadow rays the links draw: 0 while refining, ESTIMATE_DRAW for the estimate */
     const volatile sig_atomic_t *interrupt;
     /* Receiving leaf clusters (radiosity.receiving_clusters; rad_hier.c,
-     * "Receiving leaf clusters"): rlc[k] is 1 for the clusters that receive
-     * as one, NULL when there are none. */
+     * "Receiving leaf clusters"): rlc[k] is 1 for the clusters that may
+     * receive as one, 2 for the highest of them (where the gather's walks
+     * start), NULL when there are none; nrlc counts the highest. */
     unsigned char *rlc;
     size_t nrlc;
     double rlc_radius; /* their largest radius */
@@ -336,8 +337,10 @@ static inline void rlc_set_dir(hlink *l, rr_vec3 u)
 }
 static inline int rlc_bucket(const hlink *l) { return l->sh[0]; }
 
-/* Node x is a receiving leaf cluster: links to it stop there, and each root
- * under it reads their light with its own normal (rad__hier_gather). */
+/* Node x is a receiving leaf cluster: a receiver as a cluster end is (its
+ * links split into its children while closer than admissible or carrying
+ * more than eps), each root under it reading their light with its own
+ * normal (rad__hier_gather). */
 static inline int is_rlc(const hctx *c, uint32_t x) { return (x & CLB) && c->rlc && c->rlc[CL(x)]; }
 
 static inline int interrupted(const hctx *c) { return c->interrupt && *c->interrupt; }
@@ -607,9 +610,9 @@ rr_vec3 rad__hier_rlc_dir(const hctx *c, uint32_t r, uint32_t s);
 /* The unoccluded irradiance vector at point x from element s of unit
  * radiosity, s clipped to the front of x's plane for u (rad_hier_link.c). */
 rr_vec3 rad__hier_rlc_vec(const hctx *c, rr_vec3 x, rr_vec3 u, uint32_t s);
-/* Marks the receiving leaf clusters: the highest clusters of roots too
- * small to split whose radius is at most `radius` (c->rlc, c->nrlc); -1
- * when out of memory. */
+/* Marks the receiving leaf clusters: the clusters of roots too small to
+ * split (and no mirror) whose radius is at most `radius` (c->rlc, c->nrlc);
+ * -1 when out of memory. */
 int rad__hier_mark_rlc(hctx *c, double radius);
 /* The clusters' packed records (hcf) from their hcl: after the sources
  * change, before links are evaluated or their geometry read again. */
