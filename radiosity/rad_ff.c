@@ -133,22 +133,26 @@ static inline double angle(double y, double x)
 
 double rad__ff_angle(double y, double x) { return angle(y, x); }
 
-double rad_ff_point_polygon(rr_vec3 p, rr_vec3 n, const rr_vec3 *poly, int nv)
+/* The angle and the edge plane's normal depend only on directions: the
+ * vectors from p scaled by one factor, 1 / their largest component, keep
+ * far or tiny polygons from overflowing or underflowing the cross products
+ * (unit vectors cost a square root and a division each). That factor, or 0
+ * where there is none (p on every vertex, or not finite). */
+static double poly_scale(rr_vec3 p, const rr_vec3 *poly, int nv)
 {
-    if (nv < 3)
-        return 0.0;
-    /* The angle and the edge plane's normal depend only on directions:
-     * the vectors from p scaled by one factor, 1 / their largest component,
-     * keep far or tiny polygons from overflowing or underflowing the cross
-     * products (unit vectors cost a square root and a division each). */
     double m = 0.0;
     for (int k = 0; k < nv; k++) {
         rr_vec3 d = rr_v3_sub(poly[k], p);
         m = rr_max(m, rr_max(fabs(d.x), rr_max(fabs(d.y), fabs(d.z))));
     }
-    if (!(m > 0.0) || !isfinite(m))
+    return m > 0.0 && isfinite(m) ? 1.0 / m : 0.0;
+}
+
+double rad_ff_point_polygon(rr_vec3 p, rr_vec3 n, const rr_vec3 *poly, int nv)
+{
+    double im = nv < 3 ? 0.0 : poly_scale(p, poly, nv), sum = 0.0;
+    if (!(im > 0.0))
         return 0.0;
-    double im = 1.0 / m, sum = 0.0;
     rr_vec3 first = rr_v3_scale(rr_v3_sub(poly[0], p), im), a = first;
     for (int k = 0; k < nv; k++) {
         rr_vec3 b = k + 1 < nv ? rr_v3_scale(rr_v3_sub(poly[k + 1], p), im) : first;
@@ -170,17 +174,11 @@ double rad_ff_point_polygon(rr_vec3 p, rr_vec3 n, const rr_vec3 *poly, int nv)
 rr_vec3 rad_ff_point_polygon_vec(rr_vec3 p, const rr_vec3 *poly, int nv)
 {
     rr_vec3 v = rr_v3(0, 0, 0), ctr = rr_v3(0, 0, 0);
-    if (nv < 3)
+    double im = nv < 3 ? 0.0 : poly_scale(p, poly, nv);
+    if (!(im > 0.0))
         return v;
-    double m = 0.0; /* as rad_ff_point_polygon: the vectors scaled by their largest component */
-    for (int k = 0; k < nv; k++) {
-        rr_vec3 d = rr_v3_sub(poly[k], p);
-        ctr = rr_v3_add(ctr, d);
-        m = rr_max(m, rr_max(fabs(d.x), rr_max(fabs(d.y), fabs(d.z))));
-    }
-    if (!(m > 0.0) || !isfinite(m))
-        return v;
-    double im = 1.0 / m;
+    for (int k = 0; k < nv; k++)
+        ctr = rr_v3_add(ctr, rr_v3_sub(poly[k], p));
     rr_vec3 first = rr_v3_scale(rr_v3_sub(poly[0], p), im), a = first;
     for (int k = 0; k < nv; k++) {
         rr_vec3 b = k + 1 < nv ? rr_v3_scale(rr_v3_sub(poly[k + 1], p), im) : first;
