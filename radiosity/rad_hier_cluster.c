@@ -725,7 +725,7 @@ rr_vec3 rad__hier_rlc_dir(const hctx *c, uint32_t r, uint32_t s)
  * for a cluster, admissible, cluster_vec at r's area centroid), and one
  * shadow ray from each of those points to a point of s that faces it (drawn
  * by power for a cluster). The gather reads it per direction bucket with
- * each root's normal (rad_hier_solve.c, rlc_push). The same for B = 1
+ * each root's normal (rad_hier_rlc.c, rlc_push). The same for B = 1
  * (fa, va). */
 void rad__hier_eval_rlc(const hctx *c, hlink *l, rr_rng *rng, int mode)
 {

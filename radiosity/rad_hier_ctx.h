@@ -610,6 +610,16 @@ rr_vec3 rad__hier_rlc_dir(const hctx *c, uint32_t r, uint32_t s);
 /* The unoccluded irradiance vector at point x from element s of unit
  * radiosity, s clipped to the front of x's plane for u (rad_hier_link.c). */
 rr_vec3 rad__hier_rlc_vec(const hctx *c, rr_vec3 x, rr_vec3 u, uint32_t s);
+/* rad_hier_rlc.c: for the groups grp[c->rg0 .. ngrp) of the links into
+ * receiving leaf clusters (they sort after the elements'), their direction
+ * buckets' geometry (c->rg, c->rgi); -1 when out of memory. */
+int rad__hier_rlc_prepare(hctx *c, const size_t *grp, size_t ngrp);
+/* Their links' light, read by every root under them (adds to hel.H), after
+ * the elements' gather. */
+void rad__hier_rlc_gather(hctx *c, const size_t *grp, size_t ngrp);
+/* What the roots under receiving leaf cluster group gi (an index into c->rg)
+ * take in of a unit irradiance by link l (its bucket's): column_sums. */
+double rad__hier_rlc_take(const hctx *c, size_t gi, const hlink *l);
 /* Marks the receiving leaf clusters: the clusters of roots too small to
  * split (and no mirror) whose radius is at most `radius` (c->rlc, c->nrlc);
  * -1 when out of memory. */
