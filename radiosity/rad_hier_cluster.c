@@ -617,9 +617,8 @@ void rad__hier_regeo(hctx *c, double min_power)
         if (!(l->s & CLB) || isnan(l->f) ||
             (min_power > 0 && rad__hier_link_power(c, l->r, l->s, link_way(l)) < min_power))
             continue;
-        if (l->r & CLB) { /* into a receiving leaf cluster (no draws: the stream is not read) */
-            rr_rng rng = rr_rng_make(c->seed ^ c->draw, ((uint64_t)l->r << 32) | l->s);
-            rad__hier_eval_rlc(c, l, &rng, RLC_GEO);
+        if (l->r & CLB) { /* into a receiving leaf cluster: RLC_GEO draws nothing of a cluster source */
+            rad__hier_eval_rlc(c, l, NULL, RLC_GEO);
             continue;
         }
         double geo, geo_a, spread, fk[4];
@@ -708,7 +707,10 @@ int rad__hier_mark_rlc(hctx *c, double radius)
     return 0;
 }
 
-rr_vec3 rad__hier_rlc_dir(const hctx *c, uint32_t r, uint32_t s)
+/* The direction from receiving leaf cluster r's area centroid towards s's
+ * power centroid (s's centre for an element), unit: where its points are
+ * drawn to face. */
+static rr_vec3 rlc_dir(const hctx *c, uint32_t r, uint32_t s)
 {
     rr_vec3 p = s & CLB ? c->cl[CL(s)].pc : c->el[s].ctr;
     return rr_v3_norm(rr_v3_sub(p, c->cl[CL(r)].ac));
@@ -730,7 +732,7 @@ rr_vec3 rad__hier_rlc_dir(const hctx *c, uint32_t r, uint32_t s)
 void rad__hier_eval_rlc(const hctx *c, hlink *l, rr_rng *rng, int mode)
 {
     uint32_t r = l->r, s = l->s;
-    rr_vec3 u0 = rad__hier_rlc_dir(c, r, s), ps = s & CLB ? c->cl[CL(s)].pc : c->el[s].ctr;
+    rr_vec3 u0 = rlc_dir(c, r, s), ps = s & CLB ? c->cl[CL(s)].pc : c->el[s].ctr;
     const hcl *ks = s & CLB ? &c->cl[CL(s)] : NULL;
     double P = ks ? ks->P.r + ks->P.g + ks->P.b : 0.0;
     double f = 0.0, fa = 0.0;

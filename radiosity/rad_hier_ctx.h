@@ -601,12 +601,10 @@ void rad__hier_regeo(hctx *c, double min_power);
 /* A link into a receiving leaf cluster (l->r is_rlc): evaluated whole
  * (mode 0, and the estimate's redraw, 1), or the geometry of a cluster
  * source's power alone again (RLC_GEO, the kept links' regeo: read at the
- * receiver's centroid, no point drawn, no shadow ray) (rad_hier_cluster.c). */
+ * receiver's centroid, no point drawn, no shadow ray: rng may be NULL)
+ * (rad_hier_cluster.c). */
 #define RLC_GEO 2
 void rad__hier_eval_rlc(const hctx *c, hlink *l, rr_rng *rng, int mode);
-/* The direction a link into a receiving leaf cluster reads: from r's centre
- * towards s's power centroid (s's centre for an element), unit. */
-rr_vec3 rad__hier_rlc_dir(const hctx *c, uint32_t r, uint32_t s);
 /* The unoccluded irradiance vector at point x from element s of unit
  * radiosity, s clipped to the front of x's plane for u (rad_hier_link.c). */
 rr_vec3 rad__hier_rlc_vec(const hctx *c, rr_vec3 x, rr_vec3 u, uint32_t s);
@@ -616,7 +614,7 @@ rr_vec3 rad__hier_rlc_vec(const hctx *c, rr_vec3 x, rr_vec3 u, uint32_t s);
 int rad__hier_rlc_prepare(hctx *c, const size_t *grp, size_t ngrp);
 /* Their links' light, read by every root under them (adds to hel.H), after
  * the elements' gather. */
-void rad__hier_rlc_gather(hctx *c, const size_t *grp, size_t ngrp);
+void rad__hier_rlc_gather(hctx *c, const size_t *grp);
 /* What the roots under receiving leaf cluster group gi (an index into c->rg)
  * take in of a unit irradiance by link l (its bucket's): column_sums. */
 double rad__hier_rlc_take(const hctx *c, size_t gi, const hlink *l);

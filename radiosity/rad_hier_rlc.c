@@ -99,7 +99,7 @@ typedef struct rlc_step {
     double S[6][3];
 } rlc_step;
 
-static void rlc_push(hctx *c, uint32_t x, rlc_step *path, int np, const size_t *grp, size_t ngrp)
+static void rlc_push(hctx *c, uint32_t x, rlc_step *path, int np, const size_t *grp)
 {
     if (!(x & CLB)) {
         if (np == 0)
@@ -137,18 +137,18 @@ static void rlc_push(hctx *c, uint32_t x, rlc_step *path, int np, const size_t *
             st->S[b][2] += v.b;
         }
     }
-    rlc_push(c, c->cl[CL(x)].child[0], path, np, grp, ngrp);
-    rlc_push(c, c->cl[CL(x)].child[1], path, np, grp, ngrp);
+    rlc_push(c, c->cl[CL(x)].child[0], path, np, grp);
+    rlc_push(c, c->cl[CL(x)].child[1], path, np, grp);
 }
 
-void rad__hier_rlc_gather(hctx *c, const size_t *grp, size_t ngrp)
+void rad__hier_rlc_gather(hctx *c, const size_t *grp)
 {
 #pragma omp parallel for schedule(dynamic, 16)
     for (long k = 0; k < (long)c->ncl; k++) {
         if (c->rlc[k] != 2)
             continue;
         rlc_step path[RLC_DEPTH];
-        rlc_push(c, CLB | (uint32_t)k, path, 0, grp, ngrp);
+        rlc_push(c, CLB | (uint32_t)k, path, 0, grp);
     }
 }
 

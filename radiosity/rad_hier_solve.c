@@ -339,7 +339,7 @@ void rad__hier_gather(hctx *c, const size_t *grp, size_t ngrp)
             e->partial = partial;
     }
     if (c->rlc)
-        rad__hier_rlc_gather(c, grp, ngrp);
+        rad__hier_rlc_gather(c, grp);
 }
 
 static rr_rgb mid(rr_rgb a, rr_rgb b) { return rr_rgb_scale(rr_rgb_add(a, b), 0.5); }
