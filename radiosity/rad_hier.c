@@ -424,7 +424,7 @@ double rad__hier_bytes(double links, double elements, double clusters)
 {
     return links * (double)sizeof(hlink) +
            elements * ((double)sizeof(hel) + (double)sizeof(rr_rgb) + (double)sizeof(size_t) + 0.75 * RAD_PATCH_BYTES) +
-           clusters * ((double)sizeof(hcl) + (double)sizeof(hcf) + (double)sizeof(rr_rgb));
+           clusters * ((double)sizeof(hcl) + (double)sizeof(hcf) + (double)sizeof(rr_rgb) + (double)sizeof(hroot));
 }
 
 /* Whether the links have reached radiosity.max_links or the pass's bytes
@@ -691,6 +691,7 @@ static rr_status hier_run(const scene *s, const rt_accel *a, const rad_pass_opts
     size_t nr = roots->n;
     c.cl = malloc((nr ? nr : 1) * sizeof *c.cl);
     c.cf = aligned_alloc(64, (nr ? nr : 1) * sizeof *c.cf); /* 256 bytes each: four whole cache lines */
+    c.rt = malloc((nr ? nr : 1) * sizeof *c.rt);
     size_t dropped = 0;
     if (mirrors && rad__hier_ways(&c, L, depth, &dropped) != 0)
         c.nomem = 1;
@@ -704,12 +705,17 @@ static rr_status hier_run(const scene *s, const rt_accel *a, const rad_pass_opts
         rr_vec3 v[3] = {roots->verts[p->v[0]], roots->verts[p->v[1]], roots->verts[p->v[2]]};
         el_add(&c, v, (uint32_t)i, 0);
     }
+    for (size_t i = 0; i < c.nel && c.rt; i++) {
+        const hel *e = &c.el[i];
+        c.rt[i] = (hroot){roots->p[i].normal, e->ctr, e->area, 1.0 - roots->p[i].mirror, 0.0};
+    }
     if (c.cl && !c.nomem)
         rad__hier_probe_new(&c); /* the roots' burial, which their leaf data reads */
-    if (!c.cl || !c.cf || c.nomem || nr == 0 || interrupted(&c) || (c.top = rad__hier_clusters(&c)) == NONE) {
+    if (!c.cl || !c.cf || !c.rt || c.nomem || nr == 0 || interrupted(&c) || (c.top = rad__hier_clusters(&c)) == NONE) {
         free(c.img);
         free(c.cl);
         free(c.cf);
+        free(c.rt);
         free(c.el);
         rt_lights_destroy(L);
         rad_patches_destroy(roots);
@@ -827,6 +833,9 @@ static rr_status hier_run(const scene *s, const rt_accel *a, const rad_pass_opts
     free(c.rlc);
     free(c.rg);
     free(c.rgi);
+    free(c.rt);
+    free(c.rH);
+    free(c.rf);
     free(c.ln);
     free(c.sv);
     sol->stats.used = RAD_SOLVER_ITERATIVE;

@@ -21,13 +21,8 @@ static double node_proj_area(const hctx *c, uint32_t x, rr_vec3 u)
         const hcf *f = &c->cf[CL(x)];
         return nbf_proj(f->Av, f->As, (f->mask >> 7) & 63u, u, 1);
     }
-    return rr_max(0.0, rr_v3_dot(el_normal(c, x), u)) * node_uarea(c, x); /* fmax is a libm call here */
-}
-
-/* An element's area as seen from u, the whole of it (power, saturation). */
-static double el_proj_area(const hctx *c, uint32_t x, rr_vec3 u)
-{
-    return rr_max(0.0, rr_v3_dot(el_normal(c, x), u)) * c->el[x].area;
+    const hroot *t = &c->rt[x]; /* a root: the tree's leaves are */
+    return rr_max(0.0, rr_v3_dot(t->n, u)) * (t->area * t->om); /* fmax is a libm call here */
 }
 
 /* The power node x sends towards u (by its current sources, all channels):
@@ -39,8 +34,8 @@ static double node_proj_power(const hctx *c, uint32_t x, rr_vec3 u)
         const hcf *f = &c->cf[CL(x)];
         return nbf_proj(f->Dv, f->Ds, (f->mask >> 1) & 63u, u, 1);
     }
-    const hel *e = &c->el[x];
-    return el_proj_area(c, x, u) * (e->src.r + e->src.g + e->src.b);
+    const hroot *t = &c->rt[x]; /* a root */
+    return rr_max(0.0, rr_v3_dot(t->n, u)) * t->area * t->ssum;
 }
 
 /* Node x's area (node_uarea) by normal bucket, added to nb. */
@@ -462,16 +457,16 @@ static void cluster_sums(const hctx *c, uint32_t s, rr_vec3 xr, rr_vec3 nr, doub
         }
         /* an element's two centroids are one point; the disc's saturation,
          * A / pi, for flat nodes (elements) only */
-        const hel *e = &c->el[n];
-        rr_vec3 d = rr_v3_sub(e->ctr, xr);
+        const hroot *t = &c->rt[n]; /* a root */
+        rr_vec3 d = rr_v3_sub(t->ctr, xr);
         double nd = rr_v3_dot(nr, d), L2 = rr_v3_len2(d);
         if (!(nd > 0.0) || !(L2 > 0.0))
             continue;
         double iL = 1.0 / sqrt(L2);
-        double Ap = el_proj_area(c, n, rr_v3_scale(d, -iL)), w = nd * iL * Ap / (L2 + Ap / RR_PI);
-        Tp += w * (e->src.r + e->src.g + e->src.b);
+        double Ap = rr_max(0.0, rr_v3_dot(t->n, rr_v3_scale(d, -iL))) * t->area, w = nd * iL * Ap / (L2 + Ap / RR_PI);
+        Tp += w * t->ssum;
         if (by_area)
-            Ta += w * (1.0 - c->R->p[e->root].mirror); /* as node_uarea */
+            Ta += w * t->om; /* as node_uarea */
     }
     *Tp_out = Tp;
     *Ta_out = Ta;
@@ -491,7 +486,7 @@ static rr_vec3 cluster_vec(const hctx *c, uint32_t s, rr_vec3 xr, rr_vec3 nr, in
     for (int i = 0; i < nf; i++) {
         uint32_t n = fr[i];
         for (int k = 0; k < 1 + area_too; k++) { /* the power's terms, then (area_too) the area's */
-            rr_vec3 p = n & CLB ? cf_v3(k ? c->cf[CL(n)].ac : c->cf[CL(n)].pc) : c->el[n].ctr, d = rr_v3_sub(p, xr);
+            rr_vec3 p = n & CLB ? cf_v3(k ? c->cf[CL(n)].ac : c->cf[CL(n)].pc) : c->rt[n].ctr, d = rr_v3_sub(p, xr);
             double L2 = rr_v3_len2(d);
             if (!(rr_v3_dot(nr, d) > 0.0) || !(L2 > 0.0))
                 continue;
@@ -504,10 +499,9 @@ static rr_vec3 cluster_vec(const hctx *c, uint32_t s, rr_vec3 xr, rr_vec3 nr, in
                        : nbf_proj(q->Dv, q->Ds, (q->mask >> 1) & 63u, rr_v3_neg(u), (int)(q->mask & 1u))) /
                     L2;
             } else {
-                const hel *e = &c->el[n];
-                double Ap = el_proj_area(c, n, rr_v3_neg(u));
-                t = Ap / (L2 + Ap / RR_PI) *
-                    (k ? 1.0 - c->R->p[e->root].mirror : e->src.r + e->src.g + e->src.b); /* as node_uarea */
+                const hroot *e = &c->rt[n]; /* a root */
+                double Ap = rr_max(0.0, rr_v3_dot(e->n, rr_v3_neg(u))) * e->area;
+                t = Ap / (L2 + Ap / RR_PI) * (k ? e->om : e->ssum); /* as node_uarea */
             }
             if (k)
                 Va = rr_v3_add(Va, rr_v3_scale(u, t));

@@ -51,6 +51,11 @@ int rad__hier_rlc_prepare(hctx *c, const size_t *grp, size_t ngrp)
     c->rg0 = g0;
     if (!c->rgi && !(c->rgi = malloc((c->ncl ? c->ncl : 1) * sizeof *c->rgi)))
         return -1;
+    size_t nr = c->R->n;
+    if (!c->rH && !(c->rH = malloc((nr ? nr : 1) * sizeof *c->rH)))
+        return -1;
+    if (!c->rf && !(c->rf = malloc(nr ? nr : 1)))
+        return -1;
     for (size_t k = 0; k < c->ncl; k++)
         c->rgi[k] = NONE;
     if (g0 == ngrp)
@@ -104,8 +109,7 @@ static void rlc_push(hctx *c, uint32_t x, rlc_step *path, int np, const size_t *
     if (!(x & CLB)) {
         if (np == 0)
             return;
-        hel *e = &c->el[x];
-        rr_vec3 n = el_normal(c, x);
+        rr_vec3 n = c->rt[x].n; /* a root */
         double H[3] = {0, 0, 0};
         for (int k = 0; k < np; k++)
             for (int b = 0; b < 6; b++) {
@@ -115,9 +119,8 @@ static void rlc_push(hctx *c, uint32_t x, rlc_step *path, int np, const size_t *
                 for (int ch = 0; ch < 3; ch++)
                     H[ch] += w * path[k].S[b][ch];
             }
-        e->H = rr_rgb_add(e->H, rr_rgb_make(H[0], H[1], H[2]));
-        if (c->unit)
-            e->partial = 1; /* no row-sum scale: the buckets' reading is not the quadrature it corrects */
+        c->rH[x] = rr_rgb_make(H[0], H[1], H[2]);
+        c->rf[x] = 1;
         return;
     }
     uint32_t gi = c->rgi[CL(x)];
@@ -143,12 +146,24 @@ static void rlc_push(hctx *c, uint32_t x, rlc_step *path, int np, const size_t *
 
 void rad__hier_rlc_gather(hctx *c, const size_t *grp)
 {
+    long nr = (long)c->R->n;
+    memset(c->rf, 0, (size_t)nr);
 #pragma omp parallel for schedule(dynamic, 16)
     for (long k = 0; k < (long)c->ncl; k++) {
         if (c->rlc[k] != 2)
             continue;
         rlc_step path[RLC_DEPTH];
         rlc_push(c, CLB | (uint32_t)k, path, 0, grp);
+    }
+    /* added in root order: the elements stream by, not a miss a root */
+#pragma omp parallel for schedule(static)
+    for (long r = 0; r < nr; r++) {
+        if (!c->rf[r])
+            continue;
+        hel *e = &c->el[r];
+        e->H = rr_rgb_add(e->H, c->rH[r]);
+        if (c->unit)
+            e->partial = 1; /* no row-sum scale: the buckets' reading is not the quadrature it corrects */
     }
 }
 
