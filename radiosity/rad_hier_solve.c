@@ -259,16 +259,38 @@ static void collect_split(const hctx *c, uint32_t x, int depth, uint32_t *out, s
     collect_split(c, k->child[1], depth + 1, out, n);
 }
 
-static void pull_all(hctx *c)
+/* pull_cl's power alone (P), the same sums: what the solve's sweeps read
+ * of the clusters (the gather's cluster sources). The buckets and the
+ * centroid are for the links' evaluation, made whole once the solve ends. */
+static rr_rgb pull_P(hctx *c, uint32_t x, int depth)
+{
+    if (!(x & CLB))
+        return rr_rgb_scale(c->el[x].src, c->el[x].area);
+    hcl *k = &c->cl[CL(x)];
+    if (depth == PULL_SPLIT)
+        return k->P;
+    rr_rgb P0 = pull_P(c, k->child[0], depth + 1), P1 = pull_P(c, k->child[1], depth + 1);
+    return k->P = rr_rgb_add(P0, P1);
+}
+
+static void pull_all(hctx *c, int power_only)
 {
     uint32_t sub[1u << PULL_SPLIT];
     size_t n = 0;
     collect_split(c, c->top, 0, sub, &n);
 #pragma omp parallel for schedule(dynamic, 1)
     for (long i = 0; i < (long)n; i++) {
+        if (power_only) {
+            pull_P(c, sub[i], PULL_SPLIT + 1);
+            continue;
+        }
         nbuckets Dn;
         memset(&Dn, 0, sizeof Dn);
         pull_cl(c, sub[i], &Dn, PULL_SPLIT + 1); /* below the split: to its leaves */
+    }
+    if (power_only) {
+        pull_P(c, c->top, 0);
+        return;
     }
     nbuckets Dn;
     memset(&Dn, 0, sizeof Dn);
@@ -307,7 +329,7 @@ static void set_src(hctx *c, int unit, int indirect, uint32_t x)
         set_src(c, unit, indirect, e->child + k);
 }
 
-void rad__hier_sources(hctx *c, int unit, int indirect)
+static void sources(hctx *c, int unit, int indirect, int power_only)
 {
     size_t nr = c->R->n;
     c->unit = unit;
@@ -319,8 +341,10 @@ void rad__hier_sources(hctx *c, int unit, int indirect)
         rr_rgb v = pull_el(c, (uint32_t)r, &w, &all);
         c->rt[r].ssum = v.r + v.g + v.b;
     }
-    pull_all(c);
+    pull_all(c, power_only);
 }
+
+void rad__hier_sources(hctx *c, int unit, int indirect) { sources(c, unit, indirect, 0); }
 
 /* Room in c->sv for every node's source value; -1 when out of memory. */
 static int reserve_sources(hctx *c)
@@ -729,7 +753,7 @@ rr_status rad__hier_solve(hctx *c, const rad_solve_opts *so, rad_solve_stats *st
         for (long i = 0; i < (long)c->nel; i++)
             Bprev[i] = c->el[i].B;
         c->cs = c->capped || c->eps > c->eps_asked ? rr_rgb_make(1, 1, 1) : column_scale(c, D);
-        rad__hier_sources(c, 0, 0);
+        sources(c, 0, 0, 1);
         rad__hier_gather(c, grp, ngrp);
         double d = rad__hier_push(c, PUSH_SOLVE), bmax = leaves_max_B(c);
         st->iterations = it + 1;
@@ -774,6 +798,8 @@ rr_status rad__hier_solve(hctx *c, const rad_solve_opts *so, rad_solve_stats *st
         }
         since = 0;
     }
+    if (st->iterations > 0)
+        pull_all(c, 0); /* the clusters' buckets and centroids of the last sweep's sources */
     free(D);
     free(Bh);
     free(grp);
