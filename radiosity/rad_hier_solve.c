@@ -32,36 +32,85 @@ static int link_less(const hlink *x, const hlink *y)
     return x->r < y->r || (x->r == y->r && (x->s < y->s || (x->s == y->s && link_way(x) < link_way(y))));
 }
 
-/* ln[0 .. n) sorted by receiver, then source: a bucket sort by receiver in
- * place (each link swapped into its receiver's range, in a fixed order),
- * then each receiver's links by source, receivers in parallel (a serial
- * qsort of room.json's 3.7 M links took 0.4 s a solve). -1 when out of
- * memory. */
-static int bucket_sort(hlink *ln, size_t n, size_t ne, size_t nk)
+/* ln[0 .. n) by receiver key (rkey < 2^(shift + 8)) in place: a radix
+ * sort from the top byte down (American flag sort), each pass's swaps
+ * going to 256 places that stay in cache; the byte's buckets below the top
+ * in parallel. The order within a receiver is left to sort_ranges. */
+static inline size_t rdigit(const hlink *l, size_t ne, int shift) { return (rkey(l->r, ne) >> shift) & 255u; }
+
+static void flag_sort(hlink *ln, size_t n, size_t ne, int shift, int top)
 {
-    size_t *start = calloc(nk + 1, sizeof *start), *next = malloc((nk ? nk : 1) * sizeof *next);
-    if (!start || !next) {
-        free(start);
-        free(next);
-        return -1;
+    if (n <= 16) { /* an insertion sort by key */
+        for (size_t i = 1; i < n; i++) {
+            hlink t = ln[i];
+            size_t k = rkey(t.r, ne), j = i;
+            while (j > 0 && rkey(ln[j - 1].r, ne) > k) {
+                ln[j] = ln[j - 1];
+                j--;
+            }
+            ln[j] = t;
+        }
+        return;
     }
+    size_t cnt[256] = {0}, head[256], end[256];
+    for (size_t i = 0; i < n; i++)
+        cnt[rdigit(&ln[i], ne, shift)]++;
+    for (size_t b = 0, acc = 0; b < 256; b++) {
+        head[b] = acc;
+        acc += cnt[b];
+        end[b] = acc;
+    }
+    for (size_t b = 0; b < 256; b++)
+        while (head[b] < end[b]) {
+            hlink v = ln[head[b]];
+            size_t d = rdigit(&v, ne, shift);
+            while (d != b) { /* v to its bucket, taking out what was there */
+                hlink t = ln[head[d]];
+                ln[head[d]++] = v;
+                v = t;
+                d = rdigit(&v, ne, shift);
+            }
+            ln[head[b]++] = v;
+        }
+    if (shift == 0)
+        return;
+#pragma omp parallel for schedule(dynamic, 1) if (top)
+    for (int b = 0; b < 256; b++)
+        flag_sort(ln + end[b] - cnt[b], cnt[b], ne, shift - 8, 0);
+}
+
+/* ln[0 .. n) sorted by receiver, then source, in place: flag_sort, then
+ * each receiver's links by source (sort_ranges). The order is total (a
+ * receiver-source pair has a link per way at most): the same result as any
+ * sort. A counting sort over every receiver, its swaps a cache miss each
+ * (split between two threads by a partition at the median receiver), took
+ * the 81-bunny room's second and third rounds 0.70 and 0.86 s of their
+ * solves' 1.8 s; this, 0.53 and 0.55 s. -1 when out of memory. */
+static void sort_ranges(hlink *ln, const size_t *start, size_t nk);
+
+static int sort_in_place(hlink *ln, size_t n, size_t ne, size_t nk)
+{
+    size_t *start = calloc(nk + 1, sizeof *start);
+    if (!start)
+        return -1;
+    int shift = 0;
+    while (shift < 56 && nk > 0 && (nk - 1) >> shift >> 8)
+        shift += 8;
+    flag_sort(ln, n, ne, shift, 1);
     for (size_t i = 0; i < n; i++)
         start[rkey(ln[i].r, ne) + 1]++;
     for (size_t e = 0; e < nk; e++)
         start[e + 1] += start[e];
-    memcpy(next, start, nk * sizeof *next);
-    for (size_t e = 0; e < nk; e++)
-        while (next[e] < start[e + 1]) {
-            size_t t = rkey(ln[next[e]].r, ne);
-            if (t == e) {
-                next[e]++;
-                continue;
-            }
-            hlink tmp = ln[next[t]];
-            ln[next[t]++] = ln[next[e]];
-            ln[next[e]] = tmp;
-        }
-    free(next);
+    sort_ranges(ln, start, nk);
+    free(start);
+    return 0;
+}
+
+/* Each receiver's range ln[start[e] .. start[e + 1]) sorted by source, the
+ * receivers in parallel (a serial qsort of room.json's 3.7 M links took 0.4 s
+ * a solve). */
+static void sort_ranges(hlink *ln, const size_t *start, size_t nk)
+{
 #pragma omp parallel for schedule(dynamic, 256)
     for (long e = 0; e < (long)nk; e++) {
         size_t lo = start[e], hi = start[e + 1];
@@ -82,45 +131,28 @@ static int bucket_sort(hlink *ln, size_t n, size_t ne, size_t nk)
             ln[j] = t;
         }
     }
-    free(start);
-    return 0;
 }
 
-/* bucket_sort on two threads: the links of the receivers below the one that
- * halves them moved to the front by a two-ended partition (which streams
- * through the array where the bucket sort's swaps jump), then each part
- * bucket-sorted by a thread of its own. The first round's sort of room.json
- * was 3 % of its samples on one thread. The same order: it is total. */
-static int bucket_sort2(hlink *ln, size_t n, size_t ne, size_t nk)
+/* ln[0 .. n) copied to out sorted by receiver, then source: a counting
+ * sort by receiver writing straight into the copy that sort_links merges
+ * from, then each receiver's range by source. -1 when out of memory. */
+static int scatter_sort(const hlink *ln, size_t n, hlink *out, size_t ne, size_t nk)
 {
-    if (n < ((size_t)1 << 16) || omp_get_max_threads() < 2)
-        return bucket_sort(ln, n, ne, nk);
-    size_t *count = calloc(nk + 1, sizeof *count);
-    if (!count)
+    size_t *start = calloc(nk + 1, sizeof *start);
+    if (!start)
         return -1;
     for (size_t i = 0; i < n; i++)
-        count[rkey(ln[i].r, ne)]++;
-    size_t mid = 0;
-    for (size_t acc = 0; mid < nk && acc + count[mid] <= n / 2; mid++)
-        acc += count[mid];
-    free(count);
-    size_t i = 0, j = n;
-    for (;;) {
-        while (i < j && rkey(ln[i].r, ne) < mid)
-            i++;
-        while (i < j && rkey(ln[j - 1].r, ne) >= mid)
-            j--;
-        if (i >= j)
-            break;
-        hlink t = ln[i];
-        ln[i++] = ln[j - 1];
-        ln[--j] = t;
-    }
-    int rc[2] = {0, 0};
-#pragma omp parallel for num_threads(2) schedule(static, 1)
-    for (int h = 0; h < 2; h++)
-        rc[h] = h == 0 ? bucket_sort(ln, i, ne, nk) : bucket_sort(ln + i, n - i, ne, nk);
-    return rc[0] || rc[1] ? -1 : 0;
+        start[rkey(ln[i].r, ne) + 1]++;
+    for (size_t e = 0; e < nk; e++)
+        start[e + 1] += start[e];
+    for (size_t i = 0; i < n; i++)
+        out[start[rkey(ln[i].r, ne)]++] = ln[i];
+    for (size_t e = nk; e > 0; e--) /* back to each range's start */
+        start[e] = start[e - 1];
+    start[0] = 0;
+    sort_ranges(out, start, nk);
+    free(start);
+    return 0;
 }
 
 /* The links sorted by receiver, then source (the gather's fixed order). In
@@ -157,12 +189,11 @@ static int sort_links(hctx *c)
     hlink *tail = k > 0 && (double)m * sizeof *ln <= 0.75 * RAD_PATCH_BYTES * (double)ne ? malloc(m * sizeof *tail)
                                                                                         : NULL;
     if (!tail)
-        return bucket_sort2(ln, n, ne, nk);
-    if (bucket_sort2(ln + k, m, ne, nk) != 0) {
+        return sort_in_place(ln, n, ne, nk);
+    if (scatter_sort(ln + k, m, tail, ne, nk) != 0) {
         free(tail);
         return -1;
     }
-    memcpy(tail, ln + k, m * sizeof *tail);
     size_t i = k, j = m, w = n; /* from the back: w > i always while j > 0 */
     while (j > 0) {
         if (i > 0 && link_less(&tail[j - 1], &ln[i - 1]))
