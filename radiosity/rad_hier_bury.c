@@ -21,7 +21,7 @@ int rad__hier_buried(const hctx *c, const hel *e, rr_vec3 xs, rr_vec3 ns)
 int rad__hier_point_buried(const hctx *c, const hel *e, rr_vec3 x)
 {
     rr_vec3 xs, ns;
-    rad_patch_surface(c->R, c->s, c->a, e->root, x, &xs, &ns);
+    root_surface(c, e->root, x, &xs, &ns);
     return rad__hier_buried(c, e, xs, ns);
 }
 
@@ -47,7 +47,7 @@ static void el_probe(hctx *c, uint32_t x)
         rad_ff_tri_stratum(k, PROBES, &rng, &u, &v);
         rad_ff_square_stratum((k * 7) % PROBES, PROBES, &rng, &u1, &u2); /* strata paired across */
         rr_vec3 xs, ns;
-        rad_patch_surface(c->R, c->s, c->a, e->root, tri_at(e->c, 1.0 - u - v, u, v), &xs, &ns);
+        root_surface(c, e->root, tri_at(e->c, 1.0 - u - v, u, v), &xs, &ns);
         rr_vec3 d = rad_ff_cosine_dir(ns, u1, u2);
         rr_ray r = {rt_offset_origin(c->ext, xs, ns, ns), d};
         open += !rad__ff_point_buried(c->s, c->a, r, ns, bury);
@@ -89,7 +89,7 @@ static void leaf_data(const hctx *c, uint32_t x)
     for (int k = 0; k < CLOSED_RAYS && any; k++) {
         rr_vec3 xs, ns;
         int q = open_pt(e, k);
-        rad_patch_surface(c->R, c->s, c->a, e->root, tri_at(e->c, k_pts[q][0], k_pts[q][1], k_pts[q][2]), &xs, &ns);
+        root_surface(c, e->root, tri_at(e->c, k_pts[q][0], k_pts[q][1], k_pts[q][2]), &xs, &ns);
         double u1, u2;
         rad_ff_square_stratum((uint32_t)k, CLOSED_RAYS, &rng, &u1, &u2);
         rr_vec3 dir = rad_ff_cosine_dir(ns, u1, u2);

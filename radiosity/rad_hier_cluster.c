@@ -218,7 +218,7 @@ static int node_sample(const hctx *c, uint32_t x, int k, int fixed, int by_power
     }
     const hel *e = &c->el[x];
     rr_vec3 p = fixed ? tri_at(e->c, k_pts[k][0], k_pts[k][1], k_pts[k][2]) : tri_random(e->c, rng);
-    rad_patch_surface(c->R, c->s, c->a, e->root, p, xs, ns);
+    root_surface(c, e->root, p, xs, ns);
     if (root)
         *root = e->root;
     return !fixed && e->open < 1.0 && rad__hier_buried(c, e, *xs, *ns);
@@ -805,7 +805,7 @@ void rad__hier_eval_rlc(const hctx *c, hlink *l, rr_rng *rng, int mode)
             if (ks) {
                 buried = node_sample(c, s, k % 4, 0, 1, rr_v3_neg(u), rng, &y, &ny, &yroot);
             } else {
-                rad_patch_surface(c->R, c->s, c->a, c->el[s].root, tri_random(c->el[s].c, rng), &y, &ny);
+                root_surface(c, c->el[s].root, tri_random(c->el[s].c, rng), &y, &ny);
                 yroot = c->el[s].root;
                 buried = c->el[s].open < 1.0 && rad__hier_buried(c, &c->el[s], y, ny);
             }

@@ -361,7 +361,20 @@ static inline int is_rlc(const hctx *c, uint32_t x) { return (x & CLB) && c->rlc
 
 static inline int interrupted(const hctx *c) { return c->interrupt && *c->interrupt; }
 
-static inline rr_vec3 el_normal(const hctx *c, uint32_t e) { return c->R->p[c->el[e].root].normal; }
+static inline rr_vec3 el_normal(const hctx *c, uint32_t e) { return c->rt[c->el[e].root].n; }
+
+/* rad_patch_surface for a point p of an element of root `root`: a scene
+ * triangle's point is its own, its normal the root's (hroot), read without
+ * the patch's record (a cache miss a shadow ray's end). */
+static inline void root_surface(const hctx *c, uint32_t root, rr_vec3 p, rr_vec3 *xs, rr_vec3 *ns)
+{
+    if (c->rt[root].flat) {
+        *xs = p;
+        *ns = c->rt[root].n;
+        return;
+    }
+    rad_patch_surface(c->R, c->s, c->a, root, p, xs, ns);
+}
 
 /* Point x and direction v as seen by way w: their image in its mirrors (an
  * isometry: a receiver read there exchanges light with the real sources as

@@ -146,13 +146,13 @@ static int shadow_passes(const hctx *c, const rview *rv, const hel *ey, rr_vec3 
         b = 1.0 - b;
     }
     v->seen++;
-    rad_patch_surface(c->R, c->s, c->a, ey->root, rad__poly_point(poly, nv, a, b, k), &ys, &yn);
+    root_surface(c, ey->root, rad__poly_point(poly, nv, a, b, k), &ys, &yn);
     if (ey->open < 1.0 && rad__hier_buried(c, ey, ys, yn))
         return 0;
     v->open++;
     /* x on r as the source sees it (its image by way of a mirror): the
      * surface point found on the real r */
-    rad_patch_surface(c->R, c->s, c->a, rv->e->root, way_back(c, rv->way, x), &xs, &xn);
+    root_surface(c, rv->e->root, way_back(c, rv->way, x), &xs, &xn);
     int passed;
     if (rv->way) {
         rad__hier_sphere_end(c, ey->root, way_point(c, rv->way, xs), &ys, &yn);
