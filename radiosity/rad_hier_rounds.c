@@ -126,6 +126,7 @@ static int unrepresented(const hctx *c, uint32_t r)
  * again, until nothing changes. */
 rr_status rad__hier_settle(hctx *c, void (*progress)(void *, size_t, size_t), void *user, rr_error *err)
 {
+    size_t tested = 0; /* the elements below it were tested by an earlier pass (below) */
     for (int pass = 0; pass < 32; pass++) {
         size_t lo = c->first_new;
         rad__hier_probe_new(c); /* the links read their ends' burial */
@@ -139,9 +140,13 @@ rr_status rad__hier_settle(hctx *c, void (*progress)(void *, size_t, size_t), vo
         /* Leaves whose first shot varies by more than eps of power split,
          * and partly buried ones whose buried share carries that much: the
          * burial's edge lies within them, and their points stand for both
-         * sides of it. */
+         * sides of it. What these tests read of an element (its first
+         * shot's spread, its open share, its B, eps) holds through the
+         * passes of one settle, so a pass tests only the elements made
+         * since the last one: every pass over all of them was 1.7 s of the
+         * 1M room's pass, on one thread. */
         int changed = 0;
-        for (size_t i = 0; i < ne && !c->nomem; i++) {
+        for (size_t i = tested; i < ne && !c->nomem; i++) {
             hel *e = &c->el[i];
             if (e->child != NONE || e->fresh || !splittable(c, (uint32_t)i))
                 continue;
@@ -151,6 +156,7 @@ rr_status rad__hier_settle(hctx *c, void (*progress)(void *, size_t, size_t), vo
             if ((shot || part) && !rad__hier_past_cap(c))
                 changed |= rad__hier_el_split(c, (uint32_t)i) == 0;
         }
+        tested = ne;
         /* Partly visible links that carry enough split once more (which,
          * decided in parallel: splitting changes no node a test reads). */
         rad__hier_exposures(c);
