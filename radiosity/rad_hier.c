@@ -834,6 +834,9 @@ static rr_status hier_run(const scene *s, const rt_accel *a, const rad_pass_opts
     free(c.rg);
     free(c.rgi);
     free(c.rt);
+    free(c.rdfs);
+    free(c.rpos);
+    free(c.rn);
     free(c.rH);
     free(c.rf);
     free(c.ln);

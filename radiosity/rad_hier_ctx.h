@@ -306,8 +306,14 @@ typedef struct hctx {
     struct rlc_geo *rg; /* per receiving leaf cluster's group of links, from rg0 on (rad__hier_groups) */
     uint32_t *rgi;      /* per cluster: its group's index in rg, NONE where it has no links */
     size_t rg0;
-    rr_rgb *rH;         /* per root: what rlc_push gathered, added to hel.H after it */
-    unsigned char *rf;  /* per root: 1 where rlc_push read some links (rH holds them) */
+    /* The roots in the cluster tree's depth-first order, for rlc_push
+     * (rad_hier_rlc.c): rdfs[p] the root at position p, rn[p] its normal,
+     * rpos[k] the position of cluster k's first root; rH[p] what rlc_push
+     * gathered for it, rf[p] 1 where it read some links. */
+    uint32_t *rdfs, *rpos;
+    rr_vec3 *rn;
+    rr_rgb *rH;
+    unsigned char *rf;
     int rlc_auto;      /* made only where the first walk does not fit without them (first_refine) */
 } hctx;
 
