@@ -109,7 +109,12 @@ static void ritem_select(ritem *it, size_t n, size_t k)
         ritem_swap(&it[lo], &it[lo + 1]);
 }
 
-static uint32_t cluster_build(hctx *c, ritem *it, size_t n)
+/* The cluster tree over the roots it[0 .. n), its top numbered id and the
+ * rest in depth-first order (a subtree of m roots holds m - 1 clusters, so
+ * the second child's number is id + n / 2 whatever builds the first), the
+ * halves of large nodes as tasks: the same tree for any thread count. */
+#define CLUSTER_TASK 32768 /* roots below which a node's halves are built on one thread */
+static uint32_t cluster_build(hctx *c, ritem *it, size_t n, uint32_t id)
 {
     if (n == 1)
         return it[0].e;
@@ -128,8 +133,11 @@ static uint32_t cluster_build(hctx *c, ritem *it, size_t n)
         it[i].key = axis == 0 ? m.x : (axis == 1 ? m.y : m.z);
     }
     ritem_select(it, n, n / 2);
-    uint32_t id = (uint32_t)c->ncl++;
-    uint32_t a = cluster_build(c, it, n / 2), b = cluster_build(c, it + n / 2, n - n / 2);
+    uint32_t a, b;
+#pragma omp task shared(a) if (n >= CLUSTER_TASK)
+    a = cluster_build(c, it, n / 2, id + 1);
+    b = cluster_build(c, it + n / 2, n - n / 2, id + (uint32_t)(n / 2));
+#pragma omp taskwait
     if (a == NONE || b == NONE)
         return NONE;
     hcl *k = &c->cl[id];
@@ -167,7 +175,11 @@ uint32_t rad__hier_clusters(hctx *c)
     }
     for (size_t i = 0; i < nr; i++)
         it[i].e = (uint32_t)i;
-    uint32_t top = cluster_build(c, it, nr);
+    uint32_t top = NONE;
+#pragma omp parallel
+#pragma omp single
+    top = cluster_build(c, it, nr, 0);
+    c->ncl = nr - 1;
     free(it);
     return top;
 }
