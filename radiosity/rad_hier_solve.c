@@ -163,8 +163,8 @@ static int scatter_sort(const hlink *ln, size_t n, hlink *out, size_t ne, size_t
  * adds the new ones behind them (room.json: 81 % and 99 % of the links in
  * order in the second and third rounds), and the in-place sort moved every
  * link again (0.5-0.7 s a round, serial: a tenth of the pass). So the links
- * after the longest sorted prefix are sorted alone and merged in from the
- * back through a copy of them, where that copy is no larger than what the
+ * after the longest sorted prefix are sorted alone into a copy of them
+ * (scatter_sort) and merged in from the back, where that copy is no larger than what the
  * output adds later (three quarters of a patch-set entry per element,
  * rad__hier_bytes): the pass's peak stays where it was. A link is a
  * receiver-source pair, so the order is total and the result the same. -1
