@@ -56,6 +56,15 @@ static int rlc_order(hctx *c)
     c->rf = malloc(nr ? nr : 1);
     if (!stack || !c->rdfs || !c->rpos || !c->rn || !c->rH || !c->rf) {
         free(stack);
+        free(c->rdfs);
+        free(c->rpos);
+        free(c->rn);
+        free(c->rH);
+        free(c->rf);
+        c->rdfs = c->rpos = NULL;
+        c->rn = NULL;
+        c->rH = NULL;
+        c->rf = NULL;
         return -1;
     }
     stack[top++] = c->top;
