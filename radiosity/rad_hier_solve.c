@@ -169,7 +169,7 @@ static int scatter_sort(const hlink *ln, size_t n, hlink *out, size_t ne, size_t
  * rad__hier_bytes): the pass's peak stays where it was. A link is a
  * receiver-source pair, so the order is total and the result the same. -1
  * when out of memory. */
-static int sort_links(hctx *c)
+int rad__hier_sort_links(hctx *c)
 {
     size_t n = c->nln, ne = c->nel, nk = ne + (c->rlc ? c->ncl : 0);
     if (n && c->capln > n) {
@@ -741,7 +741,7 @@ static int add_history(rad_solve_stats *st, double r)
 /* Row sums (k), then Jacobi sweeps to the tolerance. */
 rr_status rad__hier_solve(hctx *c, const rad_solve_opts *so, rad_solve_stats *st, rr_error *err)
 {
-    if (sort_links(c) != 0 || reserve_sources(c) != 0)
+    if (rad__hier_sort_links(c) != 0 || reserve_sources(c) != 0)
         return rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory", c->s->path);
     size_t ngrp;
     size_t *grp = rad__hier_groups(c, &ngrp, 1);

@@ -8,12 +8,15 @@
 #include <stdarg.h>
 #include <stddef.h>
 #include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
 #include <unistd.h>
 
 #include <cmocka.h>
 
 #include "rad.h"
 #include "rad_ff_internal.h"
+#include "rad_hier_ctx.h"
 #include "test_hier_util.h"
 #include "test_scenes.h"
 
@@ -566,6 +569,124 @@ static double tri_radius(const rr_vec3 t[3])
  *   sum (measured 0.65 %), the 28-point rule within 0.2 % there (0.07 %)
  *   and within 5 % closer (4.2 %; the 36 points it replaced: 4.8 %).
  * A point or weight off in its 6th digit fails the first part. */
+/* ---- the links' sort (rad__hier_sort_links) ---- */
+
+static int cmp_link_order(const void *a, const void *b)
+{
+    const hlink *x = a, *y = b; /* receivers as numbers: receiving clusters (CLB) after the elements */
+    if (x->r != y->r)
+        return x->r < y->r ? -1 : 1;
+    if (x->s != y->s)
+        return x->s < y->s ? -1 : 1;
+    return (link_way(x) > link_way(y)) - (link_way(x) < link_way(y));
+}
+
+static uint64_t sort_rand(uint64_t *z)
+{
+    *z ^= *z << 13;
+    *z ^= *z >> 7;
+    *z ^= *z << 17;
+    return *z;
+}
+
+/* Sorts the n links of want's order, given as ln (owned by c from here),
+ * and checks every byte of every link against want. */
+static void check_sorted(hctx *c, hlink *ln, size_t n, const hlink *want)
+{
+    c->ln = ln;
+    c->nln = c->capln = n;
+    assert_int_equal(rad__hier_sort_links(c), 0);
+    for (size_t i = 0; i < n; i++)
+        if (memcmp(&c->ln[i], &want[i], sizeof *want) != 0)
+            fail_msg("link %zu of %zu: receiver %u source %u, expected %u %u", i, n, c->ln[i].r, c->ln[i].s, want[i].r,
+                     want[i].s);
+    free(c->ln);
+    c->ln = NULL;
+}
+
+/* The solve's order against qsort's: random links to elements and to
+ * receiving clusters (receiver keys over three bytes, so the radix sort
+ * takes three passes), shuffled whole (too many for the tail's copy: the
+ * sort in place), and as a sorted prefix with a shuffled tail of 10000
+ * (the tail sorted into a copy and merged), each link's other fields moving
+ * with it; a handful (an insertion sort). */
+static void test_link_sort(void **state)
+{
+    (void)state;
+    hctx c;
+    memset(&c, 0, sizeof c);
+    unsigned char rlc = 2;
+    c.nel = 70000;
+    c.ncl = 30000;
+    c.rlc = &rlc; /* only whether there are receiving clusters is read */
+    size_t n = 1000000, m = 0; /* more than the tail's copy may hold: shuffled whole, they are sorted in place */
+    hlink *all = calloc(n, sizeof *all);
+    assert_non_null(all);
+    uint64_t z = 88172645463325252ULL;
+    for (size_t i = 0; i < n; i++) {
+        hlink *l = &all[i];
+        uint64_t v = sort_rand(&z);
+        l->r = v % 5 == 0 ? CLB | (uint32_t)(v >> 8) % 30000u : (uint32_t)(v >> 8) % 70000u;
+        l->s = (uint32_t)(sort_rand(&z) % 256u); /* few sources: a receiver holds many links, some more than 64 */
+        l->flags = (unsigned char)((sort_rand(&z) % 3u) << 1);
+    }
+    qsort(all, n, sizeof *all, cmp_link_order);
+    for (size_t i = 0; i < n; i++) /* distinct links only: the order is total */
+        if (m == 0 || cmp_link_order(&all[m - 1], &all[i]) != 0)
+            all[m++] = all[i];
+    for (size_t i = 0; i < m; i++) { /* payload: where each link came from */
+        all[i].f = (float)i;
+        all[i].v = (unsigned char)i;
+    }
+    assert_true(m > 900000);
+
+    hlink *ln = malloc(m * sizeof *ln);
+    assert_non_null(ln);
+    memcpy(ln, all, m * sizeof *ln);
+    for (size_t i = m - 1; i > 0; i--) {
+        size_t j = (size_t)(sort_rand(&z) % (i + 1));
+        hlink t = ln[i];
+        ln[i] = ln[j];
+        ln[j] = t;
+    }
+    check_sorted(&c, ln, m, all);
+
+    /* kept links in order, then 10000 new ones (the copy fits: 0.75 of a
+     * patch-set entry per element) */
+    ln = malloc(m * sizeof *ln);
+    assert_non_null(ln);
+    unsigned char *tail = calloc(m, 1);
+    assert_non_null(tail);
+    for (size_t k = 0; k < 10000; k++)
+        tail[sort_rand(&z) % m] = 1;
+    size_t kept = 0, nt = 0;
+    for (size_t i = 0; i < m; i++)
+        if (!tail[i])
+            ln[kept++] = all[i];
+    for (size_t i = 0; i < m; i++)
+        if (tail[i])
+            ln[kept + nt++] = all[i];
+    for (size_t i = nt - 1; i > 0; i--) {
+        size_t j = (size_t)(sort_rand(&z) % (i + 1));
+        hlink t = ln[kept + i];
+        ln[kept + i] = ln[kept + j];
+        ln[kept + j] = t;
+    }
+    check_sorted(&c, ln, m, all);
+    free(tail);
+
+    /* a handful, in reverse */
+    ln = malloc(12 * sizeof *ln);
+    assert_non_null(ln);
+    for (size_t i = 0; i < 12; i++)
+        ln[i] = all[m - 1 - 2 * i];
+    hlink few[12];
+    for (size_t i = 0; i < 12; i++)
+        few[i] = all[m - 1 - 2 * (11 - i)];
+    check_sorted(&c, ln, 12, few);
+    free(all);
+}
+
 static void test_near_pair_rules(void **state)
 {
     (void)state;
@@ -704,6 +825,7 @@ int main(void)
         cmocka_unit_test(test_leaves),
         cmocka_unit_test(test_cache),
         cmocka_unit_test(test_near_pair_rules),
+        cmocka_unit_test(test_link_sort),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
