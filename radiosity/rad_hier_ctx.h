@@ -644,8 +644,8 @@ void rad__hier_eval_rlc(const hctx *c, hlink *l, rr_rng *rng, int mode);
  * radiosity, s clipped to the front of x's plane for u (rad_hier_link.c). */
 rr_vec3 rad__hier_rlc_vec(const hctx *c, rr_vec3 x, rr_vec3 u, uint32_t s);
 /* c->ln[0 .. nln) sorted by receiver (elements, then receiving leaf
- * clusters), then source, then way: the solve's fixed order (rad_hier_solve.c,
- * at each solve's start). -1 when out of memory. */
+ * clusters), then source, then way: the solve's fixed order (rad_hier_sort.c;
+ * rad__hier_solve sorts them at its start). -1 when out of memory. */
 int rad__hier_sort_links(hctx *c);
 /* rad_hier_rlc.c: for the groups grp[c->rg0 .. ngrp) of the links into
  * receiving leaf clusters (they sort after the elements'), their direction
