@@ -21,7 +21,7 @@ static double node_proj_area(const hctx *c, uint32_t x, rr_vec3 u)
         const hcf *f = &c->cf[CL(x)];
         return nbf_proj(f->Av, f->As, (f->mask >> 7) & 63u, u, 1);
     }
-    const hroot *t = &c->rt[x]; /* a root: the tree's leaves are */
+    const hroot *t = &c->rt[x]; /* a root (the cluster tree's leaves are the roots) */
     return rr_max(0.0, rr_v3_dot(t->n, u)) * (t->area * t->om); /* fmax is a libm call here */
 }
 
