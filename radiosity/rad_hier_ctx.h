@@ -367,6 +367,15 @@ static inline int is_rlc(const hctx *c, uint32_t x) { return (x & CLB) && c->rlc
 
 static inline int interrupted(const hctx *c) { return c->interrupt && *c->interrupt; }
 
+/* What link l brings its receiver in the gather: its source's value as
+ * rad__hier_gather copied it (c->sv: elements, then clusters) times its
+ * transport (for B = 1 where c->unit). */
+static inline rr_rgb link_light(const hctx *c, const hlink *l)
+{
+    rr_rgb v = l->s & CLB ? c->sv[c->nel + CL(l->s)] : c->sv[l->s];
+    return rr_rgb_scale(v, c->unit ? link_ga(l) : link_g(l));
+}
+
 static inline rr_vec3 el_normal(const hctx *c, uint32_t e) { return c->rt[c->el[e].root].n; }
 
 /* rad_patch_surface for a point p of an element of root `root`: a scene

@@ -170,10 +170,9 @@ static size_t rlc_push(hctx *c, uint32_t x, rlc_step *path, int np, const size_t
         rlc_step *st = &path[np++];
         st->q = &c->rg[gi];
         memset(st->S, 0, sizeof st->S);
-        const rr_rgb *sv = c->sv, *svc = c->sv + c->nel;
         for (size_t j = grp[g]; j < grp[g + 1]; j++) {
             const hlink *l = &c->ln[j];
-            rr_rgb v = rr_rgb_scale(l->s & CLB ? svc[CL(l->s)] : sv[l->s], c->unit ? link_ga(l) : link_g(l));
+            rr_rgb v = link_light(c, l);
             int b = rlc_bucket(l);
             st->S[b][0] += v.r;
             st->S[b][1] += v.g;

@@ -230,7 +230,7 @@ void rad__hier_gather(hctx *c, const size_t *grp, size_t ngrp)
         for (size_t j = grp[gi]; j < grp[gi + 1]; j++) {
             const hlink *l = &c->ln[j];
             partial |= link_partial(l);
-            rr_rgb v = rr_rgb_scale(l->s & CLB ? svc[CL(l->s)] : sv[l->s], c->unit ? link_ga(l) : link_g(l));
+            rr_rgb v = link_light(c, l);
             H = rr_rgb_add(H, v);
             float d[3];
             if (inner && link_shape(l, d)) {

@@ -84,19 +84,29 @@ static void flag_sort(hlink *ln, size_t n, size_t ne, int shift, int top)
  * solves' 1.8 s; this, 0.53 and 0.55 s. -1 when out of memory. */
 static void sort_ranges(hlink *ln, const size_t *start, size_t nk);
 
-static int sort_in_place(hlink *ln, size_t n, size_t ne, size_t nk)
+/* Where each receiver's links start among ln[0 .. n) once they are sorted
+ * by receiver (start[0 .. nk], the last n); NULL when out of memory. */
+static size_t *receiver_starts(const hlink *ln, size_t n, size_t ne, size_t nk)
 {
     size_t *start = calloc(nk + 1, sizeof *start);
     if (!start)
-        return -1;
-    int shift = 0;
-    while (shift < 56 && nk > 0 && (nk - 1) >> shift >> 8)
-        shift += 8;
-    flag_sort(ln, n, ne, shift, 1);
+        return NULL;
     for (size_t i = 0; i < n; i++)
         start[rkey(ln[i].r, ne) + 1]++;
     for (size_t e = 0; e < nk; e++)
         start[e + 1] += start[e];
+    return start;
+}
+
+static int sort_in_place(hlink *ln, size_t n, size_t ne, size_t nk)
+{
+    int shift = 0;
+    while (shift < 56 && nk > 0 && (nk - 1) >> shift >> 8)
+        shift += 8;
+    flag_sort(ln, n, ne, shift, 1);
+    size_t *start = receiver_starts(ln, n, ne, nk);
+    if (!start)
+        return -1;
     sort_ranges(ln, start, nk);
     free(start);
     return 0;
@@ -134,13 +144,9 @@ static void sort_ranges(hlink *ln, const size_t *start, size_t nk)
  * from, then each receiver's range by source. -1 when out of memory. */
 static int scatter_sort(const hlink *ln, size_t n, hlink *out, size_t ne, size_t nk)
 {
-    size_t *start = calloc(nk + 1, sizeof *start);
+    size_t *start = receiver_starts(ln, n, ne, nk);
     if (!start)
         return -1;
-    for (size_t i = 0; i < n; i++)
-        start[rkey(ln[i].r, ne) + 1]++;
-    for (size_t e = 0; e < nk; e++)
-        start[e + 1] += start[e];
     for (size_t i = 0; i < n; i++)
         out[start[rkey(ln[i].r, ne)]++] = ln[i];
     for (size_t e = nk; e > 0; e--) /* back to each range's start */
@@ -160,8 +166,8 @@ static int scatter_sort(const hlink *ln, size_t n, hlink *out, size_t ne, size_t
  * order in the second and third rounds), and the in-place sort moved every
  * link again (0.5-0.7 s a round, serial: a tenth of the pass). So the links
  * after the longest sorted prefix are sorted alone into a copy of them
- * (scatter_sort) and merged in from the back, where that copy is no larger than what the
- * output adds later (three quarters of a patch-set entry per element,
+ * (scatter_sort) and merged in from the back, where that copy is no larger
+ * than what the output adds later (three quarters of a patch-set entry per element,
  * rad__hier_bytes): the pass's peak stays where it was. A link is a
  * receiver-source pair, so the order is total and the result the same. -1
  * when out of memory. */
