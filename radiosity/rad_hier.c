@@ -90,12 +90,16 @@
  * them). Its links are refined as a cluster end's: closer than admissible,
  * or carrying more than eps, the larger end splits (the receiver into its
  * children, which may receive as clusters again, down to the roots, which
- * are elements), but a near link carrying under RLC_NEAR_SHARE eps is kept.
+ * are elements), but a near link carrying under RLC_NEAR_SHARE eps is kept,
+ * that estimate its power for every later test (the partial-visibility
+ * split, relink, regeo: split again by each relink, such links made a fifth
+ * of the bunny rooms' links).
  * A link is evaluated at 4 points of roots that face the source (drawn by
  * the area they show it): the irradiance vector there (the contour
- * integral's vector form for an element, cluster_vec for a cluster; its
- * size per unit of the source, its direction kept in hlink.dF) and a shadow
- * ray to the source. Each root under the cluster reads the links of every
+ * integral's vector form for an element or a near cluster, an admissible
+ * cluster's cluster_vec once at the receiver's area centroid; its size per
+ * unit of the source, its direction kept in hlink.dF) and a shadow ray to
+ * the source. Each root under the cluster reads the links of every
  * receiving ancestor by direction bucket (rad_hier_rlc.c, rlc_push):
  * linear in the sources, so the ledger balances. On the bunny rooms the
  * bunnies' light comes out closer to the light tracer than with element
@@ -379,18 +383,6 @@ static double admissible(const hctx *c, uint32_t r, uint32_t s)
     return curved ? ADMISSIBLE_CURVED : ADMISSIBLE;
 }
 
-double rad__hier_link_power(const hctx *c, uint32_t r, uint32_t s, unsigned w)
-{
-    /* A cluster link reads directions and distances at the centres: only
-     * between nodes well apart for their size (admissible, as in the fast
-     * multipole method) is that accurate whatever power it carries. */
-    rr_vec3 d = rr_v3_sub(node_ctr(c, s), way_point(c, w, node_ctr(c, r)));
-    double L = rr_v3_len(d);
-    if (((r & CLB) || (s & CLB)) && L < admissible(c, r, s) * (node_radius(c, r) + node_radius(c, s)))
-        return INFINITY;
-    return node_rho(c, r) * node_area(c, r) * ff_estimate(c, r, s, w, d, L) * node_B(c, s) * way_rho(c, w);
-}
-
 /* The same estimate without the admissibility: what a link between nodes
  * close for their size carries at most, about (the disc's saturation keeps
  * it finite). */
@@ -398,6 +390,37 @@ static double near_power(const hctx *c, uint32_t r, uint32_t s)
 {
     rr_vec3 d = rr_v3_sub(node_ctr(c, s), node_ctr(c, r));
     return node_rho(c, r) * node_area(c, r) * ff_estimate(c, r, s, 0, d, rr_v3_len(d)) * node_B(c, s);
+}
+
+#define RLC_NEAR_SHARE 0.125 /* a receiving leaf cluster keeps a link closer than admissible under this share of eps */
+
+int rad__hier_admissible(const hctx *c, uint32_t r, uint32_t s, unsigned w)
+{
+    if (!((r & CLB) || (s & CLB)))
+        return 1;
+    rr_vec3 d = rr_v3_sub(node_ctr(c, s), way_point(c, w, node_ctr(c, r)));
+    return rr_v3_len(d) >= admissible(c, r, s) * (node_radius(c, r) + node_radius(c, s));
+}
+
+double rad__hier_link_power(const hctx *c, uint32_t r, uint32_t s, unsigned w)
+{
+    /* A cluster link reads directions and distances at the centres: only
+     * between nodes well apart for their size (admissible, as in the fast
+     * multipole method) is that accurate whatever power it carries. */
+    rr_vec3 d = rr_v3_sub(node_ctr(c, s), way_point(c, w, node_ctr(c, r)));
+    double L = rr_v3_len(d);
+    if (((r & CLB) || (s & CLB)) && L < admissible(c, r, s) * (node_radius(c, r) + node_radius(c, s))) {
+        /* a receiving leaf cluster takes a near link that carries little as
+         * it is, read at its points (rad__hier_eval_rlc): its near estimate
+         * is then its power for every test, the rounds' and relink's too */
+        if (is_rlc(c, r) && !w) {
+            double q = near_power(c, r, s);
+            if (q <= RLC_NEAR_SHARE * c->eps)
+                return q;
+        }
+        return INFINITY;
+    }
+    return node_rho(c, r) * node_area(c, r) * ff_estimate(c, r, s, w, d, L) * node_B(c, s) * way_rho(c, w);
 }
 
 void rad__hier_link_add(hctx *c, uint32_t r, uint32_t s, unsigned w)
@@ -448,7 +471,6 @@ int rad__hier_past_cap(hctx *c)
 static void refine(hctx *c, uint32_t r, uint32_t s, unsigned w);
 
 #define RLC_AUTO_LINKS 200.0 /* links a root too small to split takes as an element receiver, about */
-#define RLC_NEAR_SHARE 0.125 /* a receiving leaf cluster keeps a link closer than admissible under this share of eps */
 
 /* Splits r or s (the larger that can be split, or r first when receiver) and
  * refines the children's links; 0 when neither can be split. A shadow's edge
@@ -519,9 +541,7 @@ static void refine(hctx *c, uint32_t r, uint32_t s, unsigned w)
         c->over = 1; /* a link, or a split, past the cap */
         return;
     }
-    double p = rad__hier_link_power(c, r, s, w); /* INFINITY where not admissible */
-    if (isinf(p) && is_rlc(c, r) && !w && near_power(c, r, s) <= RLC_NEAR_SHARE * c->eps)
-        p = 0.0; /* a receiving leaf cluster takes a near link that carries little as it is */
+    double p = rad__hier_link_power(c, r, s, w); /* INFINITY where not admissible (but near links kept) */
     if (past && p > c->eps)
         c->capped = 1;
     if ((isinf(p) || (p > c->eps && !past)) && rad__hier_split_link(c, r, s, 0, w))

@@ -545,8 +545,13 @@ static inline rr_vec3 tri_random(const rr_vec3 v[3], rr_rng *rng)
 /* Element x's four children (made once); 0, or -1 when out of memory. */
 int rad__hier_el_split(hctx *c, uint32_t x);
 /* The power link r <- s by way w may carry (the oracle: rho_max(r) A_r
- * Fhat B_s), INFINITY where a cluster end is closer than admissible. */
+ * Fhat B_s), INFINITY where a cluster end is closer than admissible, except
+ * a near link that a receiving leaf cluster keeps (rad_hier.c's header,
+ * "Receiving leaf clusters"): its estimate without the admissibility. */
 double rad__hier_link_power(const hctx *c, uint32_t r, uint32_t s, unsigned w);
+/* Whether the centres of r and s are far enough apart for their sizes to
+ * read a link at them (always, between two elements). */
+int rad__hier_admissible(const hctx *c, uint32_t r, uint32_t s, unsigned w);
 /* A new link r <- s by way w, to be evaluated (from c->first_new on). */
 void rad__hier_link_add(hctx *c, uint32_t r, uint32_t s, unsigned w);
 /* Whether the links have reached radiosity.max_links or the pass's share of
