@@ -392,8 +392,13 @@ static int run(const energy_args *A, scene *s, rt_accel *a, energy_result *R)
     }
     const rad_energy_row *t = &R->rows[R->nrows - 1];
     R->balance = balance_error(t);
-    R->balance_tol = fmax(1e-6, 100.0 * sol->stats.residual);
-    R->created = rr_rgb_mean(t->escaped) < -fmax(1e-6, 100.0 * sol->stats.residual) * rr_rgb_mean(t->emitted);
+    /* 100 x what the solve was asked (the residual where it stopped above
+     * that): the hierarchical solve stops at its tolerance of the largest B
+     * and 10 x it of the emitted power (rad.h RAD_HIER_TOLERANCE), whose
+     * imbalance does not follow the residual it reached */
+    double solved = fmax(sol->stats.residual, sol->stats.tolerance);
+    R->balance_tol = fmax(1e-6, 100.0 * solved);
+    R->created = rr_rgb_mean(t->escaped) < -fmax(1e-6, 100.0 * solved) * rr_rgb_mean(t->emitted);
     if (A->particles == 0)
         return 0;
     rt_lights *L = NULL;

@@ -760,6 +760,7 @@ static rr_status hier_run(const scene *s, const rt_accel *a, const rad_pass_opts
     if (st == RR_OK && !(power > 0))
         st = rr_error_set(err, RR_ERR_INVALID, "%s: radiosity: nothing emits light", s->path);
     c.eps = c.eps_asked = tol * power;
+    c.power = power;
     /* Receiving leaf clusters: asked for, or (automatic) where the roots too
      * small to split are so many that their links would not fit (about 200
      * a root, measured on the bunny rooms), or the first walk does not fit
@@ -815,6 +816,7 @@ static rr_status hier_run(const scene *s, const rt_accel *a, const rad_pass_opts
         st = rad__hier_estimate(&c, o->ff.progress, o->ff.progress_user, err);
     }
     sol->hier_seconds.estimate = lap(&t_mark);
+    c.last_solve = 1;
     if (st == RR_OK)
         st = timed_solve(&c, &so, sol, &t_solve, err);
     lap(&t_mark);

@@ -283,6 +283,8 @@ typedef struct hctx {
     size_t evaluated; /* links evaluated so far (progress) */
     rt_ray_counts rays; /* rays traced while linking (sol->ff_rays): every parallel region that traces adds its own */
     double eps, min_area;
+    double power;     /* the emitted power (rad_hier.c emitted_power): the last solve's power test */
+    int last_solve;   /* the solve the ledger reads (after the rounds): it also passes the power test */
     double eps_asked; /* eps as radiosity.refine_tolerance asks it (eps grows under --max-memory) */
     double rel;       /* radiosity.relative_tolerance, once the receivers' B is known (receiver_eps); 0: off */
     size_t max_links;

@@ -352,6 +352,23 @@ size_t *rad__hier_groups(hctx *c, size_t *ngrp, int prepare)
 /* The largest channel of any leaf's B; NaN when one is NaN. In parallel
  * (a maximum is the same in any order): serial, it and column_scale were a
  * pass each over the elements per sweep on one thread. */
+/* The power a sweep's change carries: over the leaves, open area x the
+ * largest channel of |B - Bprev| (the ledger's balance moves by as much).
+ * One thread, in element order: the same sum at any thread count (read only
+ * once the largest change passes, a few sweeps a solve). */
+static double leaves_change_power(const hctx *c, const rr_rgb *Bprev)
+{
+    double s = 0.0;
+    for (size_t i = 0; i < c->nel; i++) {
+        const hel *e = &c->el[i];
+        if (e->child == NONE) {
+            rr_rgb d = rr_rgb_add(e->B, rr_rgb_scale(Bprev[i], -1.0));
+            s += e->area * e->open * rr_max(fabs(d.r), rr_max(fabs(d.g), fabs(d.b)));
+        }
+    }
+    return s;
+}
+
 static double leaves_max_B(const hctx *c)
 {
     double m = 0.0;
@@ -576,6 +593,7 @@ rr_status rad__hier_solve(hctx *c, const rad_solve_opts *so, rad_solve_stats *st
         return rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory", c->s->path);
     }
     st->iterations = 0;
+    st->tolerance = tol;
     free(st->history); /* the last solve's sweeps are the ones plotted */
     st->history = NULL;
     st->nhistory = 0;
@@ -615,7 +633,11 @@ rr_status rad__hier_solve(hctx *c, const rad_solve_opts *so, rad_solve_stats *st
                                 "use radiosity.method \"flat\"",
                                 c->s->path, it + 1, bmax);
         }
-        if (st->residual < tol)
+        /* the largest change against the largest B, and in the last solve
+         * the change's power against the emitted (RAD_HIER_TOLERANCE; the
+         * rounds' solves only guide the refinement) */
+        if (st->residual < tol &&
+            (!c->last_solve || leaves_change_power(c, Bprev) <= RAD_HIER_POWER_SHARE * tol * c->power))
             break;
         memmove(dh, dh + 1, 3 * sizeof *dh);
         dh[3] = d;

@@ -522,6 +522,7 @@ rr_status rad_solve(const rad_patches *P, const rad_ff *F, const rad_solve_opts 
                 st = rr_error_set(err, RR_ERR_INVALID, "the direct solve produced non-finite radiosities");
         }
     } else {
+        s.tolerance = tol;
         st = solve_iterative(P, F, tol, maxit, o->interrupt, X, &s, err);
     }
     if (st != RR_OK) {

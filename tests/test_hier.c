@@ -259,7 +259,7 @@ static void test_ledger_balance(void **state)
 {
     (void)state;
     /* The bookkeeping, read at a solve to 1e-9; at the default solve
-     * (RAD_HIER_TOLERANCE 1e-7), the issue's 1e-4 for closed scenes. */
+     * (RAD_HIER_TOLERANCE 1e-6), the issue's 1e-4 for closed scenes. */
     ledger_balance("cornell.json", 1e-6, 0.0, "1e-9");
     ledger_balance("cornell.json", 1e-4, 0.0, NULL);
     /* A closed room: escaped, what the links do not deliver, is the
