@@ -623,8 +623,14 @@ void rad__hier_regeo(hctx *c, double min_power)
         if (!(l->s & CLB) || isnan(l->f) ||
             (min_power > 0 && rad__hier_link_power(c, l->r, l->s, link_way(l)) < min_power))
             continue;
-        if (l->r & CLB) { /* into a receiving leaf cluster: RLC_GEO draws nothing of a cluster source */
-            rad__hier_eval_rlc(c, l, NULL, RLC_GEO);
+        if (l->r & CLB) {
+            /* into a receiving leaf cluster: RLC_GEO draws nothing of an
+             * admissible cluster source; a near one (a near link kept,
+             * read at its points) keeps its geometry: read again at 4
+             * points, it was 1/8 of the 1M room's pass for the bunnies'
+             * totals within 0.2 % rms (notes/radiosity.md) */
+            if (rad__hier_admissible(c, l->r, l->s, 0))
+                rad__hier_eval_rlc(c, l, NULL, RLC_GEO);
             continue;
         }
         double geo, geo_a, spread, fk[4];
@@ -750,7 +756,6 @@ static int rlc_may_face(const hctx *c, uint32_t x, rr_vec3 p)
  * by power for a cluster). The gather reads it per direction bucket with
  * each root's normal (rad_hier_rlc.c, rlc_push). The same for B = 1
  * (fa, va). */
-#define REGEO_DRAW 0xe7037ed1a0b428dbULL /* the regeo's points of a near cluster source (its own stream) */
 void rad__hier_eval_rlc(const hctx *c, hlink *l, rr_rng *rng, int mode)
 {
     uint32_t r = l->r, s = l->s;
@@ -761,13 +766,10 @@ void rad__hier_eval_rlc(const hctx *c, hlink *l, rr_rng *rng, int mode)
     rr_vec3 dir = rr_v3(0, 0, 0);
     int n = 0, seen = 0, pass = 0;
     /* a cluster source closer than admissible (a near link that carries
-     * little, kept): read at each point, as a near element is */
+     * little, kept): read at each point, as a near element is (never in
+     * RLC_GEO: the regeo leaves such links as they are) */
     int near = ks && !rad__hier_admissible(c, r, s, 0);
-    rr_rng own;
-    if (near && !rng) { /* RLC_GEO: its points drawn from a stream of their own */
-        own = rr_rng_make(c->seed ^ REGEO_DRAW, ((uint64_t)r << 32) | s);
-        rng = &own;
-    }
+    RR_CHECK(!(near && mode == RLC_GEO));
     if (ks && !near) {
         /* A cluster source is admissible: its irradiance vectors (of its
          * power, and for B = 1 of its area; their sizes per unit of each)
@@ -814,7 +816,7 @@ void rad__hier_eval_rlc(const hctx *c, hlink *l, rr_rng *rng, int mode)
              * most against the light tracer once relink no longer split
              * these links (notes/radiosity.md, "Near links kept whole") */
             n++;
-            rr_vec3 va = rr_v3(0, 0, 0), v = cluster_vec(c, s, x, nx, mode != RLC_GEO || !(P > 0), &va);
+            rr_vec3 va, v = cluster_vec(c, s, x, nx, 1, &va);
             double ga = ks->uarea > 0 ? rr_v3_len(va) / (RR_PI * ks->uarea) : 0.0;
             double g = P > 0 ? rr_v3_len(v) / (RR_PI * P) : ga;
             rr_vec3 vd = P > 0 ? v : va;
@@ -824,8 +826,6 @@ void rad__hier_eval_rlc(const hctx *c, hlink *l, rr_rng *rng, int mode)
             if (!(g > 0.0))
                 continue;
             u = rr_v3_norm(vd);
-            if (mode == RLC_GEO)
-                continue;
         }
         if (!ks) {
             /* a near element's light comes from where it lies, not from its
@@ -872,11 +872,6 @@ void rad__hier_eval_rlc(const hctx *c, hlink *l, rr_rng *rng, int mode)
     } else if (near) {
         f = n ? f / n : 0.0;
         fa = n ? fa / n : 0.0;
-        if (mode == RLC_GEO) {
-            l->f = (float)f;
-            rlc_set_dir(l, rr_v3_len2(dir) > 0 ? rr_v3_norm(dir) : u0);
-            return;
-        }
     }
     l->f = (float)f;
     l->fa = (float)fa;

@@ -661,9 +661,9 @@ void rad__hier_revis_cluster(const hctx *c, hlink *l, rr_rng *rng);
 void rad__hier_regeo(hctx *c, double min_power);
 /* A link into a receiving leaf cluster (l->r is_rlc): evaluated whole
  * (mode 0, and the estimate's redraw, 1), or the geometry of a cluster
- * source's power alone again (RLC_GEO, the kept links' regeo: read at the
- * receiver's centroid, no point drawn, no shadow ray: rng may be NULL)
- * (rad_hier_cluster.c). */
+ * source's power alone again (RLC_GEO, the kept links' regeo, for an
+ * admissible cluster source only: read at the receiver's centroid, no point
+ * drawn, no shadow ray: rng may be NULL) (rad_hier_cluster.c). */
 #define RLC_GEO 2
 void rad__hier_eval_rlc(const hctx *c, hlink *l, rr_rng *rng, int mode);
 /* The unoccluded irradiance vector at point x from element s of unit
