@@ -627,8 +627,8 @@ void rad__hier_regeo(hctx *c, double min_power)
             /* into a receiving leaf cluster: RLC_GEO draws nothing of an
              * admissible cluster source; a near one (a near link kept,
              * read at its points) keeps its geometry: read again at 4
-             * points, it was 1/8 of the 1M room's pass for the bunnies'
-             * totals within 0.2 % rms (notes/radiosity.md) */
+             * points, it was half the 1M room's regeo (7 -> 3.5 s), for
+             * the bunnies' totals within 0.2 % rms (notes/radiosity.md) */
             if (rad__hier_admissible(c, l->r, l->s, 0))
                 rad__hier_eval_rlc(c, l, NULL, RLC_GEO);
             continue;

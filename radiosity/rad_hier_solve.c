@@ -349,9 +349,6 @@ size_t *rad__hier_groups(hctx *c, size_t *ngrp, int prepare)
     return g;
 }
 
-/* The largest channel of any leaf's B; NaN when one is NaN. In parallel
- * (a maximum is the same in any order): serial, it and column_scale were a
- * pass each over the elements per sweep on one thread. */
 /* The power a sweep's change carries: over the leaves, open area x the
  * largest channel of |B - Bprev| (the ledger's balance moves by as much).
  * One thread, in element order: the same sum at any thread count (read only
@@ -369,6 +366,9 @@ static double leaves_change_power(const hctx *c, const rr_rgb *Bprev)
     return s;
 }
 
+/* The largest channel of any leaf's B; NaN when one is NaN. In parallel
+ * (a maximum is the same in any order): serial, it and column_scale were a
+ * pass each over the elements per sweep on one thread. */
 static double leaves_max_B(const hctx *c)
 {
     double m = 0.0;
