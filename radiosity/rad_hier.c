@@ -394,12 +394,16 @@ static double near_power(const hctx *c, uint32_t r, uint32_t s)
 
 #define RLC_NEAR_SHARE 0.125 /* a receiving leaf cluster keeps a link closer than admissible under this share of eps */
 
+/* r and s, centres L apart, may be linked as they are: no cluster end, or
+ * far enough for their sizes. */
+static int far_enough(const hctx *c, uint32_t r, uint32_t s, double L)
+{
+    return !((r & CLB) || (s & CLB)) || L >= admissible(c, r, s) * (node_radius(c, r) + node_radius(c, s));
+}
+
 int rad__hier_admissible(const hctx *c, uint32_t r, uint32_t s, unsigned w)
 {
-    if (!((r & CLB) || (s & CLB)))
-        return 1;
-    rr_vec3 d = rr_v3_sub(node_ctr(c, s), way_point(c, w, node_ctr(c, r)));
-    return rr_v3_len(d) >= admissible(c, r, s) * (node_radius(c, r) + node_radius(c, s));
+    return far_enough(c, r, s, rr_v3_len(rr_v3_sub(node_ctr(c, s), way_point(c, w, node_ctr(c, r)))));
 }
 
 double rad__hier_link_power(const hctx *c, uint32_t r, uint32_t s, unsigned w)
@@ -409,7 +413,7 @@ double rad__hier_link_power(const hctx *c, uint32_t r, uint32_t s, unsigned w)
      * multipole method) is that accurate whatever power it carries. */
     rr_vec3 d = rr_v3_sub(node_ctr(c, s), way_point(c, w, node_ctr(c, r)));
     double L = rr_v3_len(d);
-    if (((r & CLB) || (s & CLB)) && L < admissible(c, r, s) * (node_radius(c, r) + node_radius(c, s))) {
+    if (!far_enough(c, r, s, L)) {
         /* a receiving leaf cluster takes a near link that carries little as
          * it is, read at its points (rad__hier_eval_rlc): its near estimate
          * is then its power for every test, the rounds' and relink's too */
