@@ -1,4 +1,4 @@
-/* exr_error.c - radray-exr-error TEST.exr REF.exr [BLOCK]: how far an image
+/* exr_error.c - radray-exr-error TEST.exr REF.exr [BLOCK] [--blocks CSV]: how far an image
  * is from a reference of the same size (main RGB layers), as the radiosity
  * acceptance numbers are stated (notes/radiosity.md):
  *   block     per BLOCK x BLOCK block (default 4) of the mean over its pixels
@@ -7,10 +7,15 @@
  *             background and the shadowed gaps say nothing about relative error)
  *   rel_rms   the root mean square of those block errors (blocks, not pixels:
  *             the noise of a Monte Carlo reference or render averages out)
- * Prints one line: rel_rms=... block_median=... block_p90=... blocks=N. */
+ * Prints one line: rel_rms=... block_median=... block_p90=... blocks=N.
+ * --blocks CSV also writes every block (bx,by,ref,err: its column and row,
+ * the reference's mean, the signed (t - r) / r, empty where not compared),
+ * for errors over a region (bench/cornell-ring.py: the ceiling beside the
+ * lamp). */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
 
 #include "img.h"
 
@@ -22,11 +27,21 @@ static int cmp_double(const void *a, const void *b)
 
 int main(int argc, char **argv)
 {
+    const char *csv = NULL;
+    if (argc >= 5 && strcmp(argv[argc - 2], "--blocks") == 0) {
+        csv = argv[argc - 1];
+        argc -= 2;
+    }
     if (argc < 3 || argc > 4) {
-        fprintf(stderr, "usage: radray-exr-error TEST.exr REF.exr [BLOCK]\n");
+        fprintf(stderr, "usage: radray-exr-error TEST.exr REF.exr [BLOCK] [--blocks CSV]\n");
         return 2;
     }
     int bs = argc == 4 ? atoi(argv[3]) : 4;
+    FILE *bf = NULL;
+    if (csv && !(bf = fopen(csv, "w"))) {
+        fprintf(stderr, "radray-exr-error: %s: cannot write\n", csv);
+        return 2;
+    }
     rr_image t = {0}, r = {0};
     rr_error err;
     if (img_read_exr(argv[1], NULL, &t, &err) != RR_OK || img_read_exr(argv[2], NULL, &r, &err) != RR_OK) {
@@ -61,8 +76,16 @@ int main(int argc, char **argv)
                 e[ne] = fabs(st - sref) / sref;
                 se += e[ne] * e[ne];
                 ne++;
+                if (bf)
+                    fprintf(bf, "%d,%d,%.9g,%.9g\n", bx, by, m, (st - sref) / sref);
+            } else if (bf) {
+                fprintf(bf, "%d,%d,%.9g,\n", bx, by, m);
             }
         }
+    if (bf && fclose(bf) != 0) {
+        fprintf(stderr, "radray-exr-error: %s: cannot write\n", csv);
+        return 2;
+    }
     if (!e || ne == 0) {
         fprintf(stderr, "radray-exr-error: no block to compare\n");
         return 2;

@@ -458,8 +458,10 @@ double rad__hier_bytes(double links, double elements, double clusters)
  * BYTES_HEADROOM of max_bytes (--max-memory's share: then by_memory is set,
  * for the messages). The headroom is for the splits under way when the cap
  * is reached, which still link their children as admissibility needs:
- * Cornell and room.json went up to 8 % past a cap at max_bytes itself. */
-#define BYTES_HEADROOM 0.9
+ * Cornell and room.json went up to 8 % past a cap at max_bytes itself, and
+ * Cornell with its relative tests (cornell.json's relative_tolerance 0.04)
+ * 11 % past one at 0.9 of it (6 MiB: 6.31 MB held). */
+#define BYTES_HEADROOM 0.85
 int rad__hier_past_cap(hctx *c)
 {
     if (c->nln >= c->max_links)
