@@ -548,9 +548,10 @@ static void refine(hctx *c, uint32_t r, uint32_t s, unsigned w)
         return;
     }
     double p = rad__hier_link_power(c, r, s, w); /* INFINITY where not admissible (but near links kept) */
-    if (past && p > c->eps)
+    double le = link_eps(c, r);
+    if (past && p > le)
         c->capped = 1;
-    if ((isinf(p) || (p > c->eps && !past)) && rad__hier_split_link(c, r, s, 0, w))
+    if ((isinf(p) || (p > le && !past)) && rad__hier_split_link(c, r, s, 0, w))
         return;
     rad__hier_link_add(c, r, s, w);
 }
@@ -571,6 +572,21 @@ static void unwalk(hctx *c)
     }
     for (size_t i = 0; i < nroots; i++)
         c->el[i].child = NONE;
+}
+
+/* What each object's leaves take in by the last solve, rho A H summed
+ * (link_eps): 0, or -1 out of memory. */
+static int object_powers(hctx *c)
+{
+    size_t no = c->s->nobjects ? c->s->nobjects : 1;
+    if (!c->objpow && !(c->objpow = calloc(no, sizeof *c->objpow)))
+        return -1;
+    memset(c->objpow, 0, no * sizeof *c->objpow);
+    for (size_t i = 0; i < c->nel; i++)
+        if (c->el[i].child == NONE)
+            c->objpow[c->R->p[c->el[i].root].object] +=
+                node_rho(c, (uint32_t)i) * c->el[i].area * rr_rgb_max(c->el[i].H);
+    return 0;
 }
 
 /* The first round's walk from the top cluster. Where it would pass
@@ -790,6 +806,10 @@ static rr_status hier_run(const scene *s, const rt_accel *a, const rad_pass_opts
             st = first_refine(&c, power, err);
         } else {
             c.rel = rel; /* the receivers' B is known from the first solve on */
+            if (object_powers(&c) != 0) {
+                st = rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory", s->path);
+                break;
+            }
             /* every kept cluster link after the first round (its sources
              * were the lamps alone); after the second, those that carry
              * REGEO_SHARE eps: the rest moved room.json's images by less
@@ -856,6 +876,7 @@ static rr_status hier_run(const scene *s, const rt_accel *a, const rad_pass_opts
     rt_lights_destroy(L);
     free(c.img);
     free(c.el);
+    free(c.objpow);
     free(c.cl);
     free(c.cf);
     free(c.rlc);

@@ -283,6 +283,7 @@ typedef struct hctx {
     size_t evaluated; /* links evaluated so far (progress) */
     rt_ray_counts rays; /* rays traced while linking (sol->ff_rays): every parallel region that traces adds its own */
     double eps, min_area;
+    double *objpow;   /* per scene object: what its leaves take in, rho A H (link_eps); NULL: not yet */
     double power;     /* the emitted power (rad_hier.c emitted_power): the last solve's power test */
     int last_solve;   /* the solve the ledger reads (after the rounds): it also passes the power test */
     double eps_asked; /* eps as radiosity.refine_tolerance asks it (eps grows under --max-memory) */
@@ -459,6 +460,19 @@ static inline double receiver_eps(const hctx *c, uint32_t r)
         return c->eps;
     double e = c->rel * node_area(c, r) * node_B(c, r);
     return e < c->eps ? e : c->eps;
+}
+/* The power a link into element r may carry (rad_hier.c, "Objects that take
+ * in little"): eps, or, from the second round on (objpow known), OBJ_SHARE
+ * of what r's object takes in where that is less, but not below eps /
+ * OBJ_FLOOR. */
+#define OBJ_SHARE 0.05
+#define OBJ_FLOOR 4.0
+static inline double link_eps(const hctx *c, uint32_t r)
+{
+    if (!c->objpow || (r & CLB))
+        return c->eps;
+    double e = OBJ_SHARE * c->objpow[c->R->p[c->el[r].root].object], lo = c->eps / OBJ_FLOOR;
+    return e < lo ? lo : e < c->eps ? e : c->eps;
 }
 /* Node x can be split: a cluster, or an element whose children keep min_area. */
 static inline int splittable(const hctx *c, uint32_t x) { return (x & CLB) || c->el[x].area * 0.25 >= c->min_area; }

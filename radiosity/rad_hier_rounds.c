@@ -244,7 +244,7 @@ int rad__hier_relink(hctx *c)
         double p = 0.0;
         if (!(splittable(c, l->r) | splittable(c, l->s)))
             split[i] = contact_splittable(c, l->r) && uneven(c, l) ? 3 : 0;
-        else if ((p = rad__hier_link_power(c, l->r, l->s, link_way(l))) > c->eps)
+        else if ((p = rad__hier_link_power(c, l->r, l->s, link_way(l))) > link_eps(c, l->r))
             split[i] = 1;
         else if (uneven(c, l))
             split[i] = 3;
