@@ -50,6 +50,11 @@
  * of 2 with a quarter fewer links where both ends are flat (no curved
  * bucket); a curved cluster end keeps 2 (at 1.5 a bunny's radiosity came out
  * 1.2 % darker; notes/radiosity.md, "Admissibility by flatness").
+ * From the second round, a link into an object that takes in little is
+ * held to OBJ_SHARE of that object's intake instead of eps where that is
+ * less, down to eps / OBJ_FLOOR (link_eps, rad_hier_ctx.h): room.json's
+ * dark mirror frame was 7.9 % short of the light tracer under eps alone
+ * (notes/radiosity.md, "Objects that take in little").
  * Rounds: link with the emission, solve, re-link with the solved radiosity
  * (what was kept is re-tested, all three tests), solve again, twice.
  *
