@@ -461,10 +461,10 @@ static inline double receiver_eps(const hctx *c, uint32_t r)
     double e = c->rel * node_area(c, r) * node_B(c, r);
     return e < c->eps ? e : c->eps;
 }
-/* The power a link into element r may carry (rad_hier.c, "Objects that take
- * in little"): eps, or, from the second round on (objpow known), OBJ_SHARE
- * of what r's object takes in where that is less, but not below eps /
- * OBJ_FLOOR. */
+/* The power a link into element r may carry (rad_hier.c's header;
+ * notes/radiosity.md, "Objects that take in little"): eps, or, from the
+ * second round on (objpow known), OBJ_SHARE of what r's object takes in
+ * where that is less, but not below eps / OBJ_FLOOR. */
 #define OBJ_SHARE 0.05
 #define OBJ_FLOOR 4.0
 static inline double link_eps(const hctx *c, uint32_t r)
