@@ -398,7 +398,7 @@ static int run(const energy_args *A, scene *s, rt_accel *a, energy_result *R)
      * imbalance does not follow the residual it reached */
     double solved = fmax(sol->stats.residual, sol->stats.tolerance);
     R->balance_tol = fmax(1e-6, 100.0 * solved);
-    R->created = rr_rgb_mean(t->escaped) < -fmax(1e-6, 100.0 * solved) * rr_rgb_mean(t->emitted);
+    R->created = rr_rgb_mean(t->escaped) < -R->balance_tol * rr_rgb_mean(t->emitted);
     if (A->particles == 0)
         return 0;
     rt_lights *L = NULL;

@@ -579,21 +579,6 @@ static void unwalk(hctx *c)
         c->el[i].child = NONE;
 }
 
-/* What each object's leaves take in by the last solve, rho A H summed
- * (link_eps): 0, or -1 out of memory. */
-static int object_powers(hctx *c)
-{
-    size_t no = c->s->nobjects ? c->s->nobjects : 1;
-    if (!c->objpow && !(c->objpow = calloc(no, sizeof *c->objpow)))
-        return -1;
-    memset(c->objpow, 0, no * sizeof *c->objpow);
-    for (size_t i = 0; i < c->nel; i++)
-        if (c->el[i].child == NONE)
-            c->objpow[c->R->p[c->el[i].root].object] +=
-                node_rho(c, (uint32_t)i) * c->el[i].area * rr_rgb_max(c->el[i].H);
-    return 0;
-}
-
 /* The first round's walk from the top cluster. Where it would pass
  * radiosity.max_links, it is tried once at its coarsest (eps at the emitted
  * power: no refinement for accuracy, only the links that admissibility
@@ -811,7 +796,7 @@ static rr_status hier_run(const scene *s, const rt_accel *a, const rad_pass_opts
             st = first_refine(&c, power, err);
         } else {
             c.rel = rel; /* the receivers' B is known from the first solve on */
-            if (object_powers(&c) != 0) {
+            if (rad__hier_object_powers(&c) != 0) {
                 st = rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory", s->path);
                 break;
             }

@@ -602,6 +602,7 @@ rr_status rad__hier_estimate(hctx *c, void (*progress)(void *, size_t, size_t), 
 /* Re-tests every link with the solved radiosity; those that now carry too
  * much are replaced by refined ones. Returns whether anything changed. */
 int rad__hier_relink(hctx *c);
+int rad__hier_object_powers(hctx *c); /* rad_hier_rounds.c: hctx.objpow from the last solve; -1 out of memory */
 
 /* ---- buried parts and leaf data (rad_hier_bury.c) ---- */
 

@@ -216,6 +216,21 @@ rr_status rad__hier_estimate(hctx *c, void (*progress)(void *, size_t, size_t), 
     return RR_OK;
 }
 
+/* What each object's leaves take in by the last solve, rho A H summed
+ * (link_eps, which relink reads): 0, or -1 out of memory. */
+int rad__hier_object_powers(hctx *c)
+{
+    size_t no = c->s->nobjects ? c->s->nobjects : 1;
+    if (!c->objpow && !(c->objpow = calloc(no, sizeof *c->objpow)))
+        return -1;
+    memset(c->objpow, 0, no * sizeof *c->objpow);
+    for (size_t i = 0; i < c->nel; i++)
+        if (c->el[i].child == NONE)
+            c->objpow[c->R->p[c->el[i].root].object] +=
+                node_rho(c, (uint32_t)i) * c->el[i].area * rr_rgb_max(c->el[i].H);
+    return 0;
+}
+
 /* Re-tests every link with the solved radiosity; those that now carry too
  * much are replaced by refined ones. Returns whether anything changed. The
  * links kept move to the front in place and only the ends of those to split
