@@ -36,7 +36,8 @@ typedef struct rad_patch {
     uint32_t v[3];     /* corners: indices into rad_patches.verts, counter-clockwise */
     rr_vec3 normal;    /* unit, from the winding */
     rr_vec3 centroid;
-    double area;       /* of the triangle; in a flat pass's solution, of its open part (rad_ff: buried parts) */
+    double area;       /* of the triangle (a sphere's or a solid's: its share of the true surface's area,
+                          rad_patch.c); in a flat pass's solution, of its open part (rad_ff: buried parts) */
     rr_rgb rho;        /* diffuse reflectance of the material */
     double mirror;     /* mean mirror reflectance of the material: Monte Carlo form-factor
                           rays go on through it (extended form factors, rad_ff.c) */

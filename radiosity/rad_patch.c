@@ -558,6 +558,19 @@ static int tessellate_solids(build_ctx *c)
                 P->p[np].emission = rr_rgb_scale(lm->emission, RR_PI);
             }
         }
+        /* The triangles are chords of the solid's curved faces and cut its
+         * sharp edges off (rad_solid.c), so they have less area than the
+         * surface the rays meet (scenes/csg.json's lens 4.4 % less, the
+         * bitten sphere 3.5 %; the energy check found them 5 % short of the
+         * light tracer). Each patch stands for its share of the true area,
+         * as a sphere's do, so that what it emits and takes in agrees with
+         * the rays. */
+        double facets = 0.0;
+        for (size_t k = pbase; k < c->np; k++)
+            facets += P->p[k].area;
+        double scale = facets > 0 && m->area > 0 ? m->area / facets : 1.0;
+        for (size_t k = pbase; k < c->np; k++)
+            P->p[k].area *= scale;
     }
     return 0;
 }

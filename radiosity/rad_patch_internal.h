@@ -32,6 +32,7 @@ typedef struct rad__solid_mesh {
     uint32_t (*tris)[3];
     size_t ntris;
     rad_solid_grid grid;
+    double area; /* of the solid's true surface (Cauchy-Crofton, rad_solid.c), which the triangles fall short of */
 } rad__solid_mesh;
 
 rr_status rad__solid_tessellate(const scene *s, const rt_accel *a, uint32_t obj, const rad_patch_opts *o,

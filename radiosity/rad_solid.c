@@ -21,7 +21,10 @@
  * edges of the solid (where two leaf surfaces meet) are cut off by a chamfer
  * about a cell wide. For radiosity, which averages over patches anyway, that
  * is an error of the order of the patch size, the discretisation error it
- * already has. The ray tracer still sees the exact surfaces.
+ * already has. The ray tracer still sees the exact surfaces, so the area
+ * the triangles lose (chords and chamfers: 3-5 % at scenes/csg.json's patch
+ * size) is given back: the solid's true area is measured (solid_area, by
+ * Crofton's formula) and rad_patch.c scales the patches to it.
  *
  * Patches are written cell by cell, so the patches near a point are found
  * through the grid (rad_patch_locate). A patch takes the material of the
@@ -220,6 +223,55 @@ static int march_tet(tess *T, const uint32_t g[4])
     return 0;
 }
 
+/* The area of object obj's solid surface, as the ray tracer meets it, by
+ * the Cauchy-Crofton formula: the area is 1 / pi times the integral, over
+ * line directions u on a hemisphere and over the plane across u, of the
+ * number of times the line crosses the surface. The lines run through an
+ * AREA_GRID x AREA_GRID grid over a square of side 2R across the bounding
+ * sphere (centre c, radius R: lines outside it miss the solid), for
+ * AREA_DIRS directions spread evenly over the hemisphere (spherical
+ * Fibonacci points: z uniform, phi by the golden angle), each direction's
+ * grid shifted by a fraction of a cell (the R2 sequence) so that no two
+ * directions sample the same lines: area = 8 R^2 mean(crossings).
+ * Directions matter more than lines per direction (a lens, whose projection
+ * changes fast with u: 64 x 64^2 lines +0.30 %, 1024 x 16^2 +0.02 %, the
+ * same count; scenes/csg.json's solids within 0.1 % of their converged
+ * values), 0.01-0.1 s a solid on 2 cores. Deterministic: the directions in
+ * parallel, summed in order. */
+enum { AREA_DIRS = 1024, AREA_GRID = 16 };
+
+static double solid_area(const scene *s, const rt_accel *a, uint32_t obj)
+{
+    const scene_csg_node *root = &s->csg[s->objects[obj].csg_root];
+    rr_vec3 lo = root->bbox_lo, hi = root->bbox_hi;
+    rr_vec3 c = rr_v3_scale(rr_v3_add(lo, hi), 0.5);
+    double R = 0.5 * rr_v3_len(rr_v3_sub(hi, lo)) * (1.0 + 1e-6);
+    long cross[AREA_DIRS];
+#pragma omp parallel for schedule(dynamic, 16)
+    for (int i = 0; i < AREA_DIRS; i++) {
+        double z = (i + 0.5) / AREA_DIRS, r = sqrt(1.0 - z * z), ph = 2.399963229728653 * i;
+        rr_vec3 u = rr_v3(r * cos(ph), r * sin(ph), z);
+        rr_vec3 e1 = rr_v3_norm(rr_v3_cross(u, fabs(u.x) < 0.9 ? rr_v3(1, 0, 0) : rr_v3(0, 1, 0)));
+        rr_vec3 e2 = rr_v3_cross(u, e1);
+        double fx = fmod(0.7548776662466927 * (i + 1), 1.0), fy = fmod(0.5698402909980532 * (i + 1), 1.0);
+        long n = 0;
+        for (int j = 0; j < AREA_GRID; j++)
+            for (int k = 0; k < AREA_GRID; k++) {
+                double px = (2.0 * (j + fx) / AREA_GRID - 1.0) * R, py = (2.0 * (k + fy) / AREA_GRID - 1.0) * R;
+                rr_ray ray = {rr_v3_add(c, rr_v3_add(rr_v3_scale(e1, px), rr_v3_scale(e2, py))), u};
+                rt_spans sp;
+                rt_solid_spans(s, a, obj, ray, -2.0 * R, 2.0 * R, &sp);
+                for (int q = 0; q < sp.n; q++)
+                    n += (sp.s[q].in.t > -2.0 * R) + (sp.s[q].out.t < 2.0 * R);
+            }
+        cross[i] = n;
+    }
+    double sum = 0.0;
+    for (int i = 0; i < AREA_DIRS; i++)
+        sum += (double)cross[i];
+    return 8.0 * R * R * sum / ((double)AREA_DIRS * AREA_GRID * AREA_GRID);
+}
+
 rr_status rad__solid_tessellate(const scene *s, const rt_accel *a, uint32_t obj, const rad_patch_opts *o,
                                 rad__solid_mesh *out, rr_error *err)
 {
@@ -269,6 +321,7 @@ rr_status rad__solid_tessellate(const scene *s, const rt_accel *a, uint32_t obj,
     out->grid.cell_first[ncells] = (uint32_t)out->ntris;
     free(T.inside);
     rad__edge_map_free(&T.map);
+    out->area = solid_area(s, a, obj);
     return RR_OK;
 toomany:
     free(T.inside);

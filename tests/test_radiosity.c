@@ -421,20 +421,48 @@ static const char *k_bite =
  * surface under them, and their total area is the analytic area
  *   4 pi R^2 - 2 pi R (R - x) + 2 pi r (r - (d - x)),  x = (d^2 + R^2 - r^2) / 2d
  * (sphere, less the cap bitten off, plus the cap of the small sphere inside).
- * Tolerance: the facets are chords (area short by about (h kappa)^2 / 12 of
- * the area, 0.05 % for cells h = 0.08) and the rim, a sharp edge, is cut by
- * a chamfer about a cell wide: at most rim length x h x (1 - cos of half the
- * dihedral angle) ~ 3.7 x 0.08 x 0.5 = 0.15, i.e. 1.1 % of the 13.25; 2 %. */
+ * The triangles themselves fall short of it: they are chords (area short by
+ * about (h kappa)^2 / 12 of the area, 0.05 % for cells h = 0.08) and the
+ * rim, a sharp edge, is cut by a chamfer about a cell wide: at most rim
+ * length x h x (1 - cos of half the dihedral angle) ~ 3.7 x 0.08 x 0.5 =
+ * 0.15, i.e. 1.1 % of the 13.25. The patches' areas are scaled to the true
+ * area measured by Crofton's formula (rad_solid.c: within 0.1 % on
+ * scenes/csg.json's solids against their converged values), so they sum
+ * to the analytic area within 0.3 %, at fine cells and at coarse ones
+ * (cells of 0.45, where the triangles are several % short). */
+static void solid_patches_at(double max_area, double max_edge, int sides, double *facets, double *area,
+                             double *amax, double *want);
+
 static void solid_patches_cover_the_final_surface(void **state)
 {
     (void)state;
+    double facets, area, amax, want;
+    solid_patches_at(0.003, 0.08, 1, &facets, &area, &amax, &want);
+    print_message("solid: cells of 0.08: triangles %.5f (%+.3f %%), patches %.5f (%+.3f %%) vs analytic %.5f\n",
+                  facets, 100 * (facets / want - 1), area, 100 * (area / want - 1), want);
+    if (fabs(area - want) > 0.003 * want)
+        fail_msg("solid area %.5f, analytic %.5f", area, want);
+    solid_patches_at(0.0225, 0.45, 0, &facets, &area, &amax, &want);
+    print_message("solid: cells of 0.45: triangles %.5f (%+.3f %%), patches %.5f (%+.3f %%) vs analytic %.5f\n",
+                  facets, 100 * (facets / want - 1), area, 100 * (area / want - 1), want);
+    assert_true(facets < 0.98 * want); /* the case the scaling is for */
+    if (fabs(area - want) > 0.003 * want)
+        fail_msg("coarse solid area %.5f, analytic %.5f", area, want);
+}
+
+/* Builds k_bite's patches at these limits and checks them (with sides, also
+ * that they face out and carry the leaf's material: at fine cells, where
+ * the rim's band is thin); returns the triangles' and the patches' areas. */
+static void solid_patches_at(double max_area, double max_edge, int sides, double *facets, double *area_out,
+                             double *amax_out, double *want_out)
+{
     scene *s = NULL;
     rr_error err;
     if (scene_load_string(k_bite, "bite", "", NULL, &s, &err) != RR_OK)
         fail_msg("%s", err.msg);
     rt_accel *a = NULL;
     assert_int_equal(rt_accel_build(s, &a, NULL), RR_OK);
-    rad_patch_opts o = {.max_area = 0.003, .max_edge = 0.08, .accel = a};
+    rad_patch_opts o = {.max_area = max_area, .max_edge = max_edge, .accel = a};
     rad_patches *P = NULL;
     assert_int_equal(rad_patches_build(s, &o, &P, &err), RR_OK);
     const double R = 1, r = 0.6, d = 0.9, x = (d * d + R * R - r * r) / (2 * d);
@@ -450,11 +478,15 @@ static void solid_patches_cover_the_final_surface(void **state)
     }
     double area = 0, amax = 0;
     size_t outward = 0, red_ok = 0;
+    *facets = 0;
     for (size_t k = 0; k < P->n; k++) {
         const rad_patch *p = &P->p[k];
         assert_int_equal(p->object, 0);
         assert_true(p->area > 0);
-        amax = fmax(amax, p->area);
+        rr_vec3 A = P->verts[p->v[0]], B = P->verts[p->v[1]], C = P->verts[p->v[2]];
+        double tri = 0.5 * rr_v3_len(rr_v3_cross(rr_v3_sub(B, A), rr_v3_sub(C, A)));
+        amax = fmax(amax, tri);
+        *facets += tri;
         area += p->area;
         rr_vec3 out = rr_v3_madd(p->centroid, p->normal, 0.02), in = rr_v3_madd(p->centroid, p->normal, -0.02);
         outward += !rt_csg_contains(s, a, s->objects[0].csg_root, out) && rt_csg_contains(s, a, s->objects[0].csg_root, in);
@@ -464,18 +496,18 @@ static void solid_patches_cover_the_final_surface(void **state)
     }
     /* Near the rim the 0.02 probes and the leaf under a centre may be the
      * other side's: a band of patches a cell or two wide. */
-    assert_true(outward > 0.97 * P->n);
-    assert_true(red_ok > 0.97 * P->n);
-    print_message("solid: %zu patches (%.0f asked for), largest %.2f x the limit, area %.5f vs analytic %.5f "
-                  "(%+.3f %%), outward %.2f %%, material %.2f %%\n",
-                  P->n, want / o.max_area, amax / o.max_area, area, want, 100 * (area / want - 1),
-                  100.0 * outward / P->n, 100.0 * red_ok / P->n);
+    print_message("solid: %zu patches (%.0f asked for), largest %.2f x the limit, outward %.2f %%, "
+                  "material %.2f %%\n",
+                  P->n, want / o.max_area, amax / o.max_area, 100.0 * outward / P->n, 100.0 * red_ok / P->n);
+    assert_true(!sides || outward > 0.97 * P->n);
+    assert_true(!sides || red_ok > 0.97 * P->n);
     /* The limits are targets for solids (rad_solid.c), and the estimate used
      * for memory checks bounds the count. */
     assert_true(amax < 3 * o.max_area);
     assert_true((double)P->n <= rad_solid_patch_estimate(s, 0, &o));
-    if (fabs(area - want) > 0.02 * want)
-        fail_msg("solid area %.5f, analytic %.5f", area, want);
+    *area_out = area;
+    *amax_out = amax;
+    *want_out = want;
     /* Hits on the surface find a patch within a cell of them. */
     rr_rng rng = rr_rng_make(7, 0);
     for (int i = 0; i < 2000; i++) {
@@ -486,7 +518,7 @@ static void solid_patches_cover_the_final_surface(void **state)
             continue;
         uint32_t k = rad_patch_locate(P, s, h.tri, h.object, h.point);
         assert_true(k < P->n);
-        assert_true(rr_v3_len(rr_v3_sub(P->p[k].centroid, h.point)) < 0.1);
+        assert_true(rr_v3_len(rr_v3_sub(P->p[k].centroid, h.point)) < 1.25 * max_edge);
     }
     rad_patches_destroy(P);
     rt_accel_destroy(a);
