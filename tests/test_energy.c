@@ -454,6 +454,35 @@ static void small_objects_refined(void **state)
             fail_msg("a surface disagrees with the light tracer\n%s", g_out);
 }
 
+/* Solids' patches stand for the true surface's area (rad_patch.c, by
+ * Crofton's formula in rad_solid.c): scenes/bunny-csg.json's bunny, a mesh
+ * with a bite and a plinth tessellated by marching tetrahedra at the
+ * patch size, has triangles 29 % short of the surface the rays meet, and
+ * took in 29 % (150 SE) less than the light tracer counts by both methods.
+ * Every surface's emitted, incident and absorbed power must agree (4 SE + 1
+ * %, about 2.8 % for the bunny at 400 k particles); the flat method's total
+ * escaped is left out (0.24 % of the emitted power leaves the closed room
+ * through its Monte Carlo rows, two thirds of it the bunny's: a separate
+ * matter). */
+static void solids_true_area(void **state)
+{
+    (void)state;
+    char bunny[512];
+    snprintf(bunny, sizeof bunny, "%s/scenes/bunny-csg.json", RR_SOURCE_DIR);
+    for (int flat = 0; flat < 2; flat++) {
+        const char *a[] = {"energy", bunny, "--check", "--particles", "400000", "--set",
+                           flat ? "radiosity.method=flat" : "radiosity.method=hierarchical", NULL};
+        run(a);
+        const char *chk = strstr(g_out, "check:");
+        if (!chk)
+            fail_msg("no check\n%s", g_out);
+        for (const char *l = strchr(chk, '\n'); l && *l; l = strchr(l + 1, '\n'))
+            if (strncmp(l + 1, "  ", 2) == 0 &&
+                (strstr(l + 1, " incident ") || strstr(l + 1, " emitted ") || strstr(l + 1, " absorbed ")))
+                fail_msg("a surface disagrees with the light tracer\n%s", g_out);
+    }
+}
+
 /* Each broken case is named: the room built inside out (a box, an OBJ cube)
  * warns with the fix; walls wound the wrong way warn per wall; a mirror
  * that the pass treats as black (quadrature) fails the check. */
@@ -557,7 +586,7 @@ int main(void)
         cmocka_unit_test(thread_count_independent),
         cmocka_unit_test(compare_rules),             cmocka_unit_test(check_passes),
         cmocka_unit_test(hierarchical_burial),       cmocka_unit_test(black_lamp_refined),
-        cmocka_unit_test(small_objects_refined),
+        cmocka_unit_test(small_objects_refined),     cmocka_unit_test(solids_true_area),
         cmocka_unit_test(broken_cases_named),        cmocka_unit_test(bad_options),
         cmocka_unit_test(interrupt_stops),
     };
