@@ -11,8 +11,9 @@
  * channels) with that of the leaf of the second solution that holds its
  * centroid: |B_A / B_B - 1|. Prints the leaves compared, the median, 90th and
  * 99th percentiles and the largest difference, and the share of leaves
- * within 0.5 %. Exit status 2 on bad arguments or a scene that does not load,
- * 1 when the object has no leaf. */
+ * within 0.5 %; for hierarchical solutions, the same figures on common cells
+ * (common_cells below). Exit status 2 on bad arguments or a scene that does
+ * not load, 1 when the object has no leaf. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -76,6 +77,51 @@ static int holds(const rad_patches *P, size_t k, rr_vec3 p)
     double w = 1.0 - u - v;
     const double e = -1e-9;
     return u >= e && v >= e && w >= e;
+}
+
+/* The area-weighted mean radiosity (summed channels) and the area of the
+ * leaves under tree entry e of a hierarchical solution. */
+static void subtree(const rad_solution *x, uint32_t e, double *power, double *area)
+{
+    const rad_patches *P = x->P;
+    if (e & RAD_QT_LEAF) {
+        uint32_t k = e & ~RAD_QT_LEAF;
+        *power += P->p[k].area * (x->B[k].r + x->B[k].g + x->B[k].b);
+        *area += P->p[k].area;
+        return;
+    }
+    for (int c = 0; c < 4; c++)
+        subtree(x, P->qt[4 * (size_t)e + c], power, area);
+}
+
+/* Two hierarchical solutions' trees over the same roots, walked together:
+ * where both split, into the children; where either is a leaf, one cell:
+ * both solutions' mean over the same triangle (the coarser of the two
+ * leaves), |mean_A / mean_B - 1| into d. */
+static void common_cells(const rad_solution *x, const rad_solution *y, uint32_t ex, uint32_t ey, double *d, size_t *n,
+                         size_t cap)
+{
+    if (!(ex & RAD_QT_LEAF) && !(ey & RAD_QT_LEAF)) {
+        for (int c = 0; c < 4; c++)
+            common_cells(x, y, x->P->qt[4 * (size_t)ex + c], y->P->qt[4 * (size_t)ey + c], d, n, cap);
+        return;
+    }
+    double px = 0, ax = 0, py = 0, ay = 0;
+    subtree(x, ex, &px, &ax);
+    subtree(y, ey, &py, &ay);
+    if (ax > 0 && ay > 0 && py > 0 && *n < cap)
+        d[(*n)++] = fabs((px / ax) / (py / ay) - 1.0);
+}
+
+static void report(const char *what, double *d, size_t n)
+{
+    qsort(d, n, sizeof *d, cmp_double);
+    size_t within = 0;
+    for (size_t i = 0; i < n; i++)
+        within += d[i] <= 0.005;
+    printf("%s: median %.3f %%, p90 %.3f %%, p99 %.3f %%, max %.3f %%; within 0.5 %%: %.1f %%\n", what,
+           100 * d[n / 2], 100 * d[(size_t)(0.9 * (double)(n - 1))], 100 * d[(size_t)(0.99 * (double)(n - 1))],
+           100 * d[n - 1], 100.0 * (double)within / (double)n);
 }
 
 int main(int argc, char **argv)
@@ -156,6 +202,29 @@ int main(int argc, char **argv)
            "%.3f %%, p90 %.3f %%, p99 %.3f %%, max %.3f %%; within 0.5 %%: %.1f %% of the leaves\n",
            path, name, sa, sb, n, same, sa, sb, 100 * d[n / 2], 100 * d[(size_t)(0.9 * (double)(n - 1))],
            100 * d[(size_t)(0.99 * (double)(n - 1))], 100 * d[n - 1], 100.0 * (double)within / (double)n);
+    /* The same on common cells (hierarchical solutions over the same roots):
+     * a leaf that the other seed split further is compared with the mean of
+     * the other's leaves inside it, so what differs is the seeds' noise, not
+     * the difference between a large leaf's mean and a small one's over a
+     * gradient (a penumbra) that the centroid lookup above also counts. */
+    const rad_patches *R = P->roots, *S = Q->roots;
+    if (R && S && R->n == S->n) {
+        size_t nc = 0, cap = P->n + Q->n;
+        double *dc = malloc(cap * sizeof *dc);
+        if (!dc) {
+            fprintf(stderr, "radray-seeds: out of memory\n");
+            return 2;
+        }
+        for (size_t r = 0; r < R->n; r++)
+            if (R->p[r].object == (uint32_t)obj)
+                common_cells(x, y, P->root_qt[r], Q->root_qt[r], dc, &nc, cap);
+        if (nc > 0) {
+            char what[128];
+            snprintf(what, sizeof what, "common cells (%zu): |mean_%llu / mean_%llu - 1|", nc, sa, sb);
+            report(what, dc, nc);
+        }
+        free(dc);
+    }
     free(d);
     free(qi);
     rad_solution_destroy(x);
