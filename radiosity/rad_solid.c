@@ -246,6 +246,8 @@ static double solid_area(const scene *s, const rt_accel *a, uint32_t obj)
     rr_vec3 lo = root->bbox_lo, hi = root->bbox_hi;
     rr_vec3 c = rr_v3_scale(rr_v3_add(lo, hi), 0.5);
     double R = 0.5 * rr_v3_len(rr_v3_sub(hi, lo)) * (1.0 + 1e-6);
+    if (!(R > 0) || !isfinite(R))
+        return 0.0; /* (the patches then keep the triangles' area) */
     long cross[AREA_DIRS];
 #pragma omp parallel for schedule(dynamic, 16)
     for (int i = 0; i < AREA_DIRS; i++) {
