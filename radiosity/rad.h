@@ -112,7 +112,10 @@ typedef struct rad_patch_opts {
  * fine enough for the same limits. Solids (CSG trees, quadrics) are
  * tessellated by marching tetrahedra over a grid of their bounding box, so
  * only the surface of the final solid gets patches (rad_solid.c); each patch
- * takes the material of the leaf surface under its centre. Fails
+ * takes the material of the leaf surface under its centre. A sphere's and a
+ * solid's patch areas are scaled to the true surface's area (the sphere's
+ * 4 pi r^2; the solid's by Crofton's formula), which their facets fall
+ * short of. Fails
  * (RR_ERR_LIMIT) beyond 2^31 patches. */
 rr_status rad_patches_build(const scene *s, const rad_patch_opts *o, rad_patches **out, rr_error *err);
 #define RAD_CREASE_DEG 45.0
