@@ -41,7 +41,7 @@
  * (end) inside the sphere. Ray ends on sphere patches are therefore moved
  * radially onto the sphere and offset along its normal there; the contour
  * integral still uses the facets, and scales a factor to a facet by the area
- * its patch stands for (facet_scale: the sphere's or the solid's true area,
+ * its patch stands for (rad__facet_scale: the sphere's or the solid's true area,
  * which Monte Carlo rays see; rad_patch.c). Before that scale, quadrature saw
  * a sphere's patches with the facets' area (a few percent less for coarse
  * tessellations) and scenes/csg.json's solids 4-6 % dark.
@@ -315,11 +315,7 @@ rr_vec3 rad__poly_point(const rr_vec3 *poly, int nv, double u, double v, uint32_
     return rr_v3_add(A, rr_v3_add(rr_v3_scale(rr_v3_sub(B, A), u), rr_v3_scale(rr_v3_sub(C, A), v)));
 }
 
-/* A sphere's or a solid's facet stands for more area than its triangle has
- * (rad_patch.c scales its patch area to the true surface's): the factor to
- * it, read on its triangle, is scaled by the same ratio, as the hierarchical
- * method's links are (rad_hier_link.c facet_scale). 1 for triangles. */
-static double facet_scale(const rad_patches *P, const rad_patch *q)
+double rad__facet_scale(const rad_patches *P, const rad_patch *q)
 {
     if (q->tri >= 0)
         return 1.0;
@@ -353,7 +349,7 @@ static double pair_ff(const ff_ctx *c, const rad_patch *pi, const rad_patch *pj,
         if (!rt_accel_occluded(c->a, r, 0.0, RT_SHADOW_END))
             sum += f;
     }
-    return sum / q->n * facet_scale(c->P, pj);
+    return sum / q->n * rad__facet_scale(c->P, pj);
 }
 
 /* Row i by quadrature into the scratch row; returns its length. */

@@ -120,6 +120,15 @@ int rad__clip_front(const rr_vec3 tri[3], rr_vec3 n, rr_vec3 p0, double tol, rr_
  * picked by area with the golden-ratio sequence in k (rad_ff.c). */
 rr_vec3 rad__poly_point(const rr_vec3 *poly, int nv, double u, double v, uint32_t k);
 
+/* A sphere's or a solid's facet stands for more area than its triangle has
+ * (rad_patch.c scales its patch area to the true surface's): a factor to it,
+ * read on its triangle, is scaled by q->area / (the triangle's area), by the
+ * quadrature (rad_ff.c) and the hierarchical links (rad_hier_link.c). 1 for
+ * triangles' patches. */
+struct rad_patches;
+struct rad_patch;
+double rad__facet_scale(const struct rad_patches *P, const struct rad_patch *q);
+
 /* ---- buried parts (rad.h; rad_ff.c, rad_hier.c) ---- */
 
 /* Whether the first leg r of a ray from a surface point of normal n, whose

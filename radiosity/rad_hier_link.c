@@ -298,18 +298,10 @@ static void set_vis(hlink *l, int near, const vis_count *v)
 /* A sphere's or a solid's facets are chords of it, their patch areas scaled
  * to its true area (rad_patch.c), and the rays meet the true surface: a link
  * from a facet, whose factor is its flat triangle's, is scaled by the same
- * ratio. Without it an emitting sphere, tessellated as coarsely as the roots
- * are, lit the floor under it 13.7 % short (test_transport's sphere lamp
- * with the hierarchical method). */
-static double facet_scale(const hctx *c, uint32_t e)
-{
-    const rad_patch *p = &c->R->p[c->el[e].root];
-    if (p->tri >= 0)
-        return 1.0;
-    const rr_vec3 *v = c->R->verts;
-    double flat = 0.5 * rr_v3_len(rr_v3_cross(rr_v3_sub(v[p->v[1]], v[p->v[0]]), rr_v3_sub(v[p->v[2]], v[p->v[0]])));
-    return flat > 0 ? p->area / flat : 1.0;
-}
+ * ratio (rad__facet_scale). Without it an emitting sphere, tessellated as
+ * coarsely as the roots are, lit the floor under it 13.7 % short
+ * (test_transport's sphere lamp with the hierarchical method). */
+static double facet_scale(const hctx *c, uint32_t e) { return rad__facet_scale(c->R, &c->R->p[c->el[e].root]); }
 
 void rad__hier_eval_ee(const hctx *c, hlink *l, rr_rng *rng)
 {
