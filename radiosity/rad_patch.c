@@ -477,6 +477,21 @@ static int tessellate_triangles(build_ctx *c)
 
 /* Every analytic sphere as S stacks x 2S slices of facets (rings between
  * the poles), their areas scaled to the true sphere's. */
+/* Patches [first, end) of one curved object (a sphere's facets, a solid's
+ * triangles) scaled so that their areas sum to area, the true surface's:
+ * each patch stands for its share of it, so that what it emits and takes in
+ * agrees with the rays, which meet the true surface. Left as they are when
+ * area is not positive (not measured). */
+static void scale_to_area(rad_patches *P, size_t first, size_t end, double area)
+{
+    double facets = 0.0;
+    for (size_t k = first; k < end; k++)
+        facets += P->p[k].area;
+    double scale = facets > 0 && area > 0 ? area / facets : 1.0;
+    for (size_t k = first; k < end; k++)
+        P->p[k].area *= scale;
+}
+
 static int tessellate_spheres(build_ctx *c)
 {
     const scene *s = c->s;
@@ -510,15 +525,8 @@ static int tessellate_spheres(build_ctx *c)
             }
 #undef RV
         /* The facets are chords of the sphere the ray tracer (and the
-         * form-factor rays) meet, and have less area in all than it: each
-         * patch stands for its share of the true sphere's area, so that its
-         * emitted power and what it receives agree with the rays. */
-        double facets = 0.0;
-        for (size_t k = P->sphere_first[oi]; k < c->np; k++)
-            facets += P->p[k].area;
-        double scale = facets > 0 ? 4.0 * RR_PI * ob->radius * ob->radius / facets : 1.0;
-        for (size_t k = P->sphere_first[oi]; k < c->np; k++)
-            P->p[k].area *= scale;
+         * form-factor rays) meet, and have less area in all than it. */
+        scale_to_area(P, P->sphere_first[oi], c->np, 4.0 * RR_PI * ob->radius * ob->radius);
     }
     return 0;
 }
@@ -562,15 +570,8 @@ static int tessellate_solids(build_ctx *c)
          * sharp edges off (rad_solid.c), so they have less area than the
          * surface the rays meet (scenes/csg.json's lens 4.4 % less, the
          * bitten sphere 3.5 %; the energy check found them 5 % short of the
-         * light tracer). Each patch stands for its share of the true area,
-         * as a sphere's do, so that what it emits and takes in agrees with
-         * the rays. */
-        double facets = 0.0;
-        for (size_t k = pbase; k < c->np; k++)
-            facets += P->p[k].area;
-        double scale = facets > 0 && m->area > 0 ? m->area / facets : 1.0;
-        for (size_t k = pbase; k < c->np; k++)
-            P->p[k].area *= scale;
+         * light tracer). */
+        scale_to_area(P, pbase, c->np, m->area);
     }
     return 0;
 }
