@@ -43,6 +43,9 @@ typedef struct rad_patch {
                           rays go on through it (extended form factors, rad_ff.c) */
     rr_rgb emission;   /* emitted radiosity E = pi * Le */
     uint32_t object;   /* scene object */
+    uint32_t flat;     /* 1: the patch lies on the surface it stands for, so its points are their own
+                          surface points (rad_patch_surface): a scene triangle's, and a solid's piece of
+                          a mesh leaf's own triangle (rad_solid.c) */
     int64_t tri;       /* source scene triangle, or -1 for a tessellated sphere or solid */
 } rad_patch;
 

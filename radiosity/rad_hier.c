@@ -739,7 +739,7 @@ static rr_status hier_run(const scene *s, const rt_accel *a, const rad_pass_opts
     }
     for (size_t i = 0; i < c.nel && c.rt; i++) {
         const hel *e = &c.el[i];
-        c.rt[i] = (hroot){roots->p[i].normal, e->ctr, e->area, 1.0 - roots->p[i].mirror, 0.0, roots->p[i].tri >= 0};
+        c.rt[i] = (hroot){roots->p[i].normal, e->ctr, e->area, 1.0 - roots->p[i].mirror, 0.0, (int)roots->p[i].flat};
     }
     if (c.cl && !c.nomem)
         rad__hier_probe_new(&c); /* the roots' burial, which their leaf data reads */

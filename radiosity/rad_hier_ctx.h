@@ -156,7 +156,7 @@ static inline int cl_flat(const hcl *k) { return k->flat >= 1.0 - 1e-12; }
 typedef struct hroot {
     rr_vec3 n, ctr;
     double area, om, ssum;
-    int flat; /* a scene triangle's (its surface points are its own: rad_patch_surface) */
+    int flat; /* rad_patch.flat: its surface points are its own (rad_patch_surface) */
 } hroot;
 
 /* Visibilities are held in twelfths: every share of 1 to 4 shadow rays is

@@ -105,7 +105,7 @@ typedef struct vis_count {
  * sphere seen from outside); NULL otherwise. */
 static const scene_object *outward_sphere(const hctx *c, uint32_t root, rr_vec3 xs, rr_vec3 ns)
 {
-    if (c->rt[root].flat) /* a scene triangle's, read without its patch */
+    if (c->rt[root].flat) /* a flat root's, read without its patch */
         return NULL;
     const rad_patch *p = &c->R->p[root];
     if (p->tri >= 0 || rt_prim_kind_of(c->s, p->object) != RT_PRIM_SPHERE)

@@ -24,15 +24,16 @@ uint32_t rad__edge_get(rad__edge_map *m, uint32_t a, uint32_t b, uint32_t k, uin
 uint32_t rad__edge_find(const rad__edge_map *m, uint32_t a, uint32_t b, uint32_t k);
 
 /* A solid's tessellation before it is copied into the patches: vertices,
- * outward counter-clockwise triangles, and the grid (cell_first relative to
- * the first triangle). */
+ * outward counter-clockwise triangles (marching triangles, and the mesh
+ * leaves' own), and the grid (cell_first relative to the first triangle). */
 typedef struct rad__solid_mesh {
     rr_vec3 *verts;
     size_t nverts;
     uint32_t (*tris)[3];
     size_t ntris;
     rad_solid_grid grid;
-    double area; /* of the solid's true surface (Cauchy-Crofton, rad_solid.c), which the triangles fall short of */
+    unsigned char *own; /* per triangle, 1: a piece of a mesh leaf's own triangle (NULL: none is) */
+    double *scale;      /* per triangle: the true area it stands for over its own (rad_solid.c) */
 } rad__solid_mesh;
 
 rr_status rad__solid_tessellate(const scene *s, const rt_accel *a, uint32_t obj, const rad_patch_opts *o,

@@ -23,8 +23,14 @@
  * is an error of the order of the patch size, the discretisation error it
  * already has. The ray tracer still sees the exact surfaces, so the area
  * the triangles lose (chords and chamfers: 3-5 % at scenes/csg.json's patch
- * size) is given back: the solid's true area is measured (solid_area, by
- * Crofton's formula) and rad_patch.c scales the patches to it.
+ * size) is given back: each leaf's true area on the solid is measured
+ * (group_areas, by Crofton's formula) and its triangles scaled to it
+ * (area_scales; rad_patch.c applies the scale).
+ *
+ * Mesh leaves are the exception: a scanned mesh's detail is finer than any
+ * cell, but its part of the surface is pieces of its own triangles, so
+ * those are its patches (own_triangles), flat and exactly on the surface,
+ * and the marching triangles on it are dropped.
  *
  * Patches are written cell by cell, so the patches near a point are found
  * through the grid (rad_patch_locate). A patch takes the material of the
@@ -39,6 +45,16 @@
 #define SOLID_CELLS_MAX 160 /* per axis */
 #define SOLID_CELLS_MIN 6
 #define SOLID_BISECT 30
+
+/* A mesh leaf's triangle is split L x L to meet the patch limits (as a
+ * scene triangle is, rad_patch.c), L at most 1024. */
+static uint32_t mesh_level(rr_vec3 A, rr_vec3 B, rr_vec3 C, const rad_patch_opts *o)
+{
+    double area = 0.5 * rr_v3_len(rr_v3_cross(rr_v3_sub(B, A), rr_v3_sub(C, A)));
+    double longest = fmax(rr_v3_len(rr_v3_sub(B, A)), fmax(rr_v3_len(rr_v3_sub(C, B)), rr_v3_len(rr_v3_sub(A, C))));
+    double n1 = ceil(sqrt(area / o->max_area)), n2 = ceil(longest / o->max_edge);
+    return (uint32_t)fmin(1024.0, fmax(1.0, fmax(n1, n2)));
+}
 
 /* Cells per axis and their size for object obj's solid under limits o. The
  * box is padded by a fraction of a cell so that flat faces of the solid (a
@@ -84,7 +100,21 @@ double rad_solid_patch_estimate(const scene *s, uint32_t obj, const rad_patch_op
     /* The surface crosses at most about (area of the box faces) / (cell
      * face) cells, with about 9 triangles per cell face of surface. */
     double a = (double)n[0] * n[1] + (double)n[1] * n[2] + (double)n[2] * n[0];
-    return 2.0 * 9.0 * a;
+    double est = 2.0 * 9.0 * a;
+    /* Mesh leaves add their own triangles, each split to the limits
+     * (tessellate_leaf), and twice as many again for the rims' splits. */
+    for (uint32_t l = 0; l < s->ncsg; l++) {
+        const scene_csg_node *nd = &s->csg[l];
+        if (nd->object != obj || nd->op != SCENE_CSG_LEAF || nd->solid != SCENE_SOLID_MESH)
+            continue;
+        for (size_t t = nd->tri_first; t < nd->tri_first + nd->tri_count; t++) {
+            const uint32_t *v = s->csg_tris[t];
+            rr_vec3 A = s->csg_verts[v[0]], B = s->csg_verts[v[1]], C = s->csg_verts[v[2]];
+            double L = mesh_level(A, B, C, o);
+            est += 3.0 * L * L;
+        }
+    }
+    return est;
 }
 
 /* Kuhn triangulation: the 6 monotone paths from corner 0 to corner 7 (bit 0:
@@ -102,7 +132,17 @@ typedef struct tess {
     rad__edge_map map;
     rad__solid_mesh *out;
     size_t cap_v, cap_t;
+    int meshes;        /* the solid has mesh leaves */
+    /* The surfaces of the solid's other leaves, a group each (area_scales). */
+    uint32_t *slot;    /* per node of scene->csg: UINT32_MAX, or the leaf's group */
+    uint32_t ngroups;
+    uint32_t *vgroup;  /* per vertex: the group of the leaf it lies on, VG_MESH, VG_NONE */
+    size_t cap_g;
 } tess;
+
+#define VG_MESH (UINT32_MAX - 1) /* on a mesh leaf's surface */
+#define VG_NONE UINT32_MAX       /* not found */
+#define VG_SEAM 0x40000000u      /* (triangles) group | VG_SEAM: a corner on a mesh leaf too */
 
 static uint32_t gid(const tess *T, uint32_t i, uint32_t j, uint32_t k)
 {
@@ -145,6 +185,9 @@ static rr_vec3 edge_point(const tess *T, uint32_t a, uint32_t b)
     return rr_v3_scale(rr_v3_add(pin, pout), 0.5);
 }
 
+static int nearest_end(const scene *s, const rt_accel *a, uint32_t obj, rr_vec3 x, rr_vec3 n, double r,
+                       rt_span_end *end);
+
 /* The vertex on grid edge (a, b), one per edge whichever tetrahedron asks. */
 static int edge_vertex(tess *T, uint32_t a, uint32_t b, uint32_t *out)
 {
@@ -156,7 +199,22 @@ static int edge_vertex(tess *T, uint32_t a, uint32_t b, uint32_t *out)
     if (got == v) {
         if (grow((void **)&T->out->verts, &T->cap_v, T->out->nverts + 1, sizeof *T->out->verts))
             return -1;
-        T->out->verts[T->out->nverts++] = T->inside[a] ? edge_point(T, a, b) : edge_point(T, b, a);
+        rr_vec3 p = T->inside[a] ? edge_point(T, a, b) : edge_point(T, b, a);
+        T->out->verts[T->out->nverts++] = p;
+        /* Whose surface the vertex is on: the boundary crossing the grid
+         * edge there. */
+        if (grow((void **)&T->vgroup, &T->cap_g, T->out->nverts, sizeof *T->vgroup))
+            return -1;
+        rr_vec3 A = gpos(T, a), d = rr_v3_sub(gpos(T, b), A);
+        double t = rr_v3_dot(rr_v3_sub(p, A), d) / rr_v3_len2(d);
+        rt_span_end e;
+        T->vgroup[v] = VG_NONE;
+        if (nearest_end(T->s, T->a, T->s->csg[T->root].object, rr_v3_madd(A, d, t), d, 1.0, &e)) {
+            if (T->s->csg[e.leaf].solid == SCENE_SOLID_MESH)
+                T->vgroup[v] = VG_MESH;
+            else
+                T->vgroup[v] = T->slot[e.leaf] != UINT32_MAX ? T->slot[e.leaf] : VG_NONE;
+        }
     }
     *out = got;
     return 0;
@@ -240,38 +298,508 @@ static int march_tet(tess *T, const uint32_t g[4])
  * parallel, summed in order. */
 enum { AREA_DIRS = 1024, AREA_GRID = 16 };
 
-static double solid_area(const scene *s, const rt_accel *a, uint32_t obj)
+/* The true area of each group of surfaces of the solid (tess.slot), into
+ * area[0 .. T->ngroups); mesh leaves' crossings are not counted (their
+ * parts are their own triangles, below). Integer counts summed per thread,
+ * so the result does not depend on the thread count. 0 when the solid's box
+ * is empty or not finite (the triangles then keep their area). */
+static int group_areas(const tess *T, double *area)
 {
-    const scene_csg_node *root = &s->csg[s->objects[obj].csg_root];
+    const scene *s = T->s;
+    const scene_csg_node *root = &s->csg[T->root];
+    uint32_t obj = root->object, ng = T->ngroups;
     rr_vec3 lo = root->bbox_lo, hi = root->bbox_hi;
     rr_vec3 c = rr_v3_scale(rr_v3_add(lo, hi), 0.5);
     double R = 0.5 * rr_v3_len(rr_v3_sub(hi, lo)) * (1.0 + 1e-6);
-    if (!(R > 0) || !isfinite(R))
-        return 0.0; /* (the patches then keep the triangles' area) */
-    long cross[AREA_DIRS];
-#pragma omp parallel for schedule(dynamic, 16)
-    for (int i = 0; i < AREA_DIRS; i++) {
-        double z = (i + 0.5) / AREA_DIRS, r = sqrt(1.0 - z * z), ph = 2.399963229728653 * i;
-        rr_vec3 u = rr_v3(r * cos(ph), r * sin(ph), z);
-        rr_vec3 e1 = rr_v3_norm(rr_v3_cross(u, fabs(u.x) < 0.9 ? rr_v3(1, 0, 0) : rr_v3(0, 1, 0)));
-        rr_vec3 e2 = rr_v3_cross(u, e1);
-        double fx = fmod(0.7548776662466927 * (i + 1), 1.0), fy = fmod(0.5698402909980532 * (i + 1), 1.0);
-        long n = 0;
-        for (int j = 0; j < AREA_GRID; j++)
-            for (int k = 0; k < AREA_GRID; k++) {
-                double px = (2.0 * (j + fx) / AREA_GRID - 1.0) * R, py = (2.0 * (k + fy) / AREA_GRID - 1.0) * R;
-                rr_ray ray = {rr_v3_add(c, rr_v3_add(rr_v3_scale(e1, px), rr_v3_scale(e2, py))), u};
-                rt_spans sp;
-                rt_solid_spans(s, a, obj, ray, -2.0 * R, 2.0 * R, &sp);
-                for (int q = 0; q < sp.n; q++)
-                    n += (sp.s[q].in.t > -2.0 * R) + (sp.s[q].out.t < 2.0 * R);
-            }
-        cross[i] = n;
+    if (!(R > 0) || !isfinite(R) || ng == 0)
+        return 0;
+    long *cross = calloc(ng, sizeof *cross);
+    if (!cross)
+        return -1;
+    int bad = 0;
+#pragma omp parallel
+    {
+        long *mine = calloc(ng, sizeof *mine);
+        if (!mine) {
+#pragma omp atomic write
+            bad = 1;
+        }
+#pragma omp for schedule(dynamic, 16)
+        for (int i = 0; i < AREA_DIRS; i++) {
+            if (!mine)
+                continue;
+            double z = (i + 0.5) / AREA_DIRS, r = sqrt(1.0 - z * z), ph = 2.399963229728653 * i;
+            rr_vec3 u = rr_v3(r * cos(ph), r * sin(ph), z);
+            rr_vec3 e1 = rr_v3_norm(rr_v3_cross(u, fabs(u.x) < 0.9 ? rr_v3(1, 0, 0) : rr_v3(0, 1, 0)));
+            rr_vec3 e2 = rr_v3_cross(u, e1);
+            double fx = fmod(0.7548776662466927 * (i + 1), 1.0), fy = fmod(0.5698402909980532 * (i + 1), 1.0);
+            for (int j = 0; j < AREA_GRID; j++)
+                for (int k = 0; k < AREA_GRID; k++) {
+                    double px = (2.0 * (j + fx) / AREA_GRID - 1.0) * R, py = (2.0 * (k + fy) / AREA_GRID - 1.0) * R;
+                    rr_ray ray = {rr_v3_add(c, rr_v3_add(rr_v3_scale(e1, px), rr_v3_scale(e2, py))), u};
+                    rt_spans sp;
+                    rt_solid_spans(s, T->a, obj, ray, -2.0 * R, 2.0 * R, &sp);
+                    for (int q = 0; q < sp.n; q++) {
+                        const rt_span_end *e[2] = {&sp.s[q].in, &sp.s[q].out};
+                        for (int w = 0; w < 2; w++) {
+                            uint32_t l = e[w]->leaf;
+                            if (e[w]->t > -2.0 * R && e[w]->t < 2.0 * R && T->slot[l] != UINT32_MAX)
+                                mine[T->slot[l]]++;
+                        }
+                    }
+                }
+        }
+        if (mine) {
+#pragma omp critical(rad_solid_area)
+            for (uint32_t g = 0; g < ng; g++)
+                cross[g] += mine[g];
+        }
+        free(mine);
     }
-    double sum = 0.0;
-    for (int i = 0; i < AREA_DIRS; i++)
-        sum += (double)cross[i];
-    return 8.0 * R * R * sum / ((double)AREA_DIRS * AREA_GRID * AREA_GRID);
+    for (uint32_t g = 0; g < ng; g++)
+        area[g] = 8.0 * R * R * (double)cross[g] / ((double)AREA_DIRS * AREA_GRID * AREA_GRID);
+    free(cross);
+    return bad ? -1 : 1;
+}
+
+/* The boundary of object obj's solid nearest to x along the line x + t n,
+ * |t| < r: 1 and *end, or 0 when there is none. */
+static int nearest_end(const scene *s, const rt_accel *a, uint32_t obj, rr_vec3 x, rr_vec3 n, double r,
+                       rt_span_end *end)
+{
+    rt_spans sp;
+    rr_ray ray = {x, n};
+    rt_solid_spans(s, a, obj, ray, -r, r, &sp);
+    double bt = INFINITY;
+    const rt_span_end *be = NULL;
+    for (int k = 0; k < sp.n; k++) {
+        const rt_span_end *e[2] = {&sp.s[k].in, &sp.s[k].out};
+        for (int q = 0; q < 2; q++)
+            if (e[q]->t > -r && e[q]->t < r && fabs(e[q]->t) < fabs(bt)) {
+                bt = e[q]->t;
+                be = e[q];
+            }
+    }
+    if (!be)
+        return 0;
+    *end = *be;
+    return 1;
+}
+
+/* ---- mesh leaves: their own triangles ----
+ *
+ * A mesh leaf's detail (a scanned model's ears and creases) is finer than
+ * the cells, and the marching triangles miss it (scenes/bunny-csg.json's
+ * bunny: 28 % of its area at the automatic patch size). But the part of a
+ * mesh leaf that lies on the final surface is made of pieces of its own
+ * triangles: those are the patches there, and the marching triangles whose
+ * surface is a mesh leaf's are dropped. Each triangle of a mesh leaf is
+ * split to the patch limits (level_for's rule, shared vertices along shared
+ * edges), then each piece is kept, dropped, or (where another leaf's
+ * surface crosses it: a bite's rim) split in four again, down to an
+ * eighth of a cell: a piece is on the final surface where the boundary
+ * crosses the line along its normal through the sample point right there,
+ * on this leaf's surface (rt_solid_spans; the end's flip turns it when the
+ * leaf is subtracted). Pieces are sampled at the centres of their four
+ * halves-by-edge children; the rim is then within an eighth of a cell. */
+
+#define MESH_SPLIT_MAX 8
+
+typedef struct mtess {
+    const scene *s;
+    const rt_accel *a;
+    uint32_t obj, leaf;
+    double eps;     /* "right there": a millionth of a cell */
+    double min_edge; /* no rim splits below this */
+    rad__edge_map vm; /* (v, v, 0): a mesh vertex; (a, b, k): point k of edge a-b (k >= 1) */
+    rad__solid_mesh *out;
+    size_t *cap_v, *cap_t;
+    uint32_t *grp; /* per triangle: its group (tess); VG_MESH for the leaves' own */
+    size_t cap_o;
+} mtess;
+
+static int add_vert(mtess *M, rr_vec3 p, uint32_t *id)
+{
+    if (grow((void **)&M->out->verts, M->cap_v, M->out->nverts + 1, sizeof *M->out->verts))
+        return -1;
+    M->out->verts[M->out->nverts] = p;
+    *id = (uint32_t)M->out->nverts++;
+    return 0;
+}
+
+/* Vertex for key (a, b, k), made at p when new. */
+static int keyed_vert(mtess *M, uint32_t a, uint32_t b, uint32_t k, rr_vec3 p, uint32_t *id)
+{
+    uint32_t v = (uint32_t)M->out->nverts;
+    uint32_t got = rad__edge_get(&M->vm, a, b, k, v);
+    if (got == UINT32_MAX)
+        return -1;
+    if (got == v && add_vert(M, p, &got))
+        return -1;
+    *id = got;
+    return 0;
+}
+
+/* +1: the point x on the leaf's triangle with outward normal n lies on the
+ * final surface facing n, -1 facing -n (a subtracted leaf), 0: not on it. */
+static int on_surface(const mtess *M, rr_vec3 x, rr_vec3 n)
+{
+    rt_span_end e;
+    if (!nearest_end(M->s, M->a, M->obj, x, n, M->eps, &e) || e.leaf != M->leaf)
+        return 0;
+    return e.flip ? -1 : 1;
+}
+
+static int emit_own(mtess *M, uint32_t a, uint32_t b, uint32_t c, int side)
+{
+    if (grow((void **)&M->out->tris, M->cap_t, M->out->ntris + 1, sizeof *M->out->tris) ||
+        grow((void **)&M->grp, &M->cap_o, M->out->ntris + 1, sizeof *M->grp))
+        return -1;
+    uint32_t *t = M->out->tris[M->out->ntris];
+    t[0] = a;
+    t[1] = side > 0 ? b : c;
+    t[2] = side > 0 ? c : b;
+    M->grp[M->out->ntris++] = VG_MESH;
+    return 0;
+}
+
+/* Piece (a, b, c) of a leaf triangle with outward normal n. */
+static int own_piece(mtess *M, uint32_t a, uint32_t b, uint32_t c, rr_vec3 n)
+{
+    rr_vec3 A = M->out->verts[a], B = M->out->verts[b], C = M->out->verts[c];
+    /* The centres of the four children of the split at the edge midpoints. */
+    static const double w[4][3] = {{4, 1, 1}, {1, 4, 1}, {1, 1, 4}, {2, 2, 2}};
+    int side[4], agree = 1;
+    for (int k = 0; k < 4; k++) {
+        rr_vec3 x = rr_v3_scale(rr_v3_add(rr_v3_add(rr_v3_scale(A, w[k][0]), rr_v3_scale(B, w[k][1])),
+                                          rr_v3_scale(C, w[k][2])),
+                                1.0 / 6.0);
+        side[k] = on_surface(M, x, n);
+        agree &= side[k] == side[0];
+    }
+    double longest = fmax(rr_v3_len(rr_v3_sub(B, A)), fmax(rr_v3_len(rr_v3_sub(C, B)), rr_v3_len(rr_v3_sub(A, C))));
+    if (agree || longest < 2.0 * M->min_edge) {
+        int sd = side[3] ? side[3] : (side[0] ? side[0] : (side[1] ? side[1] : side[2]));
+        if (!agree) {
+            int kept = (side[0] != 0) + (side[1] != 0) + (side[2] != 0) + (side[3] != 0);
+            if (kept < 2)
+                return 0; /* mostly off the surface */
+        }
+        return sd ? emit_own(M, a, b, c, sd) : 0;
+    }
+    uint32_t ab, bc, ca;
+    if (keyed_vert(M, a < b ? a : b, a < b ? b : a, UINT32_MAX, rr_v3_scale(rr_v3_add(A, B), 0.5), &ab) ||
+        keyed_vert(M, b < c ? b : c, b < c ? c : b, UINT32_MAX, rr_v3_scale(rr_v3_add(B, C), 0.5), &bc) ||
+        keyed_vert(M, c < a ? c : a, c < a ? a : c, UINT32_MAX, rr_v3_scale(rr_v3_add(C, A), 0.5), &ca))
+        return -1;
+    if (own_piece(M, a, ab, ca, n) || own_piece(M, ab, b, bc, n) || own_piece(M, ca, bc, c, n) ||
+        own_piece(M, ab, bc, ca, n))
+        return -1;
+    return 0;
+}
+
+/* Lattice point (i, j) of triangle (va, vb, vc) split L x L (i along a->b,
+ * j along a->c): corners and edge points shared with the neighbours. */
+static int lattice_vert(mtess *M, const uint32_t v[3], uint32_t L, uint32_t i, uint32_t j, uint32_t *id)
+{
+    const rr_vec3 *W = M->s->csg_verts;
+    uint32_t k0 = L - i - j; /* weight of a */
+    rr_vec3 p = rr_v3_scale(rr_v3_add(rr_v3_add(rr_v3_scale(W[v[0]], k0), rr_v3_scale(W[v[1]], i)),
+                                      rr_v3_scale(W[v[2]], j)),
+                            1.0 / L);
+    if (i == L)
+        return keyed_vert(M, v[1], v[1], 0, W[v[1]], id);
+    if (j == L)
+        return keyed_vert(M, v[2], v[2], 0, W[v[2]], id);
+    if (k0 == L)
+        return keyed_vert(M, v[0], v[0], 0, W[v[0]], id);
+    /* On an edge: keyed by its ends (lower index first) and the step from the lower. */
+    uint32_t e0, e1, step;
+    if (j == 0) {
+        e0 = v[0], e1 = v[1], step = i;
+    } else if (i == 0) {
+        e0 = v[0], e1 = v[2], step = j;
+    } else if (k0 == 0) {
+        e0 = v[1], e1 = v[2], step = j;
+    } else {
+        return add_vert(M, p, id);
+    }
+    if (e0 > e1) {
+        uint32_t t = e0;
+        e0 = e1;
+        e1 = t;
+        step = L - step;
+    }
+    /* The same point from either side of the edge: recomputed from its ends. */
+    p = rr_v3_scale(rr_v3_add(rr_v3_scale(W[e0], L - step), rr_v3_scale(W[e1], step)), 1.0 / L);
+    return keyed_vert(M, e0, e1, step, p, id);
+}
+
+static int tessellate_leaf(mtess *M, const rad_patch_opts *o)
+{
+    const scene *s = M->s;
+    const scene_csg_node *nd = &s->csg[M->leaf];
+    for (size_t t = nd->tri_first; t < nd->tri_first + nd->tri_count; t++) {
+        const uint32_t *v = s->csg_tris[t];
+        rr_vec3 A = s->csg_verts[v[0]], B = s->csg_verts[v[1]], C = s->csg_verts[v[2]];
+        rr_vec3 nn = rr_v3_cross(rr_v3_sub(B, A), rr_v3_sub(C, A));
+        double area = 0.5 * rr_v3_len(nn);
+        if (!(area > 0))
+            continue;
+        rr_vec3 n = rr_v3_scale(nn, 0.5 / area);
+        uint32_t L = mesh_level(A, B, C, o);
+        for (uint32_t i = 0; i < L; i++)
+            for (uint32_t j = 0; i + j < L; j++) {
+                uint32_t p0, p1, p2;
+                if (lattice_vert(M, v, L, i, j, &p0) || lattice_vert(M, v, L, i + 1, j, &p1) ||
+                    lattice_vert(M, v, L, i, j + 1, &p2) || own_piece(M, p0, p1, p2, n))
+                    return -1;
+                if (i + j + 1 < L) {
+                    uint32_t p3;
+                    if (lattice_vert(M, v, L, i + 1, j + 1, &p3) || own_piece(M, p1, p3, p2, n))
+                        return -1;
+                }
+            }
+    }
+    return 0;
+}
+
+/* Replaces the marching triangles on mesh leaves (the first nmarch of
+ * out->tris, cell by cell in out->grid.cell_first, their groups in *tgroup)
+ * by the leaves' own triangles, and sorts all of them into the grid's cells
+ * again, *tgroup with them (VG_MESH: a leaf's own triangle). 0, or -1 when
+ * out of memory. */
+static int own_triangles(tess *T, const rad_patch_opts *o, uint32_t **tgroup)
+{
+    const scene *s = T->s;
+    rad__solid_mesh *out = T->out;
+    uint32_t obj = s->csg[T->root].object;
+    size_t ncells = (size_t)T->n[0] * T->n[1] * T->n[2], nmarch = out->ntris;
+    double hmin = fmin(T->cell.x, fmin(T->cell.y, T->cell.z));
+    /* Each marching triangle's cell; those on mesh leaves are dropped (cell
+     * = ncells): the leaves' own triangles stand there. So are the chamfers
+     * across a seam between a mesh leaf and another (VG_SEAM), which are
+     * neither surface and lie where the light is the mesh's (a bite's rim,
+     * on the lit back of a bunny), unless the other leaf has no triangle
+     * of its own (a bite a cell wide): then they stand for it. */
+    uint32_t *tcell = malloc((nmarch + 1) * sizeof *tcell);
+    size_t *inner = calloc(T->ngroups + 1, sizeof *inner);
+    if (!tcell || !inner) {
+        free(tcell);
+        free(inner);
+        return -1;
+    }
+    uint32_t *tg = *tgroup;
+    for (size_t q = 0; q < nmarch; q++)
+        if (tg[q] < T->ngroups)
+            inner[tg[q]]++;
+    for (size_t c = 0; c < ncells; c++)
+        for (uint32_t q = out->grid.cell_first[c]; q < out->grid.cell_first[c + 1]; q++) {
+            int seam = tg[q] != VG_MESH && tg[q] != VG_NONE && (tg[q] & VG_SEAM);
+            if (seam)
+                tg[q] &= ~VG_SEAM;
+            int drop = tg[q] == VG_MESH || (seam && inner[tg[q]] > 0);
+            tcell[q] = drop ? (uint32_t)ncells : (uint32_t)c;
+        }
+    free(inner);
+    mtess M;
+    memset(&M, 0, sizeof M);
+    M.s = s;
+    M.a = T->a;
+    M.obj = obj;
+    M.eps = 1e-6 * hmin;
+    M.min_edge = hmin / 8.0;
+    M.out = out;
+    M.cap_v = &T->cap_v;
+    M.cap_t = &T->cap_t;
+    int bad = grow((void **)&M.grp, &M.cap_o, nmarch + 1, sizeof *M.grp);
+    if (!bad)
+        memcpy(M.grp, *tgroup, nmarch * sizeof *M.grp);
+    if (!bad && rad__edge_map_init(&M.vm, 1024))
+        bad = 1;
+    for (uint32_t l = 0; l < s->ncsg && !bad; l++)
+        if (s->csg[l].object == obj && s->csg[l].op == SCENE_CSG_LEAF && s->csg[l].solid == SCENE_SOLID_MESH) {
+            M.leaf = l;
+            bad = tessellate_leaf(&M, o) != 0;
+        }
+    if (!bad)
+        rad__edge_map_free(&M.vm);
+    size_t nt = out->ntris;
+    uint32_t *cell = bad ? NULL : malloc((nt + 1) * sizeof *cell);
+    uint32_t(*tris)[3] = bad ? NULL : malloc((nt + 1) * sizeof *tris);
+    uint32_t *grp = bad ? NULL : malloc((nt + 1) * sizeof *grp);
+    uint32_t *first = bad ? NULL : calloc(ncells + 2, sizeof *first);
+    if (bad || !cell || !tris || !grp || !first) {
+        if (!bad)
+            rad__edge_map_free(&M.vm);
+        free(tcell);
+        free(M.grp);
+        free(cell);
+        free(tris);
+        free(grp);
+        free(first);
+        return -1;
+    }
+    /* The leaves' triangles go to the cell of their centre. */
+    for (size_t q = 0; q < nt; q++) {
+        if (q < nmarch) {
+            cell[q] = tcell[q];
+            continue;
+        }
+        const uint32_t *t = out->tris[q];
+        rr_vec3 x = rr_v3_scale(rr_v3_add(rr_v3_add(out->verts[t[0]], out->verts[t[1]]), out->verts[t[2]]), 1.0 / 3.0);
+        double f[3] = {(x.x - T->lo.x) / T->cell.x, (x.y - T->lo.y) / T->cell.y, (x.z - T->lo.z) / T->cell.z};
+        long ci[3];
+        for (int k = 0; k < 3; k++) {
+            double fl = floor(f[k]);
+            ci[k] = !(fl >= 0) ? 0 : (fl >= T->n[k] ? (long)T->n[k] - 1 : (long)fl);
+        }
+        cell[q] = (uint32_t)((size_t)ci[0] + T->n[0] * ((size_t)ci[1] + T->n[1] * (size_t)ci[2]));
+    }
+    /* Stable counting sort by cell; the dropped (cell ncells) fall off the end. */
+    for (size_t q = 0; q < nt; q++)
+        first[cell[q] + 1]++;
+    for (size_t c = 0; c <= ncells; c++)
+        first[c + 1] += first[c];
+    for (size_t q = 0; q < nt; q++) {
+        uint32_t k = first[cell[q]]++;
+        memcpy(tris[k], out->tris[q], sizeof tris[k]);
+        grp[k] = M.grp[q];
+    }
+    /* first[c] is now the end of cell c: shift back into starts. */
+    for (size_t c = ncells; c > 0; c--)
+        out->grid.cell_first[c] = first[c - 1];
+    out->grid.cell_first[0] = 0;
+    free(out->tris);
+    out->tris = tris;
+    out->ntris = out->grid.cell_first[ncells];
+    T->cap_t = nt + 1;
+    free(tcell);
+    free(M.grp);
+    free(cell);
+    free(first);
+    free(*tgroup);
+    *tgroup = grp;
+    /* The dropped triangles' vertices go too (every vertex is a corner). */
+    uint32_t *map = malloc((out->nverts + 1) * sizeof *map);
+    if (!map)
+        return -1;
+    memset(map, 0xff, (out->nverts + 1) * sizeof *map);
+    /* (in the vertices' order, so that none is overwritten before it moves) */
+    for (size_t q = 0; q < out->ntris; q++)
+        for (int k = 0; k < 3; k++)
+            map[out->tris[q][k]] = 0;
+    uint32_t nv = 0;
+    for (size_t v = 0; v < out->nverts; v++)
+        if (map[v] == 0) {
+            out->verts[nv] = out->verts[v];
+            map[v] = nv++;
+        }
+    for (size_t q = 0; q < out->ntris; q++)
+        for (int k = 0; k < 3; k++)
+            out->tris[q][k] = map[out->tris[q][k]];
+    out->nverts = nv;
+    free(map);
+    return 0;
+}
+
+/* Each triangle's group: the one most of its corners lie on (the first
+ * corner's of the most, in a tie), not counting corners on mesh leaves or
+ * not found, with VG_SEAM when a corner is on a mesh leaf; VG_MESH when
+ * none is on a group but one is on a mesh leaf, VG_NONE when none is
+ * on either. NULL when out of memory. */
+static uint32_t *tri_groups(const tess *T)
+{
+    const rad__solid_mesh *out = T->out;
+    uint32_t *g = malloc((out->ntris + 1) * sizeof *g);
+    if (!g)
+        return NULL;
+    for (size_t q = 0; q < out->ntris; q++) {
+        uint32_t v[3], best = VG_NONE;
+        int nmesh = 0, most = 0;
+        for (int k = 0; k < 3; k++) {
+            v[k] = T->vgroup[out->tris[q][k]];
+            nmesh += v[k] == VG_MESH;
+        }
+        for (int k = 0; k < 3; k++) {
+            if (v[k] >= VG_MESH)
+                continue;
+            int n = (v[0] == v[k]) + (v[1] == v[k]) + (v[2] == v[k]);
+            if (n > most) {
+                most = n;
+                best = v[k];
+            }
+        }
+        g[q] = nmesh == 3 || (nmesh > 0 && best == VG_NONE) ? VG_MESH : (nmesh > 0 ? best | VG_SEAM : best);
+    }
+    return g;
+}
+
+/* Each triangle's area scale (out->scale) and whether it is a mesh leaf's
+ * own (out->own, only for solids with mesh leaves). The marching triangles
+ * are chords of the curved faces with the sharp edges cut off, so they have
+ * less area than the surface the rays meet, and not in the same proportion
+ * on every leaf: each leaf's triangles are scaled to its true area
+ * (group_areas), the triangles of no leaf (and the area of leaves that got
+ * none) shared out in proportion over all. A mesh leaf's own triangles are
+ * its true surface (scale 1). 0, or -1 when out of memory.
+ * Per leaf, not per face: a chamfer across a sharp edge between two faces
+ * of one leaf (a cylinder's cap and side) counts for the face most of its
+ * corners lie on, and its light is the edge's, not that face's: scaling
+ * each face to its own truth moved a cylinder pedestal's (on a floor, lit
+ * from above) taken-in power from +2.4 % to +11.7 % of the light
+ * tracer's. Between leaves the chamfers are fewer, and a small leaf's (a
+ * bite out of a mesh) would otherwise be scaled with the rest: +10 %. */
+static int area_scales(tess *T, const uint32_t *tgroup)
+{
+    rad__solid_mesh *out = T->out;
+    uint32_t ng = T->ngroups;
+    size_t nt = out->ntris;
+    double *truth = calloc(ng + 1, sizeof *truth), *mt = calloc(ng + 1, sizeof *mt);
+    out->scale = malloc((nt + 1) * sizeof *out->scale);
+    out->own = T->meshes ? malloc(nt + 1) : NULL;
+    int got = truth && mt ? group_areas(T, truth) : -1;
+    if (got < 0 || !out->scale || (T->meshes && !out->own)) {
+        free(truth);
+        free(mt);
+        return -1;
+    }
+    for (size_t q = 0; q < nt; q++) {
+        rr_vec3 A = out->verts[out->tris[q][0]], B = out->verts[out->tris[q][1]], C = out->verts[out->tris[q][2]];
+        double a = 0.5 * rr_v3_len(rr_v3_cross(rr_v3_sub(B, A), rr_v3_sub(C, A)));
+        if (tgroup[q] < ng)
+            mt[tgroup[q]] += a;
+        out->scale[q] = a; /* (the area, for now) */
+    }
+    /* Groups measured and tessellated are scaled to their truth; the rest
+     * keep their area, and all of it is then scaled by f, to give the groups
+     * that got no triangles their area too. */
+    double covered = 0.0, rest = 0.0, total = 0.0;
+    for (uint32_t g = 0; g < ng; g++) {
+        total += truth[g];
+        if (got > 0 && truth[g] > 0 && mt[g] > 0)
+            covered += truth[g];
+    }
+    for (size_t q = 0; q < nt; q++) {
+        uint32_t g = tgroup[q];
+        if (g != VG_MESH && !(g < ng && got > 0 && truth[g] > 0 && mt[g] > 0))
+            rest += out->scale[q];
+    }
+    double f = got > 0 && covered + rest > 0 ? (total + rest) / (covered + rest) : 1.0;
+    for (size_t q = 0; q < nt; q++) {
+        uint32_t g = tgroup[q];
+        if (out->own)
+            out->own[q] = g == VG_MESH;
+        if (g == VG_MESH)
+            out->scale[q] = 1.0;
+        else if (g < ng && got > 0 && truth[g] > 0 && mt[g] > 0)
+            out->scale[q] = truth[g] / mt[g] * f;
+        else
+            out->scale[q] = got > 0 ? f : 1.0;
+    }
+    free(truth);
+    free(mt);
+    return 0;
 }
 
 rr_status rad__solid_tessellate(const scene *s, const rt_accel *a, uint32_t obj, const rad_patch_opts *o,
@@ -286,6 +814,19 @@ rr_status rad__solid_tessellate(const scene *s, const rt_accel *a, uint32_t obj,
     T.out = out;
     if (!solid_grid(s, obj, o, &T.lo, &T.cell, T.n))
         return RR_OK; /* empty solid: no patches */
+    uint32_t *tgroup = NULL;
+    T.slot = malloc((s->ncsg + 1) * sizeof *T.slot);
+    if (!T.slot)
+        goto nomem;
+    for (uint32_t l = 0; l < s->ncsg; l++) {
+        T.slot[l] = UINT32_MAX;
+        if (s->csg[l].object != obj || s->csg[l].op != SCENE_CSG_LEAF)
+            continue;
+        if (s->csg[l].solid == SCENE_SOLID_MESH)
+            T.meshes = 1;
+        else
+            T.slot[l] = T.ngroups++;
+    }
     out->grid.lo = T.lo;
     out->grid.cell = T.cell;
     memcpy(out->grid.n, T.n, sizeof T.n);
@@ -322,16 +863,33 @@ rr_status rad__solid_tessellate(const scene *s, const rt_accel *a, uint32_t obj,
             }
     out->grid.cell_first[ncells] = (uint32_t)out->ntris;
     free(T.inside);
+    T.inside = NULL;
     rad__edge_map_free(&T.map);
-    out->area = solid_area(s, a, obj);
+    tgroup = tri_groups(&T);
+    if (!tgroup || (T.meshes && own_triangles(&T, o, &tgroup)) || area_scales(&T, tgroup))
+        goto nomem_late;
+    free(tgroup);
+    free(T.vgroup);
+    free(T.slot);
     return RR_OK;
+nomem_late:
+    free(tgroup);
+    free(T.vgroup);
+    free(T.slot);
+    rad__solid_mesh_free(out);
+    return rr_error_set(err, RR_ERR_NOMEM, "%s: radiosity: out of memory tessellating solid '%s'", s->path,
+                        s->objects[obj].name);
 toomany:
+    free(T.vgroup);
+    free(T.slot);
     free(T.inside);
     rad__edge_map_free(&T.map);
     rad__solid_mesh_free(out);
     return rr_error_set(err, RR_ERR_LIMIT, "%s: radiosity: solid '%s' would need more than 2^31 patches", s->path,
                         s->objects[obj].name);
 nomem:
+    free(T.vgroup);
+    free(T.slot);
     free(T.inside);
     rad__edge_map_free(&T.map);
     rad__solid_mesh_free(out);
@@ -344,6 +902,8 @@ void rad__solid_mesh_free(rad__solid_mesh *m)
     free(m->verts);
     free(m->tris);
     free(m->grid.cell_first);
+    free(m->own);
+    free(m->scale);
     memset(m, 0, sizeof *m);
 }
 
@@ -434,25 +994,14 @@ int rad__solid_surface(const rad_patches *P, const scene *s, const rt_accel *a, 
     /* The facet is within about a cell of the surface: look both ways along
      * its normal, two cell diagonals far, for the nearest boundary. */
     double r = 2.0 * rr_v3_len(g->cell);
-    rt_spans sp;
-    rr_ray ray = {x, n};
-    rt_solid_spans(s, a, obj, ray, -r, r, &sp);
-    double bt = INFINITY;
-    const rt_span_end *be = NULL;
-    for (int k = 0; k < sp.n; k++) {
-        const rt_span_end *e[2] = {&sp.s[k].in, &sp.s[k].out};
-        for (int q = 0; q < 2; q++)
-            if (e[q]->t > -r && e[q]->t < r && fabs(e[q]->t) < fabs(bt)) {
-                bt = e[q]->t;
-                be = e[q];
-            }
-    }
-    if (!be) {
+    rt_span_end end;
+    if (!nearest_end(s, a, obj, x, n, r, &end)) {
         *xs = x;
         *ns = n;
         return 0;
     }
-    *xs = rr_v3_madd(x, n, bt);
+    const rt_span_end *be = &end;
+    *xs = rr_v3_madd(x, n, be->t);
     rr_vec3 m = rt_csg_leaf_normal(s, be->leaf, be->surface, *xs);
     if (be->flip)
         m = rr_v3_neg(m);

@@ -32,7 +32,10 @@
  *
  * Crossings at the same t are ordered entering first, so touching the mesh at
  * one point gives a zero-length span (dropped) and passing through a saddle
- * vertex no gap. The winding number before tmin is counted; only crossings in
+ * vertex no gap. The winding number before tmin is counted (from the
+ * crossings before tmin, or as minus the sum of those after it: a closed
+ * mesh's crossings sum to zero exactly, so either gives the same spans, and
+ * the walk takes the side with less of the mesh's box); only crossings in
  * (tmin, tmax) are kept, at most XING_MAX, the nearest (by t, then entering
  * first, then triangle index: a total order, so the BVH and the brute-force
  * loop keep the same ones and give the same spans). When more occur, the span
@@ -198,11 +201,18 @@ typedef struct xing {
     int32_t dir; /* +1 entering, -1 leaving */
 } xing;
 
+/* What a walk collects: the crossings in (tmin, tmax), and the winding
+ * number before tmin from the crossings before it (X_BEFORE), or as minus
+ * the sum of those after it (X_AFTER: every crossing's dir is summed into
+ * after; the crossings of a closed mesh sum to zero, exactly, since the
+ * signs are exact); or only that sum (X_COUNT). */
+enum { X_BEFORE, X_AFTER, X_COUNT };
+
 typedef struct xbuf {
     double tmin, tmax;
-    int before; /* sum of dir over the crossings with t <= tmin */
-    int count_after; /* only sum dir over the crossings with t > tmin, into after */
-    int after;
+    int before; /* X_BEFORE: sum of dir over the crossings with t <= tmin */
+    int mode;
+    int after; /* X_AFTER, X_COUNT: sum of dir over the crossings with t > tmin */
     int n;
     int dropped;
     xing drop; /* the nearest dropped crossing */
@@ -234,16 +244,19 @@ static void xbuf_drop(xbuf *b, xing x)
 
 static void xbuf_add(xbuf *b, xing x)
 {
-    if (!(x.t < b->tmax)) /* also NaN */
-        return;
-    if (b->count_after) {
-        if (x.t > b->tmin)
-            b->after += x.dir;
-        return;
-    }
-    if (x.t <= b->tmin) {
-        b->before += x.dir;
-        return;
+    if (b->mode != X_BEFORE) {
+        if (!(x.t > b->tmin)) /* also NaN */
+            return;
+        b->after += x.dir;
+        if (b->mode == X_COUNT || !(x.t < b->tmax))
+            return;
+    } else {
+        if (!(x.t < b->tmax)) /* also NaN */
+            return;
+        if (x.t <= b->tmin) {
+            b->before += x.dir;
+            return;
+        }
     }
     if (b->n < XING_MAX) {
         b->x[b->n++] = x;
@@ -413,7 +426,7 @@ static void collect(const scene *s, const struct rt_solid_accel *sa, uint32_t le
     while (sp > 0) {
         uint32_t id = stack[--sp];
         const rt_node *nd = &sa->nodes[id];
-        if (!node_hit(nd, ray, b->count_after ? b->tmin : -INFINITY, b->tmax))
+        if (!node_hit(nd, ray, b->mode == X_BEFORE ? -INFINITY : b->tmin, b->mode == X_AFTER ? INFINITY : b->tmax))
             continue;
         if (nd->count) {
             for (uint32_t i = 0; i < nd->count; i++)
@@ -436,11 +449,31 @@ void rt__mesh_spans(const scene *s, const struct rt_solid_accel *sa, uint32_t le
     b.tmin = tmin;
     b.tmax = tmax;
     b.before = 0;
-    b.count_after = 0;
+    b.mode = X_BEFORE;
     b.after = 0;
     b.n = 0;
     b.dropped = 0;
+    /* The winding number at tmin from whichever side of (tmin, tmax) has
+     * less of the leaf's box along the line: a ray leaving a mesh's surface
+     * need not walk the mesh behind it (the same spans either way). The
+     * brute-force reference always counts from before. */
+    if (sa && leaf < sa->ncsg && sa->root[leaf] != NO_ROOT) {
+        double t0 = -INFINITY, t1 = INFINITY;
+        for (int i = 0; i < 3; i++) {
+            double o = rr_v3_get(ray.o, i), d = rr_v3_get(ray.d, i);
+            if (d == 0.0)
+                continue;
+            double ta = (rr_v3_get(n->bbox_lo, i) - o) / d, tb = (rr_v3_get(n->bbox_hi, i) - o) / d;
+            t0 = fmax(t0, fmin(ta, tb));
+            t1 = fmin(t1, fmax(ta, tb));
+        }
+        double behind = fmin(tmin, t1) - t0, beyond = t1 - fmax(tmax, t0);
+        if (t0 <= t1 && !(behind <= beyond))
+            b.mode = X_AFTER;
+    }
     collect(s, sa, leaf, ray, &b);
+    if (b.mode == X_AFTER)
+        b.before = -b.after;
     qsort(b.x, (size_t)b.n, sizeof b.x[0], xing_cmp);
     /* Artificial ends at tmin / tmax name a real triangle of the leaf, so their
      * normal is defined; they are never reported (see rt_solid.c). */
@@ -472,7 +505,7 @@ int rt__mesh_contains(const scene *s, const struct rt_solid_accel *sa, uint32_t 
     xbuf b;
     b.tmin = 0.0;
     b.tmax = INFINITY;
-    b.count_after = 1;
+    b.mode = X_COUNT;
     b.after = 0;
     collect(s, sa, leaf, r, &b);
     return -b.after > 0;
