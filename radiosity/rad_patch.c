@@ -565,9 +565,9 @@ static int tessellate_solids(build_ctx *c)
              * tracer): each stands for its share of its face's true area. */
             P->p[np].area *= m->scale[t];
             rr_vec3 xs, ns;
-            uint32_t leaf;
-            if (rad__solid_surface(P, s, c->o->accel, (uint32_t)oi, P->p[np].centroid, P->p[np].normal, &xs, &ns,
-                                   &leaf)) {
+            uint32_t leaf = m->leaf ? m->leaf[t] : UINT32_MAX;
+            if (leaf != UINT32_MAX || rad__solid_surface(P, s, c->o->accel, (uint32_t)oi, P->p[np].centroid,
+                                                         P->p[np].normal, &xs, &ns, &leaf)) {
                 const scene_material *lm = &s->materials[s->csg[leaf].material];
                 P->p[np].rho = lm->diffuse;
                 P->p[np].mirror = rr_rgb_mean(lm->mirror);

@@ -34,6 +34,8 @@ typedef struct rad__solid_mesh {
     rad_solid_grid grid;
     unsigned char *own; /* per triangle, 1: a piece of a mesh leaf's own triangle (NULL: none is) */
     double *scale;      /* per triangle: the true area it stands for over its own (rad_solid.c) */
+    uint32_t *leaf;     /* per triangle: the leaf (scene->csg) it is a piece of, UINT32_MAX for a
+                           marching triangle (NULL: all are) */
 } rad__solid_mesh;
 
 rr_status rad__solid_tessellate(const scene *s, const rt_accel *a, uint32_t obj, const rad_patch_opts *o,

@@ -1,10 +1,20 @@
 /* rad_solid.c - patches on solids (CSG trees and quadrics).
  *
  * A solid's surface is pieced together from its leaves' surfaces, and only
- * the parts that lie on the final solid count. Rather than clip every leaf
- * surface against every other (exact, but a case analysis per pair of leaf
- * kinds), the solid is tessellated from its inside test alone, by marching
- * tetrahedra:
+ * the parts that lie on the final solid count. Clipping every leaf surface
+ * against every other exactly would need a case analysis per pair of leaf
+ * kinds; instead each leaf's own surface is split on a grid of its
+ * parameters (a mesh's triangles, a box's or clip box's faces, a sphere,
+ * an ellipsoid, a surface of revolution: own_triangles, "leaves' own
+ * surfaces" below) and each piece is kept or dropped by the ray tracer's
+ * own boundary test at sample points on it, pieces that straddle a seam
+ * split again down to an eighth of a cell. The patches are then the true
+ * surface's pieces: flat ones exactly (mesh triangles, faces: rad_patch.flat),
+ * curved ones as chords, and no sharp edge is cut off.
+ *
+ * A solid with a general quadric leaf (no parametric form here) is
+ * tessellated from its inside test alone, by marching tetrahedra, as all
+ * solids were before 2026-12-06:
  *
  *  - a grid over the solid's bounding box (cells about the patch edge limit
  *    across), the inside test rt_csg_contains at every grid point;
@@ -15,27 +25,23 @@
  *  - a tetrahedron whose corners disagree gives one or two triangles, with
  *    their corners on the tetrahedron's edges, placed on the surface by
  *    bisection of the inside test (to 2^-30 of the edge), oriented from the
- *    inside corners to the outside ones.
+ *    inside corners to the outside ones;
+ *  - mesh leaves still get their own triangles (the marching triangles on
+ *    them dropped).
+ * What marching gives up: features smaller than a cell may be missed, and
+ * sharp edges of the solid (where two leaf surfaces meet) are cut off by a
+ * chamfer about a cell wide (a pedestal a cell high was mostly chamfer).
  *
- * What this gives up: features smaller than a cell may be missed, and sharp
- * edges of the solid (where two leaf surfaces meet) are cut off by a chamfer
- * about a cell wide. For radiosity, which averages over patches anyway, that
- * is an error of the order of the patch size, the discretisation error it
- * already has. The ray tracer still sees the exact surfaces, so the area
- * the triangles lose (chords and chamfers: 3-5 % at scenes/csg.json's patch
- * size) is given back: each leaf's true area on the solid is measured
- * (group_areas, by Crofton's formula) and its triangles scaled to it
- * (area_scales; rad_patch.c applies the scale).
+ * Either way the chords have less area than the surface the rays meet, so
+ * each leaf's true area on the solid is measured (group_areas, by Crofton's
+ * formula) and its curved pieces scaled to it (area_scales; rad_patch.c
+ * applies the scale).
  *
- * Mesh leaves are the exception: a scanned mesh's detail is finer than any
- * cell, but its part of the surface is pieces of its own triangles, so
- * those are its patches (own_triangles), flat and exactly on the surface,
- * and the marching triangles on it are dropped.
- *
- * Patches are written cell by cell, so the patches near a point are found
- * through the grid (rad_patch_locate). A patch takes the material of the
- * leaf surface under its centre (found along its normal by
- * rad_patch_surface).
+ * Patches are sorted by the cell of a grid over the solid's box, so the
+ * patches near a point are found through the grid (rad_patch_locate). A
+ * patch takes the material of the leaf it is a piece of (a marching
+ * triangle: of the leaf surface under its centre, found along its normal
+ * by rad_patch_surface).
  */
 #include <stdlib.h>
 #include <string.h>
@@ -133,6 +139,7 @@ typedef struct tess {
     rad__solid_mesh *out;
     size_t cap_v, cap_t;
     int meshes;        /* the solid has mesh leaves */
+    int all_own;       /* every leaf has a parametric form (leaf_parametric): no marching tetrahedra */
     /* The surfaces of the solid's other leaves, a group each (area_scales). */
     uint32_t *slot;    /* per node of scene->csg: UINT32_MAX, or the leaf's group */
     uint32_t ngroups;
@@ -143,6 +150,7 @@ typedef struct tess {
 #define VG_MESH (UINT32_MAX - 1) /* on a mesh leaf's surface */
 #define VG_NONE UINT32_MAX       /* not found */
 #define VG_SEAM 0x40000000u      /* (triangles) group | VG_SEAM: a corner on a mesh leaf too */
+#define VG_FACE 0x20000000u      /* (triangles) group | VG_FACE: a piece of a flat face of the leaf */
 
 static uint32_t gid(const tess *T, uint32_t i, uint32_t j, uint32_t k)
 {
@@ -386,36 +394,120 @@ static int nearest_end(const scene *s, const rt_accel *a, uint32_t obj, rr_vec3 
     return 1;
 }
 
-/* ---- mesh leaves: their own triangles ----
+/* ---- leaves' own surfaces ----
  *
  * A mesh leaf's detail (a scanned model's ears and creases) is finer than
  * the cells, and the marching triangles miss it (scenes/bunny-csg.json's
- * bunny: 28 % of its area at the automatic patch size). But the part of a
- * mesh leaf that lies on the final surface is made of pieces of its own
- * triangles: those are the patches there, and the marching triangles whose
- * surface is a mesh leaf's are dropped. Each triangle of a mesh leaf is
- * split to the patch limits (level_for's rule, shared vertices along shared
- * edges), then each piece is kept, dropped, or (where another leaf's
- * surface crosses it: a bite's rim) split in four again, down to an
- * eighth of a cell: a piece is on the final surface where the boundary
- * crosses the line along its normal through the sample point right there,
- * on this leaf's surface (rt_solid_spans; the end's flip turns it when the
- * leaf is subtracted). Pieces are sampled at the centres of their four
- * halves-by-edge children; the rim is then within an eighth of a cell. */
+ * bunny: 28 % of its area at the automatic patch size); and every sharp
+ * edge costs them a chamfer a cell wide (a pedestal a cell high is mostly
+ * chamfer). But the final surface is made of pieces of the leaves' own
+ * surfaces: those are the patches (own_triangles). Each leaf surface is a
+ * parametric piece (psurf): a mesh triangle, a face of a box or of a
+ * quadric's clip box, a sphere, an ellipsoid, or a surface of revolution
+ * about the local y axis (the named quadrics but the ellipsoid); it is split
+ * on a grid to the patch limits (shared vertices), then each piece is kept,
+ * dropped, or (where another leaf's surface crosses it: a bite's rim) split
+ * in four again, in its parameters, down to an eighth of a cell: a piece is
+ * on the final surface where the boundary crosses the line along the leaf's
+ * normal through the sample point (on the leaf's true surface) right there,
+ * and is this leaf's (rt_solid_spans; the end's flip turns it when the leaf
+ * is subtracted). Pieces are sampled at the centres of their four children;
+ * the rim is then within an eighth of a cell. General quadrics have no
+ * parametric form here: a solid with one is tessellated by marching
+ * tetrahedra, with its mesh leaves' own triangles. */
 
-#define MESH_SPLIT_MAX 8
+
+typedef enum ps_kind { PS_TRI, PS_FACE, PS_SPHERE, PS_ELLIPSOID, PS_REV } ps_kind;
+
+typedef struct psurf {
+    ps_kind kind;
+    const scene_csg_node *nd;
+    int32_t surface;  /* rt_span_end.surface: the face, -1 the body */
+    rr_vec3 A, B, C;  /* PS_TRI: the triangle (u along AB, v along AC) */
+    rr_vec3 n;        /* PS_TRI: its outward normal */
+    int axis, side;   /* PS_FACE: the face x[axis] = lo or hi (side 0 / 1) of nd->clip_lo..hi */
+    double qa, qb, qc; /* PS_REV: r^2(y) = qa y^2 + qb y + qc over y in clip_lo.y..hi.y */
+} psurf;
+
+static int ps_flat(const psurf *f) { return f->kind == PS_TRI || f->kind == PS_FACE; }
+static int ps_wraps(const psurf *f) { return f->kind == PS_SPHERE || f->kind == PS_ELLIPSOID || f->kind == PS_REV; }
+
+/* The world point at parameters (u, v) in [0, 1]^2 (PS_TRI: barycentric,
+ * u + v <= 1). */
+static rr_vec3 ps_point(const psurf *f, double u, double v)
+{
+    const scene_csg_node *n = f->nd;
+    rr_vec3 l;
+    double th = 2.0 * RR_PI * u;
+    switch (f->kind) {
+    case PS_TRI:
+        return rr_v3_add(f->A, rr_v3_add(rr_v3_scale(rr_v3_sub(f->B, f->A), u), rr_v3_scale(rr_v3_sub(f->C, f->A), v)));
+    case PS_FACE: {
+        double c[3], lo[3] = {n->clip_lo.x, n->clip_lo.y, n->clip_lo.z}, hi[3] = {n->clip_hi.x, n->clip_hi.y, n->clip_hi.z};
+        int a1 = (f->axis + 1) % 3, a2 = (f->axis + 2) % 3;
+        c[f->axis] = f->side ? hi[f->axis] : lo[f->axis];
+        c[a1] = lo[a1] + (hi[a1] - lo[a1]) * u;
+        c[a2] = lo[a2] + (hi[a2] - lo[a2]) * v;
+        l = rr_v3(c[0], c[1], c[2]);
+        break;
+    }
+    case PS_SPHERE: {
+        double ph = RR_PI * v;
+        l = rr_v3_madd(n->center, rr_v3(sin(ph) * cos(th), cos(ph), sin(ph) * sin(th)), n->radius);
+        break;
+    }
+    case PS_ELLIPSOID: {
+        double ph = RR_PI * v;
+        l = rr_v3(sin(ph) * cos(th) / sqrt(n->q[0][0]), cos(ph) / sqrt(n->q[1][1]), sin(ph) * sin(th) / sqrt(n->q[2][2]));
+        break;
+    }
+    default: { /* PS_REV */
+        double y = n->clip_lo.y + (n->clip_hi.y - n->clip_lo.y) * v;
+        double r = sqrt(fmax(0.0, (f->qa * y + f->qb) * y + f->qc));
+        l = rr_v3(r * cos(th), y, r * sin(th));
+        break;
+    }
+    }
+    return rr_xform_point(&n->to_world, l);
+}
+
+/* The leaf's outward unit normal at x, the point at (u, v). */
+static rr_vec3 ps_normal(const psurf *f, const scene *s, rr_vec3 x)
+{
+    if (f->kind == PS_TRI)
+        return f->n;
+    return rt_csg_leaf_normal(s, (uint32_t)(f->nd - s->csg), f->surface, x);
+}
+
+/* World length of the curve t -> ps_point at (t, v) (along u) or (u, t). */
+static double ps_length(const psurf *f, int along_u, double w)
+{
+    double len = 0.0;
+    rr_vec3 p = along_u ? ps_point(f, 0.0, w) : ps_point(f, w, 0.0);
+    for (int k = 1; k <= 64; k++) {
+        rr_vec3 q = along_u ? ps_point(f, k / 64.0, w) : ps_point(f, w, k / 64.0);
+        len += rr_v3_len(rr_v3_sub(q, p));
+        p = q;
+    }
+    return len;
+}
 
 typedef struct mtess {
     const scene *s;
     const rt_accel *a;
     uint32_t obj, leaf;
-    double eps;     /* "right there": a millionth of a cell */
+    const psurf *f;  /* the surface being split */
+    double eps;      /* "right there": a millionth of a cell */
     double min_edge; /* no rim splits below this */
-    rad__edge_map vm; /* (v, v, 0): a mesh vertex; (a, b, k): point k of edge a-b (k >= 1) */
+    rad__edge_map vm; /* (v, v, 0): a mesh vertex; (a, b, k): point k of edge a-b (k >= 1); (a, b, ~0): a split */
+    rad__edge_map gm; /* (i, j, 1): grid point (i, j) of the surface being split */
     rad__solid_mesh *out;
     size_t *cap_v, *cap_t;
-    uint32_t *grp; /* per triangle: its group (tess); VG_MESH for the leaves' own */
+    uint32_t *grp;   /* per triangle: its group (tess); VG_MESH for flat own pieces */
     size_t cap_o;
+    uint32_t *leafs; /* per triangle: the leaf it lies on (UINT32_MAX: a marching triangle) */
+    size_t cap_l;
+    uint32_t slot;   /* the leaf's group */
 } mtess;
 
 static int add_vert(mtess *M, rr_vec3 p, uint32_t *id)
@@ -427,11 +519,11 @@ static int add_vert(mtess *M, rr_vec3 p, uint32_t *id)
     return 0;
 }
 
-/* Vertex for key (a, b, k), made at p when new. */
-static int keyed_vert(mtess *M, uint32_t a, uint32_t b, uint32_t k, rr_vec3 p, uint32_t *id)
+/* Vertex for key (a, b, k) of map m, made at p when new. */
+static int keyed_vert(mtess *M, rad__edge_map *m, uint32_t a, uint32_t b, uint32_t k, rr_vec3 p, uint32_t *id)
 {
     uint32_t v = (uint32_t)M->out->nverts;
-    uint32_t got = rad__edge_get(&M->vm, a, b, k, v);
+    uint32_t got = rad__edge_get(m, a, b, k, v);
     if (got == UINT32_MAX)
         return -1;
     if (got == v && add_vert(M, p, &got))
@@ -440,8 +532,8 @@ static int keyed_vert(mtess *M, uint32_t a, uint32_t b, uint32_t k, rr_vec3 p, u
     return 0;
 }
 
-/* +1: the point x on the leaf's triangle with outward normal n lies on the
- * final surface facing n, -1 facing -n (a subtracted leaf), 0: not on it. */
+/* +1: the point x on the leaf with outward normal n lies on the final
+ * surface facing n, -1 facing -n (a subtracted leaf), 0: not on it. */
 static int on_surface(const mtess *M, rr_vec3 x, rr_vec3 n)
 {
     rt_span_end e;
@@ -450,32 +542,45 @@ static int on_surface(const mtess *M, rr_vec3 x, rr_vec3 n)
     return e.flip ? -1 : 1;
 }
 
-static int emit_own(mtess *M, uint32_t a, uint32_t b, uint32_t c, int side)
+/* Appends piece (a, b, c), turned to face `out` (the final surface's
+ * outward normal at its centre). */
+static int emit_own(mtess *M, uint32_t a, uint32_t b, uint32_t c, rr_vec3 out)
 {
+    rr_vec3 A = M->out->verts[a], B = M->out->verts[b], C = M->out->verts[c];
+    rr_vec3 cn = rr_v3_cross(rr_v3_sub(B, A), rr_v3_sub(C, A));
+    if (!(rr_v3_len2(cn) > 0))
+        return 0; /* at a pole or an apex */
     if (grow((void **)&M->out->tris, M->cap_t, M->out->ntris + 1, sizeof *M->out->tris) ||
-        grow((void **)&M->grp, &M->cap_o, M->out->ntris + 1, sizeof *M->grp))
+        grow((void **)&M->grp, &M->cap_o, M->out->ntris + 1, sizeof *M->grp) ||
+        grow((void **)&M->leafs, &M->cap_l, M->out->ntris + 1, sizeof *M->leafs))
         return -1;
+    int keep = rr_v3_dot(cn, out) >= 0;
     uint32_t *t = M->out->tris[M->out->ntris];
     t[0] = a;
-    t[1] = side > 0 ? b : c;
-    t[2] = side > 0 ? c : b;
-    M->grp[M->out->ntris++] = VG_MESH;
+    t[1] = keep ? b : c;
+    t[2] = keep ? c : b;
+    M->grp[M->out->ntris] = ps_flat(M->f) ? (M->f->kind == PS_TRI ? VG_MESH : (M->slot | VG_FACE)) : M->slot;
+    M->leafs[M->out->ntris++] = M->leaf;
     return 0;
 }
 
-/* Piece (a, b, c) of a leaf triangle with outward normal n. */
-static int own_piece(mtess *M, uint32_t a, uint32_t b, uint32_t c, rr_vec3 n)
+/* Piece (a, b, c) of the surface, its corners at parameters pa, pb, pc. */
+static int own_piece(mtess *M, uint32_t a, uint32_t b, uint32_t c, const double pa[2], const double pb[2],
+                     const double pc[2])
 {
     rr_vec3 A = M->out->verts[a], B = M->out->verts[b], C = M->out->verts[c];
     /* The centres of the four children of the split at the edge midpoints. */
     static const double w[4][3] = {{4, 1, 1}, {1, 4, 1}, {1, 1, 4}, {2, 2, 2}};
     int side[4], agree = 1;
+    rr_vec3 centre_n = rr_v3(0, 0, 0);
     for (int k = 0; k < 4; k++) {
-        rr_vec3 x = rr_v3_scale(rr_v3_add(rr_v3_add(rr_v3_scale(A, w[k][0]), rr_v3_scale(B, w[k][1])),
-                                          rr_v3_scale(C, w[k][2])),
-                                1.0 / 6.0);
+        double u = (w[k][0] * pa[0] + w[k][1] * pb[0] + w[k][2] * pc[0]) / 6.0;
+        double v = (w[k][0] * pa[1] + w[k][1] * pb[1] + w[k][2] * pc[1]) / 6.0;
+        rr_vec3 x = ps_point(M->f, u, v), n = ps_normal(M->f, M->s, x);
         side[k] = on_surface(M, x, n);
         agree &= side[k] == side[0];
+        if (k == 3)
+            centre_n = n;
     }
     double longest = fmax(rr_v3_len(rr_v3_sub(B, A)), fmax(rr_v3_len(rr_v3_sub(C, B)), rr_v3_len(rr_v3_sub(A, C))));
     if (agree || longest < 2.0 * M->min_edge) {
@@ -485,15 +590,18 @@ static int own_piece(mtess *M, uint32_t a, uint32_t b, uint32_t c, rr_vec3 n)
             if (kept < 2)
                 return 0; /* mostly off the surface */
         }
-        return sd ? emit_own(M, a, b, c, sd) : 0;
+        return sd ? emit_own(M, a, b, c, rr_v3_scale(centre_n, sd)) : 0;
     }
+    double pab[2] = {0.5 * (pa[0] + pb[0]), 0.5 * (pa[1] + pb[1])};
+    double pbc[2] = {0.5 * (pb[0] + pc[0]), 0.5 * (pb[1] + pc[1])};
+    double pca[2] = {0.5 * (pc[0] + pa[0]), 0.5 * (pc[1] + pa[1])};
     uint32_t ab, bc, ca;
-    if (keyed_vert(M, a < b ? a : b, a < b ? b : a, UINT32_MAX, rr_v3_scale(rr_v3_add(A, B), 0.5), &ab) ||
-        keyed_vert(M, b < c ? b : c, b < c ? c : b, UINT32_MAX, rr_v3_scale(rr_v3_add(B, C), 0.5), &bc) ||
-        keyed_vert(M, c < a ? c : a, c < a ? a : c, UINT32_MAX, rr_v3_scale(rr_v3_add(C, A), 0.5), &ca))
+    if (keyed_vert(M, &M->vm, a < b ? a : b, a < b ? b : a, UINT32_MAX, ps_point(M->f, pab[0], pab[1]), &ab) ||
+        keyed_vert(M, &M->vm, b < c ? b : c, b < c ? c : b, UINT32_MAX, ps_point(M->f, pbc[0], pbc[1]), &bc) ||
+        keyed_vert(M, &M->vm, c < a ? c : a, c < a ? a : c, UINT32_MAX, ps_point(M->f, pca[0], pca[1]), &ca))
         return -1;
-    if (own_piece(M, a, ab, ca, n) || own_piece(M, ab, b, bc, n) || own_piece(M, ca, bc, c, n) ||
-        own_piece(M, ab, bc, ca, n))
+    if (own_piece(M, a, ab, ca, pa, pab, pca) || own_piece(M, ab, b, bc, pab, pb, pbc) ||
+        own_piece(M, ca, bc, c, pca, pbc, pc) || own_piece(M, ab, bc, ca, pab, pbc, pca))
         return -1;
     return 0;
 }
@@ -508,11 +616,11 @@ static int lattice_vert(mtess *M, const uint32_t v[3], uint32_t L, uint32_t i, u
                                       rr_v3_scale(W[v[2]], j)),
                             1.0 / L);
     if (i == L)
-        return keyed_vert(M, v[1], v[1], 0, W[v[1]], id);
+        return keyed_vert(M, &M->vm, v[1], v[1], 0, W[v[1]], id);
     if (j == L)
-        return keyed_vert(M, v[2], v[2], 0, W[v[2]], id);
+        return keyed_vert(M, &M->vm, v[2], v[2], 0, W[v[2]], id);
     if (k0 == L)
-        return keyed_vert(M, v[0], v[0], 0, W[v[0]], id);
+        return keyed_vert(M, &M->vm, v[0], v[0], 0, W[v[0]], id);
     /* On an edge: keyed by its ends (lower index first) and the step from the lower. */
     uint32_t e0, e1, step;
     if (j == 0) {
@@ -532,34 +640,119 @@ static int lattice_vert(mtess *M, const uint32_t v[3], uint32_t L, uint32_t i, u
     }
     /* The same point from either side of the edge: recomputed from its ends. */
     p = rr_v3_scale(rr_v3_add(rr_v3_scale(W[e0], L - step), rr_v3_scale(W[e1], step)), 1.0 / L);
-    return keyed_vert(M, e0, e1, step, p, id);
+    return keyed_vert(M, &M->vm, e0, e1, step, p, id);
 }
 
-static int tessellate_leaf(mtess *M, const rad_patch_opts *o)
+static int tessellate_mesh_leaf(mtess *M, const rad_patch_opts *o)
 {
     const scene *s = M->s;
     const scene_csg_node *nd = &s->csg[M->leaf];
     for (size_t t = nd->tri_first; t < nd->tri_first + nd->tri_count; t++) {
         const uint32_t *v = s->csg_tris[t];
-        rr_vec3 A = s->csg_verts[v[0]], B = s->csg_verts[v[1]], C = s->csg_verts[v[2]];
-        rr_vec3 nn = rr_v3_cross(rr_v3_sub(B, A), rr_v3_sub(C, A));
-        double area = 0.5 * rr_v3_len(nn);
-        if (!(area > 0))
+        psurf f = {.kind = PS_TRI, .nd = nd, .surface = (int32_t)t};
+        f.A = s->csg_verts[v[0]], f.B = s->csg_verts[v[1]], f.C = s->csg_verts[v[2]];
+        rr_vec3 nn = rr_v3_cross(rr_v3_sub(f.B, f.A), rr_v3_sub(f.C, f.A));
+        if (!(rr_v3_len2(nn) > 0))
             continue;
-        rr_vec3 n = rr_v3_scale(nn, 0.5 / area);
-        uint32_t L = mesh_level(A, B, C, o);
+        f.n = rr_v3_norm(nn);
+        M->f = &f;
+        uint32_t L = mesh_level(f.A, f.B, f.C, o);
         for (uint32_t i = 0; i < L; i++)
             for (uint32_t j = 0; i + j < L; j++) {
                 uint32_t p0, p1, p2;
+                double q0[2] = {(double)i / L, (double)j / L}, q1[2] = {(double)(i + 1) / L, (double)j / L},
+                       q2[2] = {(double)i / L, (double)(j + 1) / L};
                 if (lattice_vert(M, v, L, i, j, &p0) || lattice_vert(M, v, L, i + 1, j, &p1) ||
-                    lattice_vert(M, v, L, i, j + 1, &p2) || own_piece(M, p0, p1, p2, n))
+                    lattice_vert(M, v, L, i, j + 1, &p2) || own_piece(M, p0, p1, p2, q0, q1, q2))
                     return -1;
                 if (i + j + 1 < L) {
                     uint32_t p3;
-                    if (lattice_vert(M, v, L, i + 1, j + 1, &p3) || own_piece(M, p1, p3, p2, n))
+                    double q3[2] = {(double)(i + 1) / L, (double)(j + 1) / L};
+                    if (lattice_vert(M, v, L, i + 1, j + 1, &p3) || own_piece(M, p1, p3, p2, q1, q3, q2))
                         return -1;
                 }
             }
+    }
+    return 0;
+}
+
+/* Grid point (i, j) of surface f split nu x nv: shared around a wrapping
+ * surface's seam and at its poles. */
+static int grid_vert(mtess *M, const psurf *f, uint32_t nu, uint32_t nv, uint32_t i, uint32_t j, uint32_t *id)
+{
+    uint32_t ki = ps_wraps(f) ? i % nu : i;
+    if ((f->kind == PS_SPHERE || f->kind == PS_ELLIPSOID) && (j == 0 || j == nv))
+        ki = 0; /* a pole */
+    return keyed_vert(M, &M->gm, ki, j, 1, ps_point(f, (double)ki / nu, (double)j / nv), id);
+}
+
+/* One parametric surface of the leaf on an nu x nv grid to the limits. */
+static int tessellate_surface(mtess *M, const psurf *f, const rad_patch_opts *o)
+{
+    double e = fmin(o->max_edge, sqrt(2.0 * o->max_area));
+    double lu = fmax(ps_length(f, 1, 0.0), fmax(ps_length(f, 1, 0.5), ps_length(f, 1, 1.0)));
+    double lv = fmax(ps_length(f, 0, 0.0), fmax(ps_length(f, 0, 0.5), ps_length(f, 0, 0.25)));
+    if (!(lu > 0) || !(lv > 0))
+        return 0; /* a degenerate face */
+    uint32_t minu = ps_wraps(f) ? 12 : 1, minv = f->kind == PS_SPHERE || f->kind == PS_ELLIPSOID ? 6 : 1;
+    uint32_t nu = (uint32_t)fmin(1024.0, fmax((double)minu, ceil(lu / e)));
+    uint32_t nv = (uint32_t)fmin(1024.0, fmax((double)minv, ceil(lv / e)));
+    M->f = f;
+    rad__edge_map_free(&M->gm);
+    if (rad__edge_map_init(&M->gm, 4 * ((size_t)nu + 1) * ((size_t)nv + 1)))
+        return -1;
+    for (uint32_t j = 0; j < nv; j++)
+        for (uint32_t i = 0; i < nu; i++) {
+            uint32_t p00, p10, p01, p11;
+            double q00[2] = {(double)i / nu, (double)j / nv}, q10[2] = {(double)(i + 1) / nu, (double)j / nv},
+                   q01[2] = {(double)i / nu, (double)(j + 1) / nv}, q11[2] = {(double)(i + 1) / nu, (double)(j + 1) / nv};
+            if (grid_vert(M, f, nu, nv, i, j, &p00) || grid_vert(M, f, nu, nv, i + 1, j, &p10) ||
+                grid_vert(M, f, nu, nv, i, j + 1, &p01) || grid_vert(M, f, nu, nv, i + 1, j + 1, &p11))
+                return -1;
+            if (own_piece(M, p00, p10, p11, q00, q10, q11) || own_piece(M, p00, p11, p01, q00, q11, q01))
+                return -1;
+        }
+    return 0;
+}
+
+/* Whether leaf l has a parametric form here (a general quadric has not). */
+static int leaf_parametric(const scene_csg_node *nd)
+{
+    if (nd->solid == SCENE_SOLID_QUADRIC)
+        return nd->shape != SCENE_QUADRIC_GENERAL;
+    return nd->solid == SCENE_SOLID_SPHERE || nd->solid == SCENE_SOLID_BOX || nd->solid == SCENE_SOLID_MESH;
+}
+
+/* All of leaf M->leaf's surfaces. */
+static int tessellate_leaf(mtess *M, const rad_patch_opts *o)
+{
+    const scene_csg_node *nd = &M->s->csg[M->leaf];
+    if (nd->solid == SCENE_SOLID_MESH)
+        return tessellate_mesh_leaf(M, o);
+    psurf f = {.nd = nd, .surface = -1};
+    if (nd->solid == SCENE_SOLID_SPHERE) {
+        f.kind = PS_SPHERE;
+        return tessellate_surface(M, &f, o);
+    }
+    if (nd->solid == SCENE_SOLID_QUADRIC) {
+        if (nd->shape == SCENE_QUADRIC_ELLIPSOID) {
+            f.kind = PS_ELLIPSOID;
+        } else {
+            /* x^2 + z^2 + q11 y^2 + 2 q13 y + q33 = 0 (scene_csg.c's named shapes) */
+            f.kind = PS_REV;
+            f.qa = -nd->q[1][1];
+            f.qb = -2.0 * nd->q[1][3];
+            f.qc = -nd->q[3][3];
+        }
+        if (tessellate_surface(M, &f, o))
+            return -1;
+    }
+    /* The faces of a box, or of a quadric's clip box (mostly off the
+     * surface; only where the quadric is cut, a cap). */
+    for (int k = 0; k < 6; k++) {
+        psurf g = {.kind = PS_FACE, .nd = nd, .surface = k, .axis = k / 2, .side = k & 1};
+        if (tessellate_surface(M, &g, o))
+            return -1;
     }
     return 0;
 }
@@ -612,28 +805,37 @@ static int own_triangles(tess *T, const rad_patch_opts *o, uint32_t **tgroup)
     M.out = out;
     M.cap_v = &T->cap_v;
     M.cap_t = &T->cap_t;
-    int bad = grow((void **)&M.grp, &M.cap_o, nmarch + 1, sizeof *M.grp);
-    if (!bad)
-        memcpy(M.grp, *tgroup, nmarch * sizeof *M.grp);
-    if (!bad && rad__edge_map_init(&M.vm, 1024))
-        bad = 1;
+    int bad = grow((void **)&M.grp, &M.cap_o, nmarch + 1, sizeof *M.grp) ||
+              grow((void **)&M.leafs, &M.cap_l, nmarch + 1, sizeof *M.leafs);
+    for (size_t q = 0; q < nmarch && !bad; q++) {
+        M.grp[q] = (*tgroup)[q];
+        M.leafs[q] = UINT32_MAX;
+    }
+    int vm = !bad && !rad__edge_map_init(&M.vm, 1024), gm = vm && !rad__edge_map_init(&M.gm, 16);
+    bad = bad || !gm;
+    /* Every leaf when the marching tetrahedra made nothing, else the mesh leaves. */
     for (uint32_t l = 0; l < s->ncsg && !bad; l++)
-        if (s->csg[l].object == obj && s->csg[l].op == SCENE_CSG_LEAF && s->csg[l].solid == SCENE_SOLID_MESH) {
+        if (s->csg[l].object == obj && s->csg[l].op == SCENE_CSG_LEAF &&
+            (T->all_own || s->csg[l].solid == SCENE_SOLID_MESH)) {
             M.leaf = l;
+            M.slot = T->slot[l];
             bad = tessellate_leaf(&M, o) != 0;
         }
-    if (!bad)
+    if (vm)
         rad__edge_map_free(&M.vm);
+    if (gm)
+        rad__edge_map_free(&M.gm);
     size_t nt = out->ntris;
     uint32_t *cell = bad ? NULL : malloc((nt + 1) * sizeof *cell);
     uint32_t(*tris)[3] = bad ? NULL : malloc((nt + 1) * sizeof *tris);
     uint32_t *grp = bad ? NULL : malloc((nt + 1) * sizeof *grp);
+    uint32_t *leafs = bad ? NULL : malloc((nt + 1) * sizeof *leafs);
     uint32_t *first = bad ? NULL : calloc(ncells + 2, sizeof *first);
-    if (bad || !cell || !tris || !grp || !first) {
-        if (!bad)
-            rad__edge_map_free(&M.vm);
+    if (bad || !cell || !tris || !grp || !leafs || !first) {
         free(tcell);
         free(M.grp);
+        free(M.leafs);
+        free(leafs);
         free(cell);
         free(tris);
         free(grp);
@@ -665,6 +867,7 @@ static int own_triangles(tess *T, const rad_patch_opts *o, uint32_t **tgroup)
         uint32_t k = first[cell[q]]++;
         memcpy(tris[k], out->tris[q], sizeof tris[k]);
         grp[k] = M.grp[q];
+        leafs[k] = M.leafs[q];
     }
     /* first[c] is now the end of cell c: shift back into starts. */
     for (size_t c = ncells; c > 0; c--)
@@ -676,10 +879,12 @@ static int own_triangles(tess *T, const rad_patch_opts *o, uint32_t **tgroup)
     T->cap_t = nt + 1;
     free(tcell);
     free(M.grp);
+    free(M.leafs);
     free(cell);
     free(first);
     free(*tgroup);
     *tgroup = grp;
+    out->leaf = leafs;
     /* The dropped triangles' vertices go too (every vertex is a corner). */
     uint32_t *map = malloc((out->nverts + 1) * sizeof *map);
     if (!map)
@@ -755,42 +960,54 @@ static int area_scales(tess *T, const uint32_t *tgroup)
     rad__solid_mesh *out = T->out;
     uint32_t ng = T->ngroups;
     size_t nt = out->ntris;
-    double *truth = calloc(ng + 1, sizeof *truth), *mt = calloc(ng + 1, sizeof *mt);
+    double *truth = calloc(ng + 1, sizeof *truth), *mt = calloc(ng + 1, sizeof *mt), *flat = calloc(ng + 1, sizeof *flat);
     out->scale = malloc((nt + 1) * sizeof *out->scale);
-    out->own = T->meshes ? malloc(nt + 1) : NULL;
-    int got = truth && mt ? group_areas(T, truth) : -1;
-    if (got < 0 || !out->scale || (T->meshes && !out->own)) {
+    out->own = T->meshes || T->all_own ? malloc(nt + 1) : NULL;
+    int got = truth && mt && flat ? group_areas(T, truth) : -1;
+    if (got < 0 || !out->scale || ((T->meshes || T->all_own) && !out->own)) {
         free(truth);
         free(mt);
+        free(flat);
         return -1;
     }
+    /* Per triangle: a flat own piece (a mesh leaf's, VG_MESH, or a face's)
+     * keeps its area; the others are scaled by their group. */
     for (size_t q = 0; q < nt; q++) {
         rr_vec3 A = out->verts[out->tris[q][0]], B = out->verts[out->tris[q][1]], C = out->verts[out->tris[q][2]];
         double a = 0.5 * rr_v3_len(rr_v3_cross(rr_v3_sub(B, A), rr_v3_sub(C, A)));
-        if (tgroup[q] < ng)
-            mt[tgroup[q]] += a;
+        uint32_t g = tgroup[q];
+        if (g < ng)
+            mt[g] += a;
+        else if (g != VG_MESH && g != VG_NONE && (g & VG_FACE))
+            flat[g & ~VG_FACE] += a;
         out->scale[q] = a; /* (the area, for now) */
     }
-    /* Groups measured and tessellated are scaled to their truth; the rest
-     * keep their area, and all of it is then scaled by f, to give the groups
-     * that got no triangles their area too. */
+    /* What each group's scaled triangles stand for: its true area less its
+     * flat faces' pieces (a box leaf: nothing, up to the measure's noise).
+     * Groups measured and tessellated are scaled to it; the rest keep their
+     * area, and all of it is then scaled by f, to give the groups that got
+     * no triangles their area too. */
     double covered = 0.0, rest = 0.0, total = 0.0;
     for (uint32_t g = 0; g < ng; g++) {
+        truth[g] -= flat[g];
+        if (!(truth[g] > 1e-3 * (truth[g] + flat[g])))
+            truth[g] = 0.0;
         total += truth[g];
         if (got > 0 && truth[g] > 0 && mt[g] > 0)
             covered += truth[g];
     }
     for (size_t q = 0; q < nt; q++) {
         uint32_t g = tgroup[q];
-        if (g != VG_MESH && !(g < ng && got > 0 && truth[g] > 0 && mt[g] > 0))
+        if (g == VG_NONE || (g < ng && !(got > 0 && truth[g] > 0 && mt[g] > 0)))
             rest += out->scale[q];
     }
     double f = got > 0 && covered + rest > 0 ? (total + rest) / (covered + rest) : 1.0;
     for (size_t q = 0; q < nt; q++) {
         uint32_t g = tgroup[q];
+        int own = g == VG_MESH || (g != VG_NONE && g >= ng && (g & VG_FACE));
         if (out->own)
-            out->own[q] = g == VG_MESH;
-        if (g == VG_MESH)
+            out->own[q] = (unsigned char)own;
+        if (own)
             out->scale[q] = 1.0;
         else if (g < ng && got > 0 && truth[g] > 0 && mt[g] > 0)
             out->scale[q] = truth[g] / mt[g] * f;
@@ -799,6 +1016,7 @@ static int area_scales(tess *T, const uint32_t *tgroup)
     }
     free(truth);
     free(mt);
+    free(flat);
     return 0;
 }
 
@@ -818,6 +1036,7 @@ rr_status rad__solid_tessellate(const scene *s, const rt_accel *a, uint32_t obj,
     T.slot = malloc((s->ncsg + 1) * sizeof *T.slot);
     if (!T.slot)
         goto nomem;
+    T.all_own = 1;
     for (uint32_t l = 0; l < s->ncsg; l++) {
         T.slot[l] = UINT32_MAX;
         if (s->csg[l].object != obj || s->csg[l].op != SCENE_CSG_LEAF)
@@ -826,15 +1045,29 @@ rr_status rad__solid_tessellate(const scene *s, const rt_accel *a, uint32_t obj,
             T.meshes = 1;
         else
             T.slot[l] = T.ngroups++;
+        T.all_own &= leaf_parametric(&s->csg[l]);
     }
+    if (getenv("RADRAY_SOLID_MARCH")) /* (for comparisons: notes/csg.md) */
+        T.all_own = 0;
     out->grid.lo = T.lo;
     out->grid.cell = T.cell;
     memcpy(out->grid.n, T.n, sizeof T.n);
     size_t npts = (size_t)(T.n[0] + 1) * (T.n[1] + 1) * (T.n[2] + 1);
     size_t ncells = (size_t)T.n[0] * T.n[1] * T.n[2];
+    out->grid.cell_first = calloc(ncells + 1, sizeof *out->grid.cell_first);
+    if (!out->grid.cell_first)
+        goto nomem;
+    if (T.all_own) {
+        /* Nothing to march: the leaves' own surfaces are all of it. */
+        tgroup = malloc(sizeof *tgroup);
+        if (!tgroup || own_triangles(&T, o, &tgroup) || area_scales(&T, tgroup))
+            goto nomem_late;
+        free(tgroup);
+        free(T.slot);
+        return RR_OK;
+    }
     T.inside = malloc(npts);
-    out->grid.cell_first = malloc((ncells + 1) * sizeof *out->grid.cell_first);
-    if (!T.inside || !out->grid.cell_first || rad__edge_map_init(&T.map, 4 * (size_t)(T.n[0] + T.n[1] + T.n[2]) * 64))
+    if (!T.inside || rad__edge_map_init(&T.map, 4 * (size_t)(T.n[0] + T.n[1] + T.n[2]) * 64))
         goto nomem;
     /* The inside test at every grid point: independent, so in parallel. */
 #pragma omp parallel for schedule(dynamic, 1)
@@ -904,6 +1137,7 @@ void rad__solid_mesh_free(rad__solid_mesh *m)
     free(m->grid.cell_first);
     free(m->own);
     free(m->scale);
+    free(m->leaf);
     memset(m, 0, sizeof *m);
 }
 

@@ -421,15 +421,15 @@ static const char *k_bite =
  * surface under them, and their total area is the analytic area
  *   4 pi R^2 - 2 pi R (R - x) + 2 pi r (r - (d - x)),  x = (d^2 + R^2 - r^2) / 2d
  * (sphere, less the cap bitten off, plus the cap of the small sphere inside).
- * The triangles themselves fall short of it: they are chords (area short by
- * about (h kappa)^2 / 12 of the area, 0.05 % for cells h = 0.08) and the
- * rim, a sharp edge, is cut by a chamfer about a cell wide: at most rim
- * length x h x (1 - cos of half the dihedral angle) ~ 3.7 x 0.08 x 0.5 =
- * 0.15, i.e. 1.1 % of the 13.25. The patches' areas are scaled to the true
- * area measured by Crofton's formula (rad_solid.c: within 0.1 % on
- * scenes/csg.json's solids against their converged values), so they sum
- * to the analytic area within 0.3 %, at fine cells and at coarse ones
- * (cells of 0.45, where the triangles are several % short). */
+ * The triangles themselves fall short of it: they are chords of each
+ * sphere's own grid (rad_solid.c; area short by about (h kappa)^2 / 12, 0.1 %
+ * for pieces of 0.08, 1 % at the coarse limits), and the rim's pieces are
+ * kept or dropped whole, down to an eighth of a cell (under marching
+ * tetrahedra, before, the rim was cut by a chamfer a cell wide: 1.1 % and
+ * 5.9 % short). The patches' areas are scaled to each leaf's true area
+ * measured by Crofton's formula (within 0.1 % on scenes/csg.json's solids
+ * against their converged values), so they sum to the analytic area within
+ * 0.3 %, at fine cells and at coarse ones. */
 static void solid_patches_at(double max_area, double max_edge, int sides, double *facets, double *area,
                              double *amax, double *want);
 
@@ -445,7 +445,7 @@ static void solid_patches_cover_the_final_surface(void **state)
     solid_patches_at(0.0225, 0.45, 0, &facets, &area, &amax, &want);
     print_message("solid: cells of 0.45: triangles %.5f (%+.3f %%), patches %.5f (%+.3f %%) vs analytic %.5f\n",
                   facets, 100 * (facets / want - 1), area, 100 * (area / want - 1), want);
-    assert_true(facets < 0.98 * want); /* the case the scaling is for */
+    assert_true(facets < 0.995 * want); /* the case the scaling is for: chords */
     if (fabs(area - want) > 0.003 * want)
         fail_msg("coarse solid area %.5f, analytic %.5f", area, want);
 }
@@ -468,16 +468,21 @@ static void solid_patches_at(double max_area, double max_edge, int sides, double
     const double R = 1, r = 0.6, d = 0.9, x = (d * d + R * R - r * r) / (2 * d);
     const double want = 4 * RR_PI * R * R - 2 * RR_PI * R * (R - x) + 2 * RR_PI * r * (r - (d - x));
     rr_vec3 c = rr_v3(d, 0, 0);
+    /* The rim's pieces are split down to an eighth of a cell (rad_solid.c)
+     * and kept when most of their sample points are on the surface. */
+    double rim = rr_v3_len(P->solid[0].cell) / 4.0;
     for (size_t v = 0; v < P->nverts; v++) {
         double db = rr_v3_len(P->verts[v]) - R, ds = rr_v3_len(rr_v3_sub(P->verts[v], c)) - r;
-        /* On one of the two spheres (bisection to 2^-30 of a cell)... */
-        if (!(fabs(db) < 1e-6 || fabs(ds) < 1e-6))
+        /* On one of the two spheres (each its own grid)... */
+        if (!(fabs(db) < 1e-9 || fabs(ds) < 1e-9))
             fail_msg("vertex %zu off both surfaces: %g, %g", v, db, ds);
-        /* ...and on the final solid: in the big sphere, out of the small one. */
-        assert_true(db < 1e-6 && ds > -1e-6);
+        /* ...and on the final solid: in the big sphere, out of the small one (a rim piece's corner may
+         * stick out by a piece). */
+        if (!(db < rim && ds > -rim))
+            fail_msg("vertex %zu off the solid: %g, %g (rim pieces %g)", v, db, ds, rim);
     }
     double area = 0, amax = 0;
-    size_t outward = 0, red_ok = 0;
+    double outward = 0, red_ok = 0; /* area */
     *facets = 0;
     for (size_t k = 0; k < P->n; k++) {
         const rad_patch *p = &P->p[k];
@@ -489,18 +494,20 @@ static void solid_patches_at(double max_area, double max_edge, int sides, double
         *facets += tri;
         area += p->area;
         rr_vec3 out = rr_v3_madd(p->centroid, p->normal, 0.02), in = rr_v3_madd(p->centroid, p->normal, -0.02);
-        outward += !rt_csg_contains(s, a, s->objects[0].csg_root, out) && rt_csg_contains(s, a, s->objects[0].csg_root, in);
+        outward += tri * (!rt_csg_contains(s, a, s->objects[0].csg_root, out) &&
+                          rt_csg_contains(s, a, s->objects[0].csg_root, in));
         /* The bite's surface is the red leaf's. */
         int on_bite = rr_v3_len(rr_v3_sub(p->centroid, c)) < r + 1e-3 && rr_v3_len(p->centroid) < R - 1e-3;
-        red_ok += on_bite == (p->rho.g < 0.3);
+        red_ok += tri * (on_bite == (p->rho.g < 0.3));
     }
     /* Near the rim the 0.02 probes and the leaf under a centre may be the
-     * other side's: a band of patches a cell or two wide. */
+     * other side's: a band of patches a cell or two wide (or many small rim
+     * pieces, rad_solid.c): by area. */
     print_message("solid: %zu patches (%.0f asked for), largest %.2f x the limit, outward %.2f %%, "
                   "material %.2f %%\n",
-                  P->n, want / o.max_area, amax / o.max_area, 100.0 * outward / P->n, 100.0 * red_ok / P->n);
-    assert_true(!sides || outward > 0.97 * P->n);
-    assert_true(!sides || red_ok > 0.97 * P->n);
+                  P->n, want / o.max_area, amax / o.max_area, 100.0 * outward / *facets, 100.0 * red_ok / *facets);
+    assert_true(!sides || outward > 0.97 * *facets);
+    assert_true(!sides || red_ok > 0.97 * *facets);
     /* The limits are targets for solids (rad_solid.c), and the estimate used
      * for memory checks bounds the count. */
     assert_true(amax < 3 * o.max_area);
