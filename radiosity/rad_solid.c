@@ -499,7 +499,8 @@ typedef struct mtess {
     const psurf *f;  /* the surface being split */
     double eps;      /* "right there": a millionth of a cell */
     double min_edge; /* no rim splits below this */
-    rad__edge_map vm; /* (v, v, 0): a mesh vertex; (a, b, k): point k of edge a-b (k >= 1); (a, b, ~0): a split */
+    rad__edge_map vm; /* (v, v, 0): a mesh vertex; (a, b, n << 11 | k): point k / n of mesh edge a-b (n <= 1024,
+                         lowest terms); (a, b, ~0): the midpoint of pieces' corners a, b */
     rad__edge_map gm; /* (i, j, 1): grid point (i, j) of the surface being split */
     rad__solid_mesh *out;
     size_t *cap_v, *cap_t;
@@ -638,9 +639,18 @@ static int lattice_vert(mtess *M, const uint32_t v[3], uint32_t L, uint32_t i, u
         e1 = t;
         step = L - step;
     }
-    /* The same point from either side of the edge: recomputed from its ends. */
+    /* The same point from either side of the edge: recomputed from its ends,
+     * and keyed by its fraction of the edge in lowest terms (the triangles on
+     * either side may be split to different levels; a point only one of them
+     * has is a T-junction there). */
     p = rr_v3_scale(rr_v3_add(rr_v3_scale(W[e0], L - step), rr_v3_scale(W[e1], step)), 1.0 / L);
-    return keyed_vert(M, &M->vm, e0, e1, step, p, id);
+    uint32_t g = L, r = step;
+    while (r) {
+        uint32_t t = g % r;
+        g = r;
+        r = t;
+    }
+    return keyed_vert(M, &M->vm, e0, e1, (L / g) << 11 | (step / g), p, id);
 }
 
 static int tessellate_mesh_leaf(mtess *M, const rad_patch_opts *o)

@@ -603,6 +603,105 @@ static void mesh_leaf_patches_are_its_triangles(void **state)
     scene_destroy(s);
 }
 
+/* Random solids of every leaf kind (random ops, transforms, non-uniform
+ * scales; a fixed seed) tessellate without failing, and every patch is a
+ * proper piece of the final surface: positive finite area, unit normal, its
+ * centre within a cell of the surface (a boundary along its normal; flat
+ * patches, mesh triangles and faces, exactly on one), and none turned into
+ * the solid (over 1 % of the area). Found the mesh leaves' shared edge
+ * points keyed by step alone, across triangles split to different levels. */
+static void random_solids_tessellate(void **state)
+{
+    (void)state;
+    static const char *leaves[] = {
+        "{\"type\":\"sphere\",\"center\":[0,0,0],\"radius\":0.5",
+        "{\"type\":\"box\",\"min\":[-0.4,-0.3,-0.5],\"max\":[0.4,0.3,0.5]",
+        "{\"type\":\"quadric\",\"shape\":\"cylinder\",\"radius\":0.35,\"height\":1",
+        "{\"type\":\"quadric\",\"shape\":\"cone\",\"radius\":0.5,\"height\":0.9",
+        "{\"type\":\"quadric\",\"shape\":\"paraboloid\",\"radius\":0.45,\"height\":0.8",
+        "{\"type\":\"quadric\",\"shape\":\"hyperboloid\",\"radius\":0.2,\"end_radius\":0.45,\"height\":0.9",
+        "{\"type\":\"quadric\",\"shape\":\"ellipsoid\",\"radii\":[0.6,0.35,0.45]",
+        "{\"type\":\"mesh\",\"file\":\"meshes/tetra.obj\"",
+    };
+    static const char *ops[] = {"union", "intersection", "difference"};
+    rr_rng rng = rr_rng_make(2026, 12);
+    int built = 0;
+    enum { TRIALS = 24 };
+    for (int trial = 0; trial < TRIALS; trial++) {
+        char kids[2][512];
+        for (int k = 0; k < 2; k++) {
+            int l = (int)(rr_rng_uniform(&rng) * 8) % 8;
+            double t[3], ax[3], ang = 360 * rr_rng_uniform(&rng), sc[3];
+            for (int i = 0; i < 3; i++) {
+                t[i] = 0.5 * rr_rng_uniform(&rng) - 0.25;
+                ax[i] = rr_rng_uniform(&rng) - 0.5;
+                sc[i] = 0.7 + 0.6 * rr_rng_uniform(&rng);
+            }
+            snprintf(kids[k], sizeof kids[k],
+                     "%s,\"material\":\"%s\",\"transform\":[{\"scale\":[%.3f,%.3f,%.3f]},{\"rotate\":{\"axis\":[%.3f,%.3f,%.3f],"
+                     "\"degrees\":%.1f}},{\"translate\":[%.3f,%.3f,%.3f]}]}",
+                     leaves[l], k ? "b" : "a", sc[0], sc[1], sc[2], ax[0], ax[1], ax[2] + 0.01, ang, t[0], t[1], t[2]);
+        }
+        const char *op = ops[(int)(rr_rng_uniform(&rng) * 3) % 3];
+        char json[2048];
+        snprintf(json, sizeof json,
+                 "{\"format\":\"radray-scene/1\",\"camera\":{\"type\":\"lecture\",\"E\":[0,0,5],\"O\":[0,0,4],"
+                 "\"U\":[0,1,0],\"s\":0.1,\"w\":2,\"h\":2},\"materials\":{\"a\":{\"diffuse\":0.5},\"b\":{\"diffuse\":0.2}},"
+                 "\"objects\":[{\"type\":\"csg\",\"op\":\"%s\",\"material\":\"a\",\"children\":[%s,%s]}]}",
+                 op, kids[0], kids[1]);
+        scene *s = NULL;
+        rr_error err;
+        if (scene_load_string(json, "random", RR_TEST_DATA "/scenes", NULL, &s, &err) != RR_OK)
+            fail_msg("%s\n%s", err.msg, json);
+        rt_accel *a = NULL;
+        assert_int_equal(rt_accel_build(s, &a, NULL), RR_OK);
+        rad_patch_opts o = {.max_area = 0.004, .max_edge = 0.12, .accel = a};
+        rad_patches *P = NULL;
+        if (rad_patches_build(s, &o, &P, &err) != RR_OK)
+            fail_msg("%s\n%s", err.msg, json);
+        double cell = rr_v3_len(P->solid[0].cell), area = 0, inward = 0;
+        for (size_t k = 0; k < P->n; k++) {
+            const rad_patch *p = &P->p[k];
+            if (!(p->area > 0 && isfinite(p->area)) || !(fabs(rr_v3_len(p->normal) - 1) < 1e-9))
+                fail_msg("patch %zu: area %g, |normal| %g\n%s", k, p->area, rr_v3_len(p->normal), json);
+            rt_spans sp;
+            rr_ray ray = {p->centroid, p->normal};
+            /* Flat pieces lie in their leaf's surface (to rounding), curved
+             * ones are chords (within a cell); a rim piece (split, at most a
+             * quarter of the area limit) may have its centre just off the
+             * final surface. */
+            double r = p->flat ? 1e-9 * (1 + rr_v3_len(p->centroid)) : cell;
+            rt_solid_spans(s, a, 0, ray, -cell, cell, &sp);
+            int near = 0;
+            for (int q = 0; q < sp.n; q++)
+                near |= fabs(sp.s[q].in.t) < r || fabs(sp.s[q].out.t) < r;
+            if (!near && !(p->area < 0.25 * o.max_area))
+                fail_msg("patch %zu (flat %u, area %g) off the surface\n%s", k, p->flat, p->area, json);
+            rr_vec3 A = P->verts[p->v[0]], B = P->verts[p->v[1]], C = P->verts[p->v[2]];
+            double tri = 0.5 * rr_v3_len(rr_v3_cross(rr_v3_sub(B, A), rr_v3_sub(C, A)));
+            /* probes a quarter of the piece's edge out and in: beyond a chord's
+             * sagitta where the curvature radius exceeds half the edge */
+            double h = fmax(1e-4, 0.25 * sqrt(2.0 * tri));
+            rr_vec3 out = rr_v3_madd(p->centroid, p->normal, h), in = rr_v3_madd(p->centroid, p->normal, -h);
+            /* turned inwards: the solid ahead, not behind (where both probes
+             * are out, the solid is thinner than the probes there) */
+            inward += tri * (rt_csg_contains(s, a, s->objects[0].csg_root, out) &&
+                             !rt_csg_contains(s, a, s->objects[0].csg_root, in));
+            area += tri;
+        }
+        if (P->n) {
+            built++;
+            if (!(inward < 0.01 * area))
+                fail_msg("inward over %.1f %% of the area\n%s", 100 * inward / area, json);
+        }
+        rad_patches_destroy(P);
+        rt_accel_destroy(a);
+        scene_destroy(s);
+    }
+    print_message("random solids: %d of %d with a surface\n", built, TRIALS);
+    assert_true(built >= TRIALS / 2);
+}
+
 /* The radiosity of the board under a red sphere (colour bleeding) is the same
  * whether the sphere is the analytic sphere (UV tessellation) or the same
  * sphere as a solid, a quadric ellipsoid with equal radii (marching
@@ -740,6 +839,7 @@ int main(void)
         cmocka_unit_test(limits_and_areas),
         cmocka_unit_test(solid_patches_cover_the_final_surface),
         cmocka_unit_test(mesh_leaf_patches_are_its_triangles),
+        cmocka_unit_test(random_solids_tessellate),
         cmocka_unit_test(solid_bleeds_like_the_sphere),
         cmocka_unit_test(conforming_box),
         cmocka_unit_test(vertex_values_keep_patch_means),
