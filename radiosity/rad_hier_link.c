@@ -135,6 +135,24 @@ void rad__hier_sphere_end(const hctx *c, uint32_t yr, rr_vec3 x, rr_vec3 *y, rr_
     if (oy && sphere_meets(oy, x, d, &u0, &u1) && u0 > 0 && u0 < 1) { /* meets the source's sphere first there */
         *y = rr_v3_madd(x, d, u0);
         *ny = rr_v3_norm(rr_v3_sub(*y, oy->center));
+        return;
+    }
+    /* A solid's curved piece: where the segment enters the solid close
+     * before y (rad_hier_ctx.h). */
+    const rad_patch *p = &c->R->p[yr];
+    if (c->rt[yr].flat || p->tri >= 0 || rt_prim_kind_of(c->s, p->object) != RT_PRIM_SOLID)
+        return;
+    double len = rr_v3_len(d), near = 2.0 * sqrt(p->area);
+    if (!(len > 0))
+        return;
+    rt_spans sp;
+    rr_ray ray = {x, d};
+    rt_solid_spans(c->s, c->a, p->object, ray, 0.0, 1.0, &sp);
+    if (sp.n > 0 && sp.s[0].in.t > 0 && sp.s[0].in.t < 1.0 && (1.0 - sp.s[0].in.t) * len < near) {
+        const rt_span_end *e = &sp.s[0].in;
+        *y = rr_v3_madd(x, d, e->t);
+        rr_vec3 m = rt_csg_leaf_normal(c->s, e->leaf, e->surface, *y);
+        *ny = e->flip ? rr_v3_neg(m) : m;
     }
 }
 
