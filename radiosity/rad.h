@@ -49,9 +49,9 @@ typedef struct rad_patch {
     int64_t tri;       /* source scene triangle, or -1 for a tessellated sphere or solid */
 } rad_patch;
 
-/* Where a solid's patches came from: the cells of the grid its surface was
- * tessellated on (rad_solid.c). The patches made in cell c (x fastest) are
- * [cell_first[c], cell_first[c + 1]). */
+/* Where a solid's patches lie: the cells of a grid over its box
+ * (rad_solid.c). The patches whose centres are in cell c (x fastest; made in
+ * it, for marching tetrahedra) are [cell_first[c], cell_first[c + 1]). */
 typedef struct rad_solid_grid {
     rr_vec3 lo, cell;      /* grid origin and cell size per axis */
     uint32_t n[3];         /* cells per axis; 0 for objects that are not solids */
@@ -112,13 +112,13 @@ typedef struct rad_patch_opts {
  * share its vertices unless the edge is a crease (its triangles meet at more
  * than RAD_CREASE_DEG, a box's edges): Gouraud means are then taken on each
  * side apart, as the radiosity there differs. Spheres are tessellated into a UV grid
- * fine enough for the same limits. Solids (CSG trees, quadrics) are
- * tessellated by marching tetrahedra over a grid of their bounding box, so
- * only the surface of the final solid gets patches (rad_solid.c); each patch
- * takes the material of the leaf surface under its centre. A sphere's and a
- * solid's patch areas are scaled to the true surface's area (the sphere's
- * 4 pi r^2; the solid's by Crofton's formula), which their facets fall
- * short of. Fails
+ * fine enough for the same limits. Solids (CSG trees, quadrics) are pieced
+ * from their leaves' own surfaces (mesh triangles, faces, parametric grids),
+ * each piece kept where it lies on the final solid (rad_solid.c; marching
+ * tetrahedra for a solid with a general quadric leaf); each patch has its
+ * leaf's material. A sphere's and a solid's curved patch areas are scaled
+ * to the true surface's area (the sphere's 4 pi r^2; a solid leaf's by
+ * Crofton's formula), which their chords fall short of. Fails
  * (RR_ERR_LIMIT) beyond 2^31 patches. */
 rr_status rad_patches_build(const scene *s, const rad_patch_opts *o, rad_patches **out, rr_error *err);
 #define RAD_CREASE_DEG 45.0
