@@ -249,21 +249,38 @@ typedef struct csg_ctx {
     const scene *s;
     const struct rt_solid_accel *sa;
     rr_ray ray;
+    rt_slab_ray slab; /* the ray's, for rt__box_overlap */
 } csg_ctx;
 
-int rt__box_overlap(rr_ray r, rr_vec3 lo, rr_vec3 hi, double tmin, double tmax)
+rt_slab_ray rt__slab_prepare(rr_ray r)
+{
+    rt_slab_ray q;
+    for (int i = 0; i < 3; i++) {
+        double d = rr_v3_get(r.d, i);
+        q.o[i] = rr_v3_get(r.o, i);
+        q.zero[i] = d == 0.0;
+        q.inv[i] = d == 0.0 ? 0.0 : 1.0 / d;
+    }
+    return q;
+}
+
+int rt__box_overlap(const rt_slab_ray *r, rr_vec3 lo, rr_vec3 hi, double tmin, double tmax)
 {
     double t0 = tmin, t1 = tmax;
     for (int i = 0; i < 3; i++) {
-        double o = rr_v3_get(r.o, i), d = rr_v3_get(r.d, i), l = rr_v3_get(lo, i), h = rr_v3_get(hi, i);
+        double l = rr_v3_get(lo, i), h = rr_v3_get(hi, i);
         if (!(l <= h))
             return 0; /* empty box (or NaN) */
-        if (d == 0.0) {
-            if (o < l || o > h)
+        if (r->zero[i]) {
+            if (r->o[i] < l || r->o[i] > h)
                 return 0;
             continue;
         }
-        double ta = (l - o) / d, tb = (h - o) / d;
+        /* Products by the reciprocal: their rounding (a few ulps) is far
+         * inside the widening by 1e-12 of each t, so no box the ray meets is
+         * culled (an overflowing reciprocal gives infinities or NaNs, which
+         * cull nothing). */
+        double ta = (l - r->o[i]) * r->inv[i], tb = (h - r->o[i]) * r->inv[i];
         if (ta > tb) {
             double t = ta;
             ta = tb;
@@ -353,7 +370,7 @@ static void csg_rec(const csg_ctx *c, uint32_t node, double tmin, double tmax, r
 {
     out->n = 0;
     const scene_csg_node *n = &c->s->csg[node];
-    if (!rt__box_overlap(c->ray, n->bbox_lo, n->bbox_hi, tmin, tmax))
+    if (!rt__box_overlap(&c->slab, n->bbox_lo, n->bbox_hi, tmin, tmax))
         return;
     if (n->op == SCENE_CSG_LEAF) {
         leaf_spans(c->s, c->sa, node, c->ray, tmin, tmax, out);
@@ -365,7 +382,7 @@ static void csg_rec(const csg_ctx *c, uint32_t node, double tmin, double tmax, r
     if (n->op != SCENE_CSG_UNION) {
         /* The right operand only matters where the left one is. */
         const scene_csg_node *r = &c->s->csg[n->right];
-        if (!rt__box_overlap(c->ray, r->bbox_lo, r->bbox_hi, out->s[0].in.t, out->s[out->n - 1].out.t)) {
+        if (!rt__box_overlap(&c->slab, r->bbox_lo, r->bbox_hi, out->s[0].in.t, out->s[out->n - 1].out.t)) {
             if (n->op == SCENE_CSG_INTERSECTION)
                 out->n = 0;
             return;
@@ -399,6 +416,7 @@ void rt_csg_spans(const scene *s, const rt_accel *a, uint32_t node, rr_ray ray, 
     c.s = s;
     c.sa = a ? a->solids : NULL;
     c.ray = ray;
+    c.slab = rt__slab_prepare(ray);
     csg_rec(&c, node, tmin, tmax, out);
 }
 

@@ -29,10 +29,18 @@ static inline rt_span_end rt__span_end(double t, uint32_t leaf, int32_t surface)
  * RT_SPAN_MAX are kept). */
 void rt__spans_push(rt_spans *l, rt_span_end a, rt_span_end b);
 
+/* A ray's operands for rt__box_overlap, prepared once per ray: origin,
+ * reciprocal direction, and which components are 0. */
+typedef struct rt_slab_ray {
+    double o[3], inv[3];
+    int zero[3];
+} rt_slab_ray;
+rt_slab_ray rt__slab_prepare(rr_ray r);
+
 /* Does the ray meet the world box [lo, hi] for some t in [tmin, tmax]? Only a
  * pruning test (CSG node boxes, mesh-leaf BVH nodes), so it errs towards yes:
  * the interval is widened a little. An empty box (lo > hi) is never met. */
-int rt__box_overlap(rr_ray r, rr_vec3 lo, rr_vec3 hi, double tmin, double tmax);
+int rt__box_overlap(const rt_slab_ray *r, rr_vec3 lo, rr_vec3 hi, double tmin, double tmax);
 
 /* Spans of mesh leaf `leaf` along the world ray, clipped to [tmin, tmax];
  * sa may be NULL (every triangle is tested). */

@@ -392,55 +392,10 @@ nomem:
                         s->path, total);
 }
 
-/* The ray's operands for node_hit: origin and reciprocal direction, once
- * per walk. */
-typedef struct slab_ray {
-    double o[3], inv[3];
-    int zero[3]; /* direction component 0: the slab is the origin's side test */
-} slab_ray;
-
-static slab_ray slab_prepare(rr_ray r)
+/* Slab test of a (padded) node box over (tlo, thi), widened for rounding. */
+static int node_hit(const rt_node *nd, const rt_slab_ray *r, double tlo, double thi)
 {
-    slab_ray q;
-    for (int i = 0; i < 3; i++) {
-        double d = rr_v3_get(r.d, i);
-        q.o[i] = rr_v3_get(r.o, i);
-        q.zero[i] = d == 0.0;
-        q.inv[i] = d == 0.0 ? 0.0 : 1.0 / d;
-    }
-    return q;
-}
-
-/* Slab test of a (padded) node box over (tlo, thi), widened for rounding:
- * rt__box_overlap's test with the divisions as products by the reciprocal,
- * whose rounding (a few ulps) the widening by 1e-12 of each t covers, so no
- * box the ray meets is culled. */
-static int node_hit(const rt_node *nd, const slab_ray *r, double tlo, double thi)
-{
-    double t0 = tlo, t1 = thi;
-    for (int i = 0; i < 3; i++) {
-        double l = nd->lo[i], h = nd->hi[i];
-        if (!(l <= h))
-            return 0; /* empty box (or NaN) */
-        if (r->zero[i]) {
-            if (r->o[i] < l || r->o[i] > h)
-                return 0;
-            continue;
-        }
-        double ta = (l - r->o[i]) * r->inv[i], tb = (h - r->o[i]) * r->inv[i];
-        if (ta > tb) {
-            double t = ta;
-            ta = tb;
-            tb = t;
-        }
-        ta -= fabs(ta) * 1e-12;
-        tb += fabs(tb) * 1e-12;
-        if (ta > t0)
-            t0 = ta;
-        if (tb < t1)
-            t1 = tb;
-    }
-    return t0 <= t1;
+    return rt__box_overlap(r, rr_v3(nd->lo[0], nd->lo[1], nd->lo[2]), rr_v3(nd->hi[0], nd->hi[1], nd->hi[2]), tlo, thi);
 }
 
 static void cross_tri(const scene *s, const rt_ray_pre *m, uint32_t tri, xbuf *b)
@@ -465,7 +420,7 @@ static void collect(const scene *s, const struct rt_solid_accel *sa, uint32_t le
             cross_tri(s, &m, (uint32_t)t, b);
         return;
     }
-    slab_ray sr = slab_prepare(ray);
+    rt_slab_ray sr = rt__slab_prepare(ray);
     uint32_t stack[MESH_STACK];
     int sp = 0;
     stack[sp++] = sa->root[leaf];
