@@ -543,7 +543,8 @@ static int tessellate_solids(build_ctx *c)
             continue;
         rad__solid_mesh *m = &c->sm[oi];
         uint32_t vbase = (uint32_t)c->nv, pbase = (uint32_t)c->np;
-        memcpy(P->verts + c->nv, m->verts, m->nverts * sizeof *m->verts);
+        if (m->nverts) /* (an empty solid has no vertex array) */
+            memcpy(P->verts + c->nv, m->verts, m->nverts * sizeof *m->verts);
         c->nv += m->nverts;
         /* The grid moves into P, with absolute patch indices. */
         P->solid[oi] = m->grid;
