@@ -99,7 +99,7 @@ double rad_solid_patch_estimate(const scene *s, uint32_t obj, const rad_patch_op
     double a = (double)n[0] * n[1] + (double)n[1] * n[2] + (double)n[2] * n[0];
     double est = 2.0 * 9.0 * a;
     /* Mesh leaves add their own triangles, each split to the limits
-     * (tessellate_leaf), and twice as many again for the rims' splits. */
+     * (rad_solid_own.c), and twice as many again for the rims' splits. */
     for (uint32_t l = 0; l < s->ncsg; l++) {
         const scene_csg_node *nd = &s->csg[l];
         if (nd->object != obj || nd->op != SCENE_CSG_LEAF || nd->solid != SCENE_SOLID_MESH)
