@@ -559,11 +559,11 @@ static int tessellate_solids(build_ctx *c)
             fill_patch(P, np, vbase + m->tris[t][0], vbase + m->tris[t][1], vbase + m->tris[t][2],
                        &s->materials[s->objects[oi].material], (uint32_t)oi, -1);
             P->p[np].flat = m->own && m->own[t];
-            /* The marching triangles are chords of the solid's curved faces
-             * and cut its sharp edges off (rad_solid.c), so they have less
-             * area than the surface the rays meet (scenes/csg.json's lens
-             * 4.4 % less; the energy check found it 5 % short of the light
-             * tracer): each stands for its share of its face's true area. */
+            /* A curved piece is a chord (a marching triangle also cuts sharp
+             * edges off: rad_solid.c), with less area than the surface the
+             * rays meet (scenes/csg.json's lens 4.4 % less under marching;
+             * the energy check found it 5 % short of the light tracer): each
+             * stands for its share of its leaf's true area (flat pieces: 1). */
             P->p[np].area *= m->scale[t];
             rr_vec3 xs, ns;
             uint32_t leaf = m->leaf ? m->leaf[t] : UINT32_MAX;
