@@ -99,6 +99,7 @@ uint64_t rad__hier_near_buried(const hctx *c, const hel *e)
  * for clusters: rad_hier_cluster.c, visibility). */
 typedef struct vis_count {
     int seen, pass, open;
+    int rot; /* the strata's rotation, drawn with the link's first ray */
 } vis_count;
 
 /* The sphere a root lies on, when its patch faces out of it (an analytic
@@ -160,11 +161,22 @@ static int shadow_passes(const hctx *c, const rview *rv, const hel *ey, rr_vec3 
                          uint32_t k, rr_rng *rng, vis_count *v)
 {
     rr_vec3 xs, xn, ys, yn;
+    if (v->seen == 0)
+        v->rot = (int)(4.0 * rr_rng_uniform(rng)) & 3;
     double a = rr_rng_uniform(rng), b = rr_rng_uniform(rng);
     if (a + b > 1.0) { /* fold the square onto the triangle */
         a = 1.0 - a;
         b = 1.0 - b;
     }
+    /* Stratified: the link's rays in turn take the four halved triangles of
+     * s (corners, then the middle one, turned over), starting at a random
+     * one, so that each ray's end is uniform on s and the four together
+     * cover it. */
+    static const double off[4][2] = {{0.0, 0.0}, {0.5, 0.0}, {0.0, 0.5}, {0.5, 0.5}};
+    int q = (v->seen + v->rot) & 3;
+    double sg = q == 3 ? -0.5 : 0.5;
+    a = off[q][0] + sg * a;
+    b = off[q][1] + sg * b;
     v->seen++;
     root_surface(c, ey->root, rad__poly_point(poly, nv, a, b, k), &ys, &yn);
     if (ey->open < 1.0 && rad__hier_buried(c, ey, ys, yn))
@@ -325,7 +337,7 @@ void rad__hier_eval_ee(const hctx *c, hlink *l, rr_rng *rng)
 {
     rview rv = rview_of(c, l->r, link_way(l));
     int near = is_near(c, &rv, l);
-    vis_count v = {0, 0, 0};
+    vis_count v = {0, 0, 0, 0};
     double dF, fk[4], rho = way_rho(c, rv.way);
     double F = side_ff(c, &rv, l->s, near, rng, &dF, &v, fk) * facet_scale(c, l->s) * rho;
     dF *= rho;
@@ -349,7 +361,7 @@ void rad__hier_revis_ee(const hctx *c, hlink *l, rr_rng *rng)
         rad__hier_eval_ee(c, l, rng);
         return;
     }
-    vis_count v = {0, 0, 0};
+    vis_count v = {0, 0, 0, 0};
     if (l->f > 0.0f)
         near_vis(c, &rv, l->s, rng, &v);
     set_vis(l, 1, &v);
