@@ -488,14 +488,15 @@ static void refine(hctx *c, uint32_t r, uint32_t s, unsigned w);
  * lies on the receiver: splitting the source there only shrinks the link's
  * power until it passes, leaving the shadow as coarse as the receiver.
  * receiver 2: the uneven test's, for which a leaf at a contact may go below
- * min_area (contact_splittable). */
+ * min_area (contact_splittable); 3: s first (what s sends varies over it:
+ * rad_hier_rounds.c source_uneven), r when s cannot be split. */
 int rad__hier_split_link(hctx *c, uint32_t r, uint32_t s, int receiver, unsigned w)
 {
     int rl = is_rlc(c, r) && !w; /* a receiving leaf cluster: the larger end splits */
     int sr = splittable(c, r) || (receiver == 2 && contact_splittable(c, r)), ss = splittable(c, s);
     if (!sr && !ss)
         return 0;
-    int side = receiver && sr && !rl ? 0 : (sr && ss ? node_radius(c, s) > node_radius(c, r) : ss);
+    int side = receiver == 3 ? ss : receiver && sr && !rl ? 0 : (sr && ss ? node_radius(c, s) > node_radius(c, r) : ss);
     if ((r & CLB) && !rl)
         side = 0; /* receivers are elements (or receiving leaf clusters) */
     uint32_t x = side ? s : r;

@@ -136,10 +136,15 @@ static void exposure(hctx *c, uint32_t x)
         e->xhi = known ? 1.0f - e->back : 0.0f;
         e->olo = known ? e->occl : 1.0f;
         e->ohi = known ? e->occl : 0.0f;
+        float sv = (float)rr_rgb_max(e->src);
+        e->slo = e->open > 0 ? sv : INFINITY;
+        e->shi = e->open > 0 ? sv : 0.0f;
         return;
     }
     e->xlo = e->olo = 1.0f;
     e->xhi = e->ohi = 0.0f;
+    e->slo = INFINITY;
+    e->shi = 0.0f;
     for (uint32_t k = 0; k < 4; k++) {
         const hel *ch = &c->el[e->child + k];
         exposure(c, e->child + k);
@@ -147,6 +152,8 @@ static void exposure(hctx *c, uint32_t x)
         e->xhi = fmaxf(e->xhi, ch->xhi);
         e->olo = fminf(e->olo, ch->olo);
         e->ohi = fmaxf(e->ohi, ch->ohi);
+        e->slo = fminf(e->slo, ch->slo);
+        e->shi = fmaxf(e->shi, ch->shi);
     }
 }
 

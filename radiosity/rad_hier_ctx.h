@@ -33,6 +33,7 @@ typedef struct hel {
     float xlo, xhi; /* the least and most of 1 - back over its leaves (rad__hier_exposure) */
     float occl;     /* leaf: the share of its closedness rays that met a surface within OCCL_NEAR root radii; -1 as land */
     float olo, ohi; /* the least and most occl over its leaves (rad__hier_exposure) */
+    float slo, shi; /* the least and most of what its open leaves send (src, largest channel; rad__hier_exposure) */
     float touch;    /* leaf: the share of its closedness rays that met a surface within its own radius (a contact) */
     int partial;    /* it has a partly visible link (rad__hier_gather of B = 1) */
 } hel;
@@ -584,8 +585,9 @@ void rad__hier_link_add(hctx *c, uint32_t r, uint32_t s, unsigned w);
  * --max-memory (then c->by_memory is set). */
 int rad__hier_past_cap(hctx *c);
 /* Splits r or s (the larger that can be split, r first when receiver: 1, or
- * 2 for the uneven test, which may split a leaf at a contact below min_area)
- * and refines the children's links; 0 when neither can be split. */
+ * 2 for the uneven test, which may split a leaf at a contact below min_area;
+ * s first for 3, the varying source's test) and refines the children's
+ * links; 0 when neither can be split. */
 int rad__hier_split_link(hctx *c, uint32_t r, uint32_t s, int receiver, unsigned w);
 
 /* ---- the links evaluated and re-tested (rad_hier_rounds.c) ---- */

@@ -113,6 +113,26 @@ static int unevenly_exposed(const hctx *c, const hlink *l)
     return spread > 0 && spread * rad__hier_link_power(c, l->r, l->s, link_way(l)) > eps;
 }
 
+/* What source s sends varies over its open leaves (shi - slo, from
+ * rad__hier_exposures) by more than SOURCE_SHARE of the receiver's eps, read
+ * as that share of the link's power: the link carries s's mean, while r may
+ * see mostly one part of s (the floor close under an object, in the
+ * object's shadow, seen by its underside). Such a link goes to s's
+ * children (rad__hier_split_link's source-first mode). notes/radiosity.md,
+ * "Sources that vary". */
+#define SOURCE_SHARE 0.25
+static int source_uneven(const hctx *c, const hlink *l)
+{
+    if ((l->s & CLB) || c->el[l->s].child == NONE)
+        return 0;
+    const hel *e = &c->el[l->s];
+    double B = node_B(c, l->s);
+    if (!(B > 0) || !(e->shi > e->slo))
+        return 0;
+    return rad__hier_link_power(c, l->r, l->s, link_way(l)) * (e->shi - e->slo) / B >
+           SOURCE_SHARE * receiver_eps(c, l->r);
+}
+
 /* Receiver r has an open part but all four of its fixed points, where it
  * gathers, are buried: it cannot stand for that part (which would gather
  * nothing), so its links go to its children. */
@@ -251,7 +271,8 @@ int rad__hier_relink(hctx *c)
     }
     /* 1: too much power (split the larger end); 2: partly hidden (split the
      * receiver first); 3: uneven (the receiver first, a leaf at a contact
-     * below min_area too); as settle tests new links. */
+     * below min_area too), as settle tests new links; 5: the source varies
+     * (split the source first: source_uneven). */
     rad__hier_exposures(c);
 #pragma omp parallel for schedule(static)
     for (long i = 0; i < (long)n; i++) {
@@ -263,13 +284,15 @@ int rad__hier_relink(hctx *c)
             split[i] = 1;
         else if (uneven(c, l))
             split[i] = 3;
+        else if (source_uneven(c, l))
+            split[i] = 5;
         else if (unrepresented(c, l->r) || unevenly_exposed(c, l))
             split[i] = 2;
         else if (p > VIS_SHARE * receiver_eps(c, l->r)) /* as reads_rays, the power computed once */
             split[i] = l->vis > 0 && l->vis < VIS_ONE ? 2 : 4; /* 4: kept, its rays read */
     }
     for (size_t i = 0; i < n; i++)
-        nsplit += split[i] >= 1 && split[i] <= 3;
+        nsplit += split[i] != 0 && split[i] != 4;
     split_end *se = malloc((nsplit ? nsplit : 1) * sizeof *se);
     if (!se) {
         free(split);
@@ -277,7 +300,7 @@ int rad__hier_relink(hctx *c)
         return 0;
     }
     for (size_t i = 0, k = 0; i < n; i++)
-        if (split[i] >= 1 && split[i] <= 3) {
+        if (split[i] != 0 && split[i] != 4) {
             se[k++] = (split_end){c->ln[i].r, c->ln[i].s, split[i], (unsigned char)link_way(&c->ln[i])};
         } else {
             c->ln[keep] = c->ln[i]; /* keep <= i: in place */
@@ -290,8 +313,9 @@ int rad__hier_relink(hctx *c)
     c->first_new = keep;
     for (size_t k = 0; k < nsplit && !c->nomem; k++)
         if (!rad__hier_past_cap(c)) {
-            /* how 1, 2, 3: the larger end, the receiver first, and at contacts */
-            rad__hier_split_link(c, se[k].r, se[k].s, se[k].how - 1, se[k].way);
+            /* how 1, 2, 3: the larger end, the receiver first, and at
+             * contacts; 5: the source first */
+            rad__hier_split_link(c, se[k].r, se[k].s, se[k].how == 5 ? 3 : se[k].how - 1, se[k].way);
             changed = 1;
         } else {
             /* kept whole past the cap, and evaluated again (changed: the

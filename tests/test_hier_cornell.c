@@ -146,7 +146,7 @@ static void near_block_gather(const char *rel, double *mean_dev, double *max_dev
  * reaches up to the short block gives all of it the visibility its 4 shadow
  * rays found from its fixed points, which lie away from the block. Without
  * the relative tests (radiosity.relative_tolerance 0, the default of scenes
- * that do not set it; cornell.json sets 0.04) the floor in the block's
+ * that do not set it; cornell.json sets 0.05) the floor in the block's
  * shadow comes out 26 % (up to 46 %) brighter than the gather says; with radiosity.relative_tolerance 0.02,
  * which passes such links to the children where some of the element's
  * leaves have surfaces close by and others not, 4.7 % on average. Asserted:
