@@ -54,7 +54,13 @@
  * held to OBJ_SHARE of that object's intake instead of eps where that is
  * less, down to eps / OBJ_FLOOR (link_eps, rad_hier_ctx.h): room.json's
  * dark mirror frame was 7.9 % short of the light tracer under eps alone
- * (notes/radiosity.md, "Objects that take in little").
+ * (notes/radiosity.md, "Objects that take in little"). And from the second
+ * round a link whose source element's open leaves send values spread by
+ * more than SOURCE_SHARE of the receiver's eps (power x (B_max - B_min) /
+ * B_s) splits the source first (rad_hier_rounds.c source_uneven): the link
+ * reads the source's mean, while its receiver may see mostly one part of it
+ * (bunny.json's bunny, its underside over the floor in its shadow, +3.0 %
+ * without it; notes/radiosity.md, "Sources that vary").
  * Rounds: link with the emission, solve, re-link with the solved radiosity
  * (what was kept is re-tested, all three tests), solve again, twice.
  *
