@@ -139,11 +139,16 @@ void rad_patch_surface(const rad_patches *P, const scene *s, const rt_accel *a, 
                        rr_vec3 *ns);
 
 /* About how many patches solid object obj gets under limits o (for memory
- * estimates before building). */
+ * estimates before building): its leaves' pieces at the limits, each
+ * counted where its sample points lie on the final solid, rims by rule
+ * (within 25 % of the count made: test_radiosity); the marching tetrahedra's
+ * rule for a solid with a general quadric leaf. Queries the solids through
+ * o->accel (NULL: every mesh triangle per query). */
 double rad_solid_patch_estimate(const scene *s, uint32_t obj, const rad_patch_opts *o);
 /* The patch count rad_patches_build makes under limits o, by its own level
- * rules (exact for triangles and spheres; solids by rad_solid_patch_estimate),
- * without building anything. */
+ * rules (exact for triangles and spheres; solids by rad_solid_patch_estimate,
+ * through the solids' own BVHs, built for it when o->accel is NULL), without
+ * building the patches. */
 double rad_patches_estimate(const scene *s, const rad_patch_opts *o);
 /* Warns about every object whose level is set by a few outlying triangles
  * (at most 8, and under 1 %, needing more than a quarter of the level the

@@ -94,7 +94,11 @@ double rad_solid_patch_estimate(const scene *s, uint32_t obj, const rad_patch_op
     uint32_t n[3];
     if (!solid_grid(s, obj, o, &lo, &cell, n))
         return 0;
-    /* The surface crosses at most about (area of the box faces) / (cell
+    /* Every leaf with its own pieces: those counted (rad_solid_own.c). */
+    double own = rad__solid_own_estimate(s, o->accel, obj, fmin(cell.x, fmin(cell.y, cell.z)), o);
+    if (own >= 0.0)
+        return own;
+    /* Marching tetrahedra: the surface crosses at most about (area of the box faces) / (cell
      * face) cells, with about 9 triangles per cell face of surface. */
     double a = (double)n[0] * n[1] + (double)n[1] * n[2] + (double)n[2] * n[0];
     double est = 2.0 * 9.0 * a;

@@ -48,4 +48,10 @@ int rad__solid_leaf_parametric(const scene_csg_node *nd);
  * triangle's leaf. 0, or -1 when out of memory. */
 int rad__solid_own_triangles(rad__tess *T, const rad_patch_opts *o, uint32_t **tgroup);
 
+/* About how many patches rad__solid_own_triangles makes of object obj's
+ * solid when every leaf has a parametric form (the pieces of every leaf's
+ * surfaces at the limits, each kept where its centre lies on the final
+ * surface, rims counted by rule), cells hmin wide; -1 when a leaf has no
+ * parametric form (or out of memory). */
+double rad__solid_own_estimate(const scene *s, const rt_accel *a, uint32_t obj, double hmin, const rad_patch_opts *o);
 #endif

@@ -190,6 +190,11 @@ size_t rt_prim_total(const scene *s);
  * thread count. */
 
 rr_status rt_accel_build(const scene *s, rt_accel **out, rr_error *err);
+/* An accel for the solids' own queries alone (rt_solid_spans,
+ * rt_solid_closest, rt_csg_contains: the solids' mesh-leaf BVHs), without
+ * the BVH over the primitives, which no other query may then be asked of:
+ * for work before the full build (the radiosity pass's patch estimate). */
+rr_status rt_accel_build_solids(const scene *s, rt_accel **out, rr_error *err);
 void rt_accel_destroy(rt_accel *a); /* NULL is a no-op */
 /* What an accel holds, for benchmarks and tools. */
 typedef struct rt_accel_stats {

@@ -715,6 +715,22 @@ nomem:
     return rr_error_set(err, RR_ERR_NOMEM, "%s: out of memory building the BVH over %zu primitives", s->path, n);
 }
 
+rr_status rt_accel_build_solids(const scene *s, rt_accel **out, rr_error *err)
+{
+    rt_accel *a = calloc(1, sizeof *a);
+    if (!a)
+        return rr_error_set(err, RR_ERR_NOMEM, "%s: out of memory building the solids' BVHs", s->path);
+    a->scene = s;
+    a->width = rt__bvh_width_default();
+    rr_status st = rt__solids_build(s, &a->solids, err);
+    if (st != RR_OK) {
+        rt_accel_destroy(a);
+        return st;
+    }
+    *out = a;
+    return RR_OK;
+}
+
 void rt_accel_destroy(rt_accel *a)
 {
     if (!a)
