@@ -273,18 +273,28 @@ static int lattice_vert(mtess *M, const uint32_t v[3], uint32_t L, uint32_t i, u
     return keyed_vert(M, &M->vm, e0, e1, (L / g) << 11 | (step / g), p, id);
 }
 
+/* Triangle t of mesh leaf nd as a surface; 0 when it has no area. */
+static int mesh_surface(const scene *s, const scene_csg_node *nd, size_t t, psurf *f)
+{
+    const uint32_t *v = s->csg_tris[t];
+    *f = (psurf){.kind = PS_TRI, .nd = nd, .surface = (int32_t)t};
+    f->A = s->csg_verts[v[0]], f->B = s->csg_verts[v[1]], f->C = s->csg_verts[v[2]];
+    rr_vec3 nn = rr_v3_cross(rr_v3_sub(f->B, f->A), rr_v3_sub(f->C, f->A));
+    if (!(rr_v3_len2(nn) > 0))
+        return 0;
+    f->n = rr_v3_norm(nn);
+    return 1;
+}
+
 static int tessellate_mesh_leaf(mtess *M, const rad_patch_opts *o)
 {
     const scene *s = M->s;
     const scene_csg_node *nd = &s->csg[M->leaf];
     for (size_t t = nd->tri_first; t < nd->tri_first + nd->tri_count; t++) {
         const uint32_t *v = s->csg_tris[t];
-        psurf f = {.kind = PS_TRI, .nd = nd, .surface = (int32_t)t};
-        f.A = s->csg_verts[v[0]], f.B = s->csg_verts[v[1]], f.C = s->csg_verts[v[2]];
-        rr_vec3 nn = rr_v3_cross(rr_v3_sub(f.B, f.A), rr_v3_sub(f.C, f.A));
-        if (!(rr_v3_len2(nn) > 0))
+        psurf f;
+        if (!mesh_surface(s, nd, t, &f))
             continue;
-        f.n = rr_v3_norm(nn);
         M->f = &f;
         uint32_t L = rad__solid_mesh_level(f.A, f.B, f.C, o);
         for (uint32_t i = 0; i < L; i++)
@@ -316,17 +326,27 @@ static int grid_vert(mtess *M, const psurf *f, uint32_t nu, uint32_t nv, uint32_
     return keyed_vert(M, &M->gm, ki, j, 1, ps_point(f, (double)ki / nu, (double)j / nv), id);
 }
 
-/* One parametric surface of the leaf on an nu x nv grid to the limits. */
-static int tessellate_surface(mtess *M, const psurf *f, const rad_patch_opts *o)
+/* The nu x nv grid that splits surface f to the limits; 0 for a degenerate
+ * face. */
+static int surface_grid(const psurf *f, const rad_patch_opts *o, uint32_t *nu, uint32_t *nv)
 {
     double e = fmin(o->max_edge, sqrt(2.0 * o->max_area));
     double lu = fmax(ps_length(f, 1, 0.0), fmax(ps_length(f, 1, 0.5), ps_length(f, 1, 1.0)));
     double lv = fmax(ps_length(f, 0, 0.0), fmax(ps_length(f, 0, 0.5), ps_length(f, 0, 0.25)));
     if (!(lu > 0) || !(lv > 0))
-        return 0; /* a degenerate face */
+        return 0;
     uint32_t minu = ps_wraps(f) ? 12 : 1, minv = f->kind == PS_SPHERE || f->kind == PS_ELLIPSOID ? 6 : 1;
-    uint32_t nu = (uint32_t)fmin(1024.0, fmax((double)minu, ceil(lu / e)));
-    uint32_t nv = (uint32_t)fmin(1024.0, fmax((double)minv, ceil(lv / e)));
+    *nu = (uint32_t)fmin(1024.0, fmax((double)minu, ceil(lu / e)));
+    *nv = (uint32_t)fmin(1024.0, fmax((double)minv, ceil(lv / e)));
+    return 1;
+}
+
+/* One parametric surface of the leaf on an nu x nv grid to the limits. */
+static int tessellate_surface(mtess *M, const psurf *f, const rad_patch_opts *o)
+{
+    uint32_t nu, nv;
+    if (!surface_grid(f, o, &nu, &nv))
+        return 0; /* a degenerate face */
     M->f = f;
     rad__edge_map_free(&M->gm);
     if (rad__edge_map_init(&M->gm, 4 * ((size_t)nu + 1) * ((size_t)nv + 1)))
@@ -420,14 +440,9 @@ static double count_piece(const mtess *M, const double pa[2], const double pb[2]
 /* Surface f on its grid to the limits (as tessellate_surface splits it). */
 static double count_surface(mtess *M, const psurf *f, const rad_patch_opts *o)
 {
-    double e = fmin(o->max_edge, sqrt(2.0 * o->max_area));
-    double lu = fmax(ps_length(f, 1, 0.0), fmax(ps_length(f, 1, 0.5), ps_length(f, 1, 1.0)));
-    double lv = fmax(ps_length(f, 0, 0.0), fmax(ps_length(f, 0, 0.5), ps_length(f, 0, 0.25)));
-    if (!(lu > 0) || !(lv > 0))
+    uint32_t nu, nv;
+    if (!surface_grid(f, o, &nu, &nv))
         return 0.0;
-    uint32_t minu = ps_wraps(f) ? 12 : 1, minv = f->kind == PS_SPHERE || f->kind == PS_ELLIPSOID ? 6 : 1;
-    uint32_t nu = (uint32_t)fmin(1024.0, fmax((double)minu, ceil(lu / e)));
-    uint32_t nv = (uint32_t)fmin(1024.0, fmax((double)minv, ceil(lv / e)));
     M->f = f;
     double n = 0.0;
     for (uint32_t j = 0; j < nv; j++)
@@ -448,13 +463,9 @@ static double count_mesh_leaf(mtess *M, const rad_patch_opts *o)
     const scene_csg_node *nd = &s->csg[M->leaf];
     double n = 0.0;
     for (size_t t = nd->tri_first; t < nd->tri_first + nd->tri_count; t++) {
-        const uint32_t *v = s->csg_tris[t];
-        psurf f = {.kind = PS_TRI, .nd = nd, .surface = (int32_t)t};
-        f.A = s->csg_verts[v[0]], f.B = s->csg_verts[v[1]], f.C = s->csg_verts[v[2]];
-        rr_vec3 nn = rr_v3_cross(rr_v3_sub(f.B, f.A), rr_v3_sub(f.C, f.A));
-        if (!(rr_v3_len2(nn) > 0))
+        psurf f;
+        if (!mesh_surface(s, nd, t, &f))
             continue;
-        f.n = rr_v3_norm(nn);
         M->f = &f;
         uint32_t L = rad__solid_mesh_level(f.A, f.B, f.C, o);
         const double a[2] = {0, 0}, b[2] = {1, 0}, c[2] = {0, 1};
