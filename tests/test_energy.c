@@ -403,6 +403,16 @@ static void expect_surfaces_agree(const char *what, const char *skip)
             fail_msg("%s: a surface disagrees with the light tracer\n%s", what, g_out);
 }
 
+/* scenes/NAME's `energy --check` at 2 M particles: expect_surfaces_agree. */
+static void expect_shipped_scene_agrees(const char *name, const char *skip)
+{
+    char path[512];
+    snprintf(path, sizeof path, "%s/scenes/%s", RR_SOURCE_DIR, name);
+    const char *a[] = {"energy", path, "--check", "--particles", "2000000", NULL};
+    run(a);
+    expect_surfaces_agree(path, skip);
+}
+
 /* The hierarchical method's buried parts (rad_hier.c) against the light
  * tracer, which follows the same burial rule: a window pane behind glazing
  * bars that touch it, and boxes standing on the floor and against a wall.
@@ -449,11 +459,7 @@ static void black_lamp_refined(void **state)
 static void small_objects_refined(void **state)
 {
     (void)state;
-    char room[512];
-    snprintf(room, sizeof room, "%s/scenes/room.json", RR_SOURCE_DIR);
-    const char *a[] = {"energy", room, "--check", "--particles", "2000000", NULL};
-    run(a);
-    expect_surfaces_agree(room, "  window_bar_");
+    expect_shipped_scene_agrees("room.json", "  window_bar_");
 }
 
 /* A link carries its source's mean radiosity; where the receiver sees
@@ -466,11 +472,7 @@ static void small_objects_refined(void **state)
 static void varying_sources(void **state)
 {
     (void)state;
-    char bunny[512];
-    snprintf(bunny, sizeof bunny, "%s/scenes/bunny.json", RR_SOURCE_DIR);
-    const char *a[] = {"energy", bunny, "--check", "--particles", "2000000", NULL};
-    run(a);
-    expect_surfaces_agree(bunny, NULL);
+    expect_shipped_scene_agrees("bunny.json", NULL);
 }
 
 /* Solids' patches stand for the true surface's area (rad_patch.c, by
