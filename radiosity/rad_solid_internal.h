@@ -50,8 +50,8 @@ int rad__solid_own_triangles(rad__tess *T, const rad_patch_opts *o, uint32_t **t
 
 /* About how many patches rad__solid_own_triangles makes of object obj's
  * solid when every leaf has a parametric form (the pieces of every leaf's
- * surfaces at the limits, each kept where its centre lies on the final
- * surface, rims counted by rule), cells hmin wide; -1 when a leaf has no
- * parametric form (or out of memory). */
+ * surfaces at the limits, counted where own_piece's four sample points lie
+ * on the final surface, a piece that a rim crosses as the pieces its splits
+ * make, about), cells hmin wide; -1 when a leaf has no parametric form. */
 double rad__solid_own_estimate(const scene *s, const rt_accel *a, uint32_t obj, double hmin, const rad_patch_opts *o);
 #endif

@@ -185,15 +185,20 @@ static int emit_own(mtess *M, uint32_t a, uint32_t b, uint32_t c, rr_vec3 out)
     return 0;
 }
 
-/* Piece (a, b, c) of the surface, its corners at parameters pa, pb, pc. */
-static int own_piece(mtess *M, uint32_t a, uint32_t b, uint32_t c, const double pa[2], const double pb[2],
-                     const double pc[2])
+static double tri_longest(rr_vec3 A, rr_vec3 B, rr_vec3 C)
 {
-    rr_vec3 A = M->out->verts[a], B = M->out->verts[b], C = M->out->verts[c];
-    /* The centres of the four children of the split at the edge midpoints. */
+    return fmax(rr_v3_len(rr_v3_sub(B, A)), fmax(rr_v3_len(rr_v3_sub(C, B)), rr_v3_len(rr_v3_sub(A, C))));
+}
+
+/* The piece with corners at parameters pa, pb, pc sampled at the centres of
+ * the four children of its split at the edge midpoints: side[k] as
+ * on_surface there, *centre_n the leaf's normal at the middle child's;
+ * whether all four agree. */
+static int piece_sides(const mtess *M, const double pa[2], const double pb[2], const double pc[2], int side[4],
+                       rr_vec3 *centre_n)
+{
     static const double w[4][3] = {{4, 1, 1}, {1, 4, 1}, {1, 1, 4}, {2, 2, 2}};
-    int side[4], agree = 1;
-    rr_vec3 centre_n = rr_v3(0, 0, 0);
+    int agree = 1;
     for (int k = 0; k < 4; k++) {
         double u = (w[k][0] * pa[0] + w[k][1] * pb[0] + w[k][2] * pc[0]) / 6.0;
         double v = (w[k][0] * pa[1] + w[k][1] * pb[1] + w[k][2] * pc[1]) / 6.0;
@@ -201,9 +206,19 @@ static int own_piece(mtess *M, uint32_t a, uint32_t b, uint32_t c, const double 
         side[k] = on_surface(M, x, n);
         agree &= side[k] == side[0];
         if (k == 3)
-            centre_n = n;
+            *centre_n = n;
     }
-    double longest = fmax(rr_v3_len(rr_v3_sub(B, A)), fmax(rr_v3_len(rr_v3_sub(C, B)), rr_v3_len(rr_v3_sub(A, C))));
+    return agree;
+}
+
+/* Piece (a, b, c) of the surface, its corners at parameters pa, pb, pc. */
+static int own_piece(mtess *M, uint32_t a, uint32_t b, uint32_t c, const double pa[2], const double pb[2],
+                     const double pc[2])
+{
+    int side[4];
+    rr_vec3 centre_n;
+    int agree = piece_sides(M, pa, pb, pc, side, &centre_n);
+    double longest = tri_longest(M->out->verts[a], M->out->verts[b], M->out->verts[c]);
     if (agree || longest < 2.0 * M->min_edge) {
         int sd = side[3] ? side[3] : (side[0] ? side[0] : (side[1] ? side[1] : side[2]));
         if (!agree) {
@@ -418,23 +433,15 @@ static int tessellate_leaf(mtess *M, const rad_patch_opts *o)
  * -47 .. 0 %). */
 static double count_piece(const mtess *M, const double pa[2], const double pb[2], const double pc[2])
 {
-    static const double w[4][3] = {{4, 1, 1}, {1, 4, 1}, {1, 1, 4}, {2, 2, 2}};
     int side[4];
-    for (int k = 0; k < 4; k++) {
-        double u = (w[k][0] * pa[0] + w[k][1] * pb[0] + w[k][2] * pc[0]) / 6.0;
-        double v = (w[k][0] * pa[1] + w[k][1] * pb[1] + w[k][2] * pc[1]) / 6.0;
-        rr_vec3 x = ps_point(M->f, u, v);
-        side[k] = on_surface(M, x, ps_normal(M->f, M->s, x));
-        if (k > 0 && side[k] != side[0]) {
-            rr_vec3 A = ps_point(M->f, pa[0], pa[1]), B = ps_point(M->f, pb[0], pb[1]), C = ps_point(M->f, pc[0], pc[1]);
-            double longest = fmax(rr_v3_len(rr_v3_sub(B, A)), fmax(rr_v3_len(rr_v3_sub(C, B)), rr_v3_len(rr_v3_sub(A, C))));
-            double d = 0.0;
-            for (; longest >= 2.0 * M->min_edge && d < 16; longest *= 0.5)
-                d++;
-            return exp2(d);
-        }
-    }
-    return side[0] != 0;
+    rr_vec3 centre_n;
+    if (piece_sides(M, pa, pb, pc, side, &centre_n))
+        return side[0] != 0;
+    double longest = tri_longest(ps_point(M->f, pa[0], pa[1]), ps_point(M->f, pb[0], pb[1]), ps_point(M->f, pc[0], pc[1]));
+    double d = 0.0;
+    for (; longest >= 2.0 * M->min_edge && d < 16; longest *= 0.5)
+        d++;
+    return exp2(d);
 }
 
 /* Surface f on its grid to the limits (as tessellate_surface splits it). */
