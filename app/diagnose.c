@@ -136,3 +136,53 @@ size_t app_diagnose_light(const scene *s, const rt_accel *a)
     rt_lights_destroy(L);
     return n;
 }
+
+/* ---- thin gaps ---- */
+
+#define GAP_SAMPLES 4096 /* probe points per object, at most (every k-th triangle) */
+#define GAP_SHARE 0.01   /* of an object's area facing another across a gap, to warn */
+#define GAP_PATCH 0.02   /* a gap is thin under this many patch sizes (sqrt of the patch area) */
+
+size_t app_diagnose_gaps(const scene *s, const rt_accel *a, double patch_size)
+{
+    if (!(patch_size > 0) || s->nobjects == 0)
+        return 0;
+    rr_vec3 e = rr_v3_sub(s->bbox_max, s->bbox_min);
+    double ext = fmax(e.x, fmax(e.y, e.z)), g = GAP_PATCH * patch_size, contact = 1e-6 * ext;
+    size_t warned = 0;
+    for (size_t o = 0; o < s->nobjects; o++) {
+        const scene_object *ob = &s->objects[o];
+        if (rt_prim_kind_of(s, (uint32_t)o) != RT_PRIM_TRIANGLE || ob->tri_count == 0)
+            continue;
+        size_t step = (ob->tri_count + GAP_SAMPLES - 1) / GAP_SAMPLES;
+        double area = 0.0, in_gap = 0.0, widest = 0.0;
+        uint32_t other = UINT32_MAX;
+        for (size_t t = ob->tri_first; t < ob->tri_first + ob->tri_count; t += step) {
+            const scene_tri *tr = &s->tris[t];
+            double ta = scene_tri_area(s, t);
+            rr_vec3 n = scene_tri_normal(s, t);
+            rr_vec3 c = rr_v3_scale(rr_v3_add(rr_v3_add(s->verts[tr->v[0]], s->verts[tr->v[1]]), s->verts[tr->v[2]]),
+                                    1.0 / 3.0);
+            area += ta;
+            rr_ray r = {rt_offset_origin(ext, c, n, n), n};
+            rt_hit h;
+            /* the front of another surface, facing this one across a gap
+             * thinner than the patches (a back face there is a cover: burial) */
+            if (rt_accel_closest_two_sided(a, r, 0.0, g, &h) && h.front && h.object != (uint32_t)o && h.t > contact) {
+                in_gap += ta;
+                widest = fmax(widest, h.t);
+                if (other == UINT32_MAX)
+                    other = h.object;
+            }
+        }
+        if (area > 0 && in_gap > GAP_SHARE * area) {
+            fprintf(stderr,
+                    "radray: warning: %s: %.0f %% of '%s' faces '%s' across a gap of at most %.3g, under a fiftieth of the "
+                    "radiosity patches' size (%.3g): the pass cannot resolve the light between them, so their "
+                    "radiosity (and their lines in `energy --check`) may be off; close the gap or widen it\n",
+                    s->path, 100.0 * in_gap / area, ob->name, s->objects[other].name, widest, patch_size);
+            warned++;
+        }
+    }
+    return warned;
+}

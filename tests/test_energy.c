@@ -515,8 +515,9 @@ static void solids_own_surfaces(void **state)
 }
 
 /* Each broken case is named: the room built inside out (a box, an OBJ cube)
- * warns with the fix; walls wound the wrong way warn per wall; a mirror
- * that the pass treats as black (quadrature) fails the check. */
+ * warns with the fix; walls wound the wrong way warn per wall; a panel in a
+ * gap far thinner than the patches is named with the gap; a mirror that the
+ * pass treats as black (quadrature) fails the check. */
 static void broken_cases_named(void **state)
 {
     (void)state;
@@ -531,6 +532,11 @@ static void broken_cases_named(void **state)
         assert_int_equal(run(r), 0);
         assert_non_null(strstr(g_out, "faces point outwards"));
     }
+    /* A panel 2 mm under the ceiling: the gap is named (app_diagnose_gaps). */
+    const char *gp[] = {"energy", data("thin-gap.json"), "--particles", "20000", NULL};
+    assert_int_equal(run(gp), 0);
+    if (!strstr(g_out, "of 'panel' faces 'ceiling' across a gap of at most 0.002"))
+        fail_msg("%s", g_out);
     const char *w[] = {"energy", data("walls-wrong-way.json"), "--particles", "50000", NULL};
     assert_int_equal(run(w), 0);
     if (!strstr(g_out, "back faces of 'floor'") || !strstr(g_out, "back faces of 'left'") ||
