@@ -150,6 +150,7 @@ size_t app_diagnose_gaps(const scene *s, const rt_accel *a, double patch_size)
     rr_vec3 e = rr_v3_sub(s->bbox_max, s->bbox_min);
     double ext = fmax(e.x, fmax(e.y, e.z)), g = GAP_PATCH * patch_size, contact = 1e-6 * ext;
     size_t warned = 0;
+    rr_warn_sink w = app_warn_sink();
     for (size_t o = 0; o < s->nobjects; o++) {
         const scene_object *ob = &s->objects[o];
         if (rt_prim_kind_of(s, (uint32_t)o) != RT_PRIM_TRIANGLE || ob->tri_count == 0)
@@ -176,10 +177,10 @@ size_t app_diagnose_gaps(const scene *s, const rt_accel *a, double patch_size)
             }
         }
         if (area > 0 && in_gap > GAP_SHARE * area) {
-            fprintf(stderr,
-                    "radray: warning: %s: %.0f %% of '%s' faces '%s' across a gap of at most %.3g, under a fiftieth of the "
-                    "radiosity patches' size (%.3g): the pass cannot resolve the light between them, so their "
-                    "radiosity (and their lines in `energy --check`) may be off; close the gap or widen it\n",
+            rr_warn(&w,
+                    "%s: %.0f %% of '%s' faces '%s' across a gap of at most %.3g, under a fiftieth of the radiosity "
+                    "patches' size (%.3g): the pass cannot resolve the light between them, so their radiosity (and "
+                    "their lines in `energy --check`) may be off; close the gap or widen it",
                     s->path, 100.0 * in_gap / area, ob->name, s->objects[other].name, widest, patch_size);
             warned++;
         }
