@@ -414,9 +414,12 @@ static int cmp_u32(const void *a, const void *b)
  * elevation RAD_FF_PROBE_SIN), at right angles in azimuth. A point under a
  * one-sided sheet (a table top) is not: some probe passes the sheet's edge,
  * unless the sheet reaches out ~4 times its height on every side. The probes,
- * like the rays' first legs, see back faces that the objects cull. */
+ * like the rays' first legs, see back faces that the objects cull.
+ * With gap > 0 the probes must instead each meet a surface, either side,
+ * less than gap above the tangent plane: the origin lies in a slot thinner
+ * than gap (rad__ff_buried's thin gaps). */
 #define RAD_FF_PROBE_SIN 0.25
-static int enclosed(const rt_accel *a, rr_ray r, rr_vec3 n)
+static int enclosed(const rt_accel *a, rr_ray r, rr_vec3 n, double gap)
 {
     rr_vec3 t1 = rr_v3_madd(r.d, n, -rr_v3_dot(r.d, n));
     if (rr_v3_len2(t1) < 1e-12)
@@ -428,21 +431,29 @@ static int enclosed(const rt_accel *a, rr_ray r, rr_vec3 n)
         rr_vec3 t = k < 2 ? t1 : t2;
         rr_ray p = {r.o, rr_v3_norm(rr_v3_madd(rr_v3_scale(n, RAD_FF_PROBE_SIN), t, k % 2 ? -cs : cs))};
         rt_hit h;
-        if (!rt_accel_closest_two_sided(a, p, 0.0, INFINITY, &h) || h.front)
+        if (!rt_accel_closest_two_sided(a, p, 0.0, INFINITY, &h))
+            return 0;
+        if (gap > 0 ? !(h.t * rr_v3_dot(p.d, n) < gap) : h.front)
             return 0;
     }
     return 1;
 }
 
-int rad__ff_buried(const scene *s, const rt_accel *a, rr_ray r, rr_vec3 n, const rt_hit *h, double bury)
+int rad__ff_buried(const scene *s, const rt_accel *a, rr_ray r, rr_vec3 n, const rt_hit *h, double bury, double gap)
 {
-    return !h->front && (s->objects[h->object].cull_backfaces || h->t < bury || enclosed(a, r, n));
+    if (!h->front)
+        return s->objects[h->object].cull_backfaces || h->t < bury || enclosed(a, r, n, 0.0);
+    /* A thin gap (rad_ff_internal.h): the front of a surface that does not
+     * emit less than gap above the tangent plane, and surfaces that close
+     * to it on every side. */
+    return gap > 0 && h->t * rr_v3_dot(r.d, n) < gap && !(rr_rgb_max(s->materials[h->material].emission) > 0) &&
+           enclosed(a, r, n, gap);
 }
 
-int rad__ff_point_buried(const scene *s, const rt_accel *a, rr_ray r, rr_vec3 n, double bury)
+int rad__ff_point_buried(const scene *s, const rt_accel *a, rr_ray r, rr_vec3 n, double bury, double gap)
 {
     rt_hit h;
-    return rt_accel_closest_two_sided(a, r, 0.0, INFINITY, &h) && rad__ff_buried(s, a, r, n, &h, bury);
+    return rt_accel_closest_two_sided(a, r, 0.0, INFINITY, &h) && rad__ff_buried(s, a, r, n, &h, bury, gap);
 }
 
 /* Row i by Monte Carlo: the patches hit, in w->hits[0 .. return).
@@ -462,7 +473,7 @@ static size_t mc_row(const ff_ctx *c, uint32_t i, ff_scratch *w)
         return 0;
     rr_rng rng = rr_rng_make(c->seed, i);
     rad_ff_shuffle(w->perm, rest, &rng);
-    double bury = RAD_FF_BURY * sqrt(pi->area);
+    double bury = RAD_FF_BURY * sqrt(pi->area), gap = rr_rgb_max(pi->emission) > 0 ? 0.0 : bury;
     size_t m = 0;
     w->open = 0;
     for (uint32_t k = 0; k < ns; k++) {
@@ -491,7 +502,7 @@ static size_t mc_row(const ff_ctx *c, uint32_t i, ff_scratch *w)
                                   : rt_accel_closest(c->a, r, 0.0, INFINITY, &h);
             if (!hit)
                 break; /* escaped */
-            if (bounce == 0 && rad__ff_buried(c->s, c->a, r, xn, &h, bury)) {
+            if (bounce == 0 && rad__ff_buried(c->s, c->a, r, xn, &h, bury, gap)) {
                 w->open--; /* started under a surface: not counted (rad.h) */
                 break;
             }

@@ -135,10 +135,16 @@ double rad__facet_scale(const struct rad_patches *P, const struct rad_patch *q);
  * two-sided closest hit is h, started under a surface: h is a back face of an
  * object that culls back faces (the origin is inside a closed box) at any
  * distance, or of any surface closer than bury, or of one that encloses the
- * origin (probes near the tangent plane meet back faces too). */
-int rad__ff_buried(const scene *s, const rt_accel *a, rr_ray r, rr_vec3 n, const rt_hit *h, double bury);
+ * origin (probes near the tangent plane meet back faces too). Or it started
+ * in a thin gap: h is a front less than gap above the tangent plane (t times
+ * the cosine), and four probes close to the plane meet surfaces less than
+ * gap above it too (a panel 3 mm under a ceiling, a rug 1 mm over the floor:
+ * the pass's elements cannot resolve the light in such a slot, which comes
+ * in only a few gap widths from its rim, and spread the light of their open
+ * part over it; notes/radiosity.md, "Thin gaps"). gap 0: no such test. */
+int rad__ff_buried(const scene *s, const rt_accel *a, rr_ray r, rr_vec3 n, const rt_hit *h, double bury, double gap);
 /* The same for a ray not yet traced (a probe): its two-sided closest hit,
  * then the rule; a ray that meets nothing is open. */
-int rad__ff_point_buried(const scene *s, const rt_accel *a, rr_ray r, rr_vec3 n, double bury);
+int rad__ff_point_buried(const scene *s, const rt_accel *a, rr_ray r, rr_vec3 n, double bury, double gap);
 
 #endif

@@ -702,6 +702,11 @@ static rr_status hier_run(const scene *s, const rt_accel *a, const rad_pass_opts
     double mabs = fmax(bmax.x, fmax(bmax.y, bmax.z));
     c.plane_tol = 1e-9 * ((isfinite(mabs) ? mabs : 0.0) + c.ext);
     c.min_area = rad__hier_min_area(s, o);
+    /* Thin gaps (rad__ff_buried): the flat method's burial distance for its
+     * largest patches, the same at every level of the hierarchy (each
+     * element's own, as for backs, would bury a root's points a hand's width
+     * over a lamp). */
+    c.gap = RAD_FF_BURY * sqrt(rad_pass_patch_limits(s, o).max_area);
     double rel = o->hier.relative > 0 ? o->hier.relative : s->radiosity.relative_tolerance;
     double tol = o->hier.tolerance > 0 ? o->hier.tolerance : s->radiosity.refine_tolerance;
     c.max_links = o->hier.max_links > 0 ? o->hier.max_links : (size_t)s->radiosity.max_links;

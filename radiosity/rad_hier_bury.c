@@ -12,10 +12,14 @@
 #include "rad_ff_internal.h"
 #include "rad_pass_internal.h"
 
+/* The thin gaps' width for e's points (rad__ff_buried): none on an emitter,
+ * whose light starts in the gap (a window pane behind its frame's bars). */
+static double gap_of(const hctx *c, const hel *e) { return rr_rgb_max(c->R->p[e->root].emission) > 0 ? 0.0 : c->gap; }
+
 int rad__hier_buried(const hctx *c, const hel *e, rr_vec3 xs, rr_vec3 ns)
 {
     rr_ray r = {rt_offset_origin(c->ext, xs, ns, ns), ns};
-    return rad__ff_point_buried(c->s, c->a, r, ns, RAD_FF_BURY * sqrt(e->area));
+    return rad__ff_point_buried(c->s, c->a, r, ns, RAD_FF_BURY * sqrt(e->area), gap_of(c, e));
 }
 
 int rad__hier_point_buried(const hctx *c, const hel *e, rr_vec3 x)
@@ -50,7 +54,7 @@ static void el_probe(hctx *c, uint32_t x)
         root_surface(c, e->root, tri_at(e->c, 1.0 - u - v, u, v), &xs, &ns);
         rr_vec3 d = rad_ff_cosine_dir(ns, u1, u2);
         rr_ray r = {rt_offset_origin(c->ext, xs, ns, ns), d};
-        open += !rad__ff_point_buried(c->s, c->a, r, ns, bury);
+        open += !rad__ff_point_buried(c->s, c->a, r, ns, bury, gap_of(c, e));
     }
     e->open = (double)open / PROBES;
     e->nbur = e->open < 1.0 ? rad__hier_near_buried(c, e) : 0;

@@ -34,11 +34,14 @@ static double rlc_w(const rlc_geo *q, int b, rr_vec3 n)
     return m * (c > 0 ? c : 0.0) + 0.5 * (1.0 - m) * (1.0 - fabs(c));
 }
 
+/* What the roots under x take of bucket b's unit irradiance, as the ledger
+ * counts it: by their open area (a root partly buried, the bottom of a
+ * bunny standing in a thin gap over the floor, absorbs over that alone). */
 static double rlc_take(const hctx *c, uint32_t x, const rlc_geo *q, int b)
 {
     if (x & CLB)
         return rlc_take(c, c->cl[CL(x)].child[0], q, b) + rlc_take(c, c->cl[CL(x)].child[1], q, b);
-    return node_uarea(c, x) * rlc_w(q, b, el_normal(c, x));
+    return node_uarea(c, x) * c->el[x].open * rlc_w(q, b, el_normal(c, x));
 }
 
 /* c->rdfs, rpos, rn (hctx), and room for rH and rf: a walk down a
