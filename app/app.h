@@ -203,13 +203,6 @@ size_t app_diagnose_ledger(const scene *s, const rt_particle_ledger *g, double s
  * info and compare. */
 #define APP_DIAGNOSE_PARTICLES 20000
 size_t app_diagnose_light(const scene *s, const rt_accel *a);
-/* Warns about every triangle object of which more than 1 % of the area (its
- * triangles' centroids, up to 4096 of them) faces the front of another
- * object across a gap under a fiftieth of patch_size (the radiosity patches'
- * size, sqrt of their area): light in such gaps is below what the pass
- * resolves (interior.json's fixtures 3 mm under the ceiling). Returns the
- * count. */
-size_t app_diagnose_gaps(const scene *s, const rt_accel *a, double patch_size);
 
 /* Prints "radray: <msg>" on stderr. */
 void app_error(const char *fmt, ...)

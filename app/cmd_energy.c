@@ -482,12 +482,6 @@ int app_cmd_energy(int argc, char **argv)
         app_error("%s", err.msg);
         goto done;
     }
-    {
-        rad_pass_opts po;
-        memset(&po, 0, sizeof po);
-        po.use_scene_choices = 1;
-        app_diagnose_gaps(s, a, sqrt(rad_pass_patch_limits(s, &po).max_area));
-    }
     app_signals_catch(&sig);
     if ((rc = run(&A, s, a, &R)) != 0)
         goto done;

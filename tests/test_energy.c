@@ -448,6 +448,32 @@ static void black_lamp_refined(void **state)
         fail_msg("exit %d\n%s", rc, g_out);
 }
 
+/* Thin gaps (rad_ff.c rad__ff_buried): a panel 2 mm under the ceiling (a
+ * closed box) and a fixture 3 mm under it (an open box, its bottom a lamp),
+ * gaps far under the patches' size, agree with the light tracer on every
+ * surface by both methods now that the pass buries both sides of the gap.
+ * Before, it spread the patches' light over their parts in the gap: the
+ * panel +4.6 % (8 SE at 2 M particles, hierarchical), the fixture's body
+ * +29 % (21 SE; flat +43 %). At 2 M particles the check's 4 SE + 1 % is
+ * about 3 % on these. (The flat method leaves thin-gap.json's front wall
+ * -1.5 % off, with or without the panel: its patches.) */
+static void thin_gaps_buried(void **state)
+{
+    (void)state;
+    const char *hier[] = {"energy", data("thin-gap.json"), "--check", "--particles", "2000000", NULL};
+    run(hier);
+    expect_surfaces_agree(hier[1], NULL);
+    const char *methods[] = {"hierarchical", "flat"};
+    for (int m = 0; m < 2; m++) {
+        char set[64];
+        snprintf(set, sizeof set, "radiosity.method=%s", methods[m]);
+        const char *a[] = {"energy", data("thin-gap-open.json"), "--check", "--particles", "2000000", "--set", set,
+                           NULL};
+        run(a);
+        expect_surfaces_agree(a[1], NULL);
+    }
+}
+
 /* Objects that take in little get finer links (rad_hier_ctx.h link_eps,
  * OBJ_SHARE): scenes/room.json's far mirror frame, dark wood beside the
  * mirror, took in -7.9 % (5.6 SE) against the light tracer when every link
@@ -532,11 +558,6 @@ static void broken_cases_named(void **state)
         assert_int_equal(run(r), 0);
         assert_non_null(strstr(g_out, "faces point outwards"));
     }
-    /* A panel 2 mm under the ceiling: the gap is named (app_diagnose_gaps). */
-    const char *gp[] = {"energy", data("thin-gap.json"), "--particles", "20000", NULL};
-    assert_int_equal(run(gp), 0);
-    if (!strstr(g_out, "of 'panel' faces 'ceiling' across a gap of at most 0.002"))
-        fail_msg("%s", g_out);
     const char *w[] = {"energy", data("walls-wrong-way.json"), "--particles", "50000", NULL};
     assert_int_equal(run(w), 0);
     if (!strstr(g_out, "back faces of 'floor'") || !strstr(g_out, "back faces of 'left'") ||
@@ -626,6 +647,7 @@ int main(void)
         cmocka_unit_test(small_objects_refined),     cmocka_unit_test(solids_true_area),
         cmocka_unit_test(solids_own_surfaces),       cmocka_unit_test(varying_sources),
         cmocka_unit_test(broken_cases_named),        cmocka_unit_test(bad_options),
+        cmocka_unit_test(thin_gaps_buried),
         cmocka_unit_test(interrupt_stops),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
