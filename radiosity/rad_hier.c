@@ -196,6 +196,12 @@
  * carries more than eps of power split, and so do receivers whose fixed
  * points are all buried though part of them is open. The leaves' patch areas
  * are their open parts' (the ledger, the vertex means), as in the flat pass.
+ * Thin gaps are buried too (rad__ff_buried): a point under the front of a
+ * surface that does not emit, less than hctx.gap above it and closed on
+ * every side (a fixture 3 mm under the ceiling, a rug 1 mm over the floor),
+ * gathers and sends nothing, on both sides of the gap; gap is a tenth of the
+ * flat patch size at every level (notes/radiosity.md, "Thin gaps"). A
+ * receiving leaf cluster's roots take its light by their open areas.
  * Known gap: a face lying against a one-sided wall (a shelf's back panel on
  * the back wall) counts as open, since its probes leave into the void behind
  * the wall; it gathers nothing and is never seen, but its area is in the
