@@ -175,8 +175,8 @@ void rad_patch_barycentric(const rad_patches *P, uint32_t k, rr_vec3 p, double b
  * strip around a mirror was -10 %, rad_pass.c). A thin gap counts as a
  * cover: a ray that starts under the front of a surface that does not emit,
  * less than RAD_FF_BURY times the patch's size above its tangent plane, in
- * a slot closed on every side (a fixture hanging 3 mm under the ceiling; the
- * patch itself does not emit). Quadrature rows: open = 1.
+ * a slot about that wide on every side (a fixture hanging 3 mm under the
+ * ceiling; the patch itself does not emit). Quadrature rows: open = 1.
  * The hierarchical method probes its elements by the same rule (rad_hier.c,
  * buried parts) and gives its leaves their open areas likewise. */
 typedef struct rad_ff {

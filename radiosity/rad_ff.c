@@ -416,8 +416,8 @@ static int cmp_u32(const void *a, const void *b)
  * unless the sheet reaches out ~4 times its height on every side. The probes,
  * like the rays' first legs, see back faces that the objects cull.
  * With gap > 0 the probes must instead each meet a surface, either side,
- * less than gap above the tangent plane: the origin lies in a slot thinner
- * than gap (rad__ff_buried's thin gaps). */
+ * less than gap above the tangent plane (so within gap / RAD_FF_PROBE_SIN:
+ * short rays): the origin lies in a slot (rad__ff_buried's thin gaps). */
 #define RAD_FF_PROBE_SIN 0.25
 static int enclosed(const rt_accel *a, rr_ray r, rr_vec3 n, double gap)
 {
@@ -431,7 +431,7 @@ static int enclosed(const rt_accel *a, rr_ray r, rr_vec3 n, double gap)
         rr_vec3 t = k < 2 ? t1 : t2;
         rr_ray p = {r.o, rr_v3_norm(rr_v3_madd(rr_v3_scale(n, RAD_FF_PROBE_SIN), t, k % 2 ? -cs : cs))};
         rt_hit h;
-        if (!rt_accel_closest_two_sided(a, p, 0.0, INFINITY, &h))
+        if (!rt_accel_closest_two_sided(a, p, 0.0, gap > 0 ? gap / RAD_FF_PROBE_SIN : INFINITY, &h))
             return 0;
         if (gap > 0 ? !(h.t * rr_v3_dot(p.d, n) < gap) : h.front)
             return 0;
@@ -444,10 +444,12 @@ int rad__ff_buried(const scene *s, const rt_accel *a, rr_ray r, rr_vec3 n, const
     if (!h->front)
         return s->objects[h->object].cull_backfaces || h->t < bury || enclosed(a, r, n, 0.0);
     /* A thin gap (rad_ff_internal.h): the front of a surface that does not
-     * emit less than gap above the tangent plane, and surfaces that close
-     * to it on every side. */
-    return gap > 0 && h->t * rr_v3_dot(r.d, n) < gap && !(rr_rgb_max(s->materials[h->material].emission) > 0) &&
-           enclosed(a, r, n, gap);
+     * emit at a height w under gap above the tangent plane, and surfaces
+     * under 2 w on every side (a slot about w wide around the point; a
+     * point of the floor under a low overhang is not in one). */
+    double w = h->t * rr_v3_dot(r.d, n);
+    return gap > 0 && w < gap && !(rr_rgb_max(s->materials[h->material].emission) > 0) &&
+           enclosed(a, r, n, 2.0 * w + 0.01 * gap);
 }
 
 int rad__ff_point_buried(const scene *s, const rt_accel *a, rr_ray r, rr_vec3 n, double bury, double gap)

@@ -136,9 +136,10 @@ double rad__facet_scale(const struct rad_patches *P, const struct rad_patch *q);
  * object that culls back faces (the origin is inside a closed box) at any
  * distance, or of any surface closer than bury, or of one that encloses the
  * origin (probes near the tangent plane meet back faces too). Or it started
- * in a thin gap: h is a front less than gap above the tangent plane (t times
- * the cosine), and four probes close to the plane meet surfaces less than
- * gap above it too (a panel 3 mm under a ceiling, a rug 1 mm over the floor:
+ * in a thin gap: h is the front of a surface that does not emit at a height
+ * w under gap above the tangent plane (t times the cosine), and four probes
+ * close to the plane meet surfaces under 2 w above it too, a slot about w
+ * wide around the point (a panel 3 mm under a ceiling, a rug 1 mm over the floor:
  * the pass's elements cannot resolve the light in such a slot, which comes
  * in only a few gap widths from its rim, and spread the light of their open
  * part over it; notes/radiosity.md, "Thin gaps"). gap 0: no such test. */

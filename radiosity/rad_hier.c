@@ -197,10 +197,11 @@
  * points are all buried though part of them is open. The leaves' patch areas
  * are their open parts' (the ledger, the vertex means), as in the flat pass.
  * Thin gaps are buried too (rad__ff_buried): a point under the front of a
- * surface that does not emit, less than hctx.gap above it and closed on
- * every side (a fixture 3 mm under the ceiling, a rug 1 mm over the floor),
- * gathers and sends nothing, on both sides of the gap; gap is a tenth of the
- * flat patch size at every level (notes/radiosity.md, "Thin gaps"). A
+ * surface that does not emit, less than hctx.gap above it, in a slot about
+ * that wide on every side (a fixture 3 mm under the ceiling, a rug 1 mm over
+ * the floor), gathers and sends nothing, on both sides of the gap; gap is a
+ * tenth of the flat patch size, or of the root's size where that is less,
+ * the same at every level of a root (notes/radiosity.md, "Thin gaps"). A
  * receiving leaf cluster's roots take its light by their open areas.
  * Known gap: a face lying against a one-sided wall (a shelf's back panel on
  * the back wall) counts as open, since its probes leave into the void behind

@@ -284,7 +284,7 @@ typedef struct hctx {
     size_t evaluated; /* links evaluated so far (progress) */
     rt_ray_counts rays; /* rays traced while linking (sol->ff_rays): every parallel region that traces adds its own */
     double eps, min_area;
-    double gap; /* thin gaps narrower than this are buried (rad__ff_buried): RAD_FF_BURY of the flat patch size */
+    double gap; /* thin gaps narrower than this are buried (rad__ff_buried): RAD_FF_BURY of the flat patch size (gap_of: or of the root's) */
     double *objpow;   /* per scene object: what its leaves take in, rho A H (link_eps); NULL: not yet */
     double power;     /* the emitted power (rad_hier.c emitted_power): the last solve's power test */
     int last_solve;   /* the solve the ledger reads (after the rounds): it also passes the power test */
