@@ -196,13 +196,8 @@
  * carries more than eps of power split, and so do receivers whose fixed
  * points are all buried though part of them is open. The leaves' patch areas
  * are their open parts' (the ledger, the vertex means), as in the flat pass.
- * Thin gaps are buried too (rad__ff_buried): a point under the front of a
- * surface that does not emit, less than hctx.gap above it, in a slot about
- * that wide on every side (a fixture 3 mm under the ceiling, a rug 1 mm over
- * the floor), gathers and sends nothing, on both sides of the gap; gap is a
- * tenth of the flat patch size, or of the root's size where that is less,
- * the same at every level of a root (notes/radiosity.md, "Thin gaps"). A
- * receiving leaf cluster's roots take its light by their open areas.
+ * Both sides of a thin gap are buried too (rad_hier_bury.c gap_of); leaf
+ * clusters' roots receive by their open areas (notes/radiosity.md, "Thin gaps").
  * Known gap: a face lying against a one-sided wall (a shelf's back panel on
  * the back wall) counts as open, since its probes leave into the void behind
  * the wall; it gathers nothing and is never seen, but its area is in the
@@ -709,11 +704,7 @@ static rr_status hier_run(const scene *s, const rt_accel *a, const rad_pass_opts
     double mabs = fmax(bmax.x, fmax(bmax.y, bmax.z));
     c.plane_tol = 1e-9 * ((isfinite(mabs) ? mabs : 0.0) + c.ext);
     c.min_area = rad__hier_min_area(s, o);
-    /* Thin gaps (rad__ff_buried): the flat method's burial distance for its
-     * largest patches, the same at every level of the hierarchy (each
-     * element's own, as for backs, would bury a root's points a hand's width
-     * over a lamp). */
-    c.gap = RAD_FF_BURY * sqrt(rad_pass_patch_limits(s, o).max_area);
+    c.gap = RAD_FF_BURY * sqrt(rad_pass_patch_limits(s, o).max_area); /* thin gaps (gap_of) */
     double rel = o->hier.relative > 0 ? o->hier.relative : s->radiosity.relative_tolerance;
     double tol = o->hier.tolerance > 0 ? o->hier.tolerance : s->radiosity.refine_tolerance;
     c.max_links = o->hier.max_links > 0 ? o->hier.max_links : (size_t)s->radiosity.max_links;

@@ -12,13 +12,14 @@
 #include "rad_ff_internal.h"
 #include "rad_pass_internal.h"
 
-/* The thin gaps' width for e's points (rad__ff_buried): hctx.gap, or a
- * tenth of e's root's size where that is less (no element of a small root
- * straddles a gap that wide: the 1M room's bunnies, a centimetre tall,
- * stand 0.25 mm over the floor, a gap against their triangles of about a
- * millimetre, and at the room's 7.7 cm every probe of theirs took four
- * more rays, 18 % of the pass); none on an emitter, whose light starts in
- * the gap (a window pane behind its frame's bars). */
+/* The thin gaps' width for e's points (rad__ff_buried): hctx.gap, the flat
+ * method's burial distance for its largest patches, the same at every level
+ * (each element's own, as for backs, would bury a root's points a hand's
+ * width over a lamp); or a tenth of e's root's size where that is less: no
+ * element of a small root straddles a gap that wide (the 1M room's bunnies,
+ * a centimetre tall, stand 0.25 mm over a floor whose gap is 7.7 cm: what
+ * their probes cost is in notes/radiosity.md, "Thin gaps"). None on an
+ * emitter, whose light starts in the gap (a window pane behind its frame). */
 static double gap_of(const hctx *c, const hel *e)
 {
     const rad_patch *rp = &c->R->p[e->root];
