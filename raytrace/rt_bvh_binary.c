@@ -2,7 +2,7 @@
  * rt_internal.h): binned surface area heuristic (16 bins over the box-centre
  * bounds per axis, Wald 2007, "On fast construction of SAH-based BVHs"),
  * leaves of at most 8 items (nodes of at most leaf_items items are leaves
- * whatever SAH says), nodes in one array in depth-first order (left
+ * whatever SAH says, unless their box is large: RT_BIG_NODE), nodes in one array in depth-first order (left
  * child next, right child at `index`). The scene BVH collapses the tree into
  * wide nodes (rt_bvh.c); the solids' mesh leaves walk it as it is
  * (rt_solid_mesh.c). The top of the tree (nodes of RT_BUILD_TASK_MIN items
@@ -160,8 +160,18 @@ typedef struct builder {
     rt_bref *refs;
     rt_node *nodes;
     size_t next; /* the next free slot of this builder's subtree */
-    size_t leaf; /* nodes of at most this many items are leaves (rt__bvh_build_binary) */
+    size_t leaf; /* nodes of at most this many items are leaves (rt__bvh_build_binary)... */
+    double big;  /* ...unless their box's area exceeds this (RT_BIG_NODE of the root's) */
 } builder;
+
+/* A node of at most `leaf` items is a leaf unless its box has more than this
+ * fraction of the root box's area: such a node (a few walls of a room, each
+ * as large as the scene, in one leaf whose box is the whole room) is
+ * entered by a good share of all rays, and SAH decides whether to split it
+ * as for any larger node. The rest (nearly all of a mesh's) are leaves
+ * without binning, which is what makes leaves of one packet cheap to build
+ * (notes/performance.md, "Large nodes of few items"). */
+#define RT_BIG_NODE 0x1p-8
 
 /* The bin grid of one SAH step: bin k of axis a holds the items whose
  * (c2[a] - lo[a]) * scale[a] truncates to k (clamped to the grid). An axis
@@ -404,12 +414,13 @@ static size_t sah_pair(rt_bref *all, const span *sp, int *axis_out, span *l, spa
 
 /* Chooses a split of the items of sp by binned SAH and partitions them;
  * returns the number put on the left (0 = make a leaf) with the two sides'
- * spans in *l and *r. A node of at most `leaf` items is a leaf. */
-static size_t sah_partition(rt_bref *all, const span *sp, size_t leaf, int *axis_out, span *l, span *r)
+ * spans in *l and *r. A node of at most `leaf` items is a leaf when its
+ * area is at most `big` (builder). */
+static size_t sah_partition(rt_bref *all, const span *sp, size_t leaf, double big, int *axis_out, span *l, span *r)
 {
     rt_bref *refs = all + sp->first;
     size_t count = sp->count;
-    if (count <= leaf)
+    if (count <= leaf && !(fbox_area(sp->box) > big))
         return 0;
     if (count <= 2) /* one item: no axis to split on */
         return count == 2 ? sah_pair(all, sp, axis_out, l, r) : 0;
@@ -512,7 +523,7 @@ static void make_node(builder *b, const span *sp, int depth, size_t *idx, span *
 {
     *idx = b->next++;
     int axis = 0;
-    l->count = depth >= RT_STACK - 2 ? 0 : sah_partition(b->refs, sp, b->leaf, &axis, l, r);
+    l->count = depth >= RT_STACK - 2 ? 0 : sah_partition(b->refs, sp, b->leaf, b->big, &axis, l, r);
     rt_node *n = &b->nodes[*idx];
     set_bounds(n, sp->box);
     if (l->count == 0 || l->count == sp->count) {
@@ -572,7 +583,7 @@ static void build_par(builder *b, const span *sp, int depth, subtrees *f)
     make_node(b, sp, depth, &idx, &l, &r);
     if (l.count == 0)
         return;
-    builder L = {b->refs, b->nodes, idx + 1, b->leaf}, R = {b->refs, b->nodes, idx + 2 * l.count, b->leaf};
+    builder L = {b->refs, b->nodes, idx + 1, b->leaf, b->big}, R = {b->refs, b->nodes, idx + 2 * l.count, b->leaf, b->big};
     b->nodes[idx].index = (uint32_t)R.next;
 #pragma omp task shared(L, l) if (omp_in_parallel())
     build_par(&L, &l, depth + 1, f);
@@ -636,13 +647,14 @@ uint32_t rt__bref_item(const rt_bref *r)
 
 int rt__bvh_build_binary(rt_bref *refs, size_t n, size_t leaf_items, int threads, rt_node **nodes, size_t *nnodes)
 {
-    builder b = {refs, malloc((2 * n - 1) * sizeof *b.nodes), 0, leaf_items};
+    builder b = {refs, malloc((2 * n - 1) * sizeof *b.nodes), 0, leaf_items, 0.0};
     if (!b.nodes)
         return -1;
     if (threads <= 0)
         threads = omp_get_max_threads();
     span root;
     span_of(refs, 0, n, &root);
+    b.big = fbox_area(root.box) * RT_BIG_NODE;
     size_t count;
     if (n < RT_BUILD_TASK_MIN || threads == 1) {
         build_rec(&b, &root, 0);

@@ -201,7 +201,8 @@ int rt__tri_hit(const rt_ray_pre *p, rr_vec3 A, rr_vec3 B, rr_vec3 C, int cull, 
 /* ---- the one BVH builder (rt_bvh_binary.c) ----
  * A binary tree over refs[0..n) (n >= 1) by binned SAH, leaves of at most
  * 8 items (deeper than RT_BVH_STACK - 2: a leaf); a node of at most
- * leaf_items items is a leaf whatever SAH says (the scene BVH: RT_PK, one
+ * leaf_items items is a leaf whatever SAH says, unless its box has more than
+ * 1/256 of the root's area (RT_BIG_NODE; the scene BVH: RT_PK, one
  * packet; the solids' mesh leaves: 1, SAH alone decides), in one array in
  * depth-first order (left child next, right child at index), float bounds
  * that contain the refs' boxes; refs are reordered into leaf order (the

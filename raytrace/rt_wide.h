@@ -397,10 +397,12 @@ static inline __attribute__((always_inline)) int rt__lane_closest(const rt_accel
         double t;
         int front;
         /* Exact ties (a ray through a shared edge or vertex) go to the
-         * lowest triangle index, as in rt_ref_closest, so the hit does not
-         * depend on the order the walk meets the triangles in (the widths'
-         * trees differ, and RT_WALKN's order). */
-        int tie = b->tri && fl >> RT_REF_SHIFT < b->tri->ref[b->lane] >> RT_REF_SHIFT;
+         * lowest triangle index, as in rt_ref_closest, and a triangle wins
+         * a tie with another primitive (rt__prim_hit takes only a t below
+         * the best), so the hit does not depend on the order the walk meets
+         * them in (the widths' trees differ, and RT_WALKN's order): a solid's
+         * cap flush with a floor. */
+        int tie = b->tri ? fl >> RT_REF_SHIFT < b->tri->ref[b->lane] >> RT_REF_SHIFT : b->found;
         /* Two-sided: a back face of a culling object a hair beyond a front
          * face wins (RT_TIE_REL), so that a ray leaving a closed box through
          * a face that lies flush with another surface's front (a board

@@ -451,6 +451,114 @@ static void bvh_binary_leaf_items(void **state)
     free(seen);
 }
 
+/* Walls in a leaf of the binary tree (items n + 2 w and n + 2 w + 1 are
+ * wall w's two triangles): a leaf that holds two walls counts in *mixed. */
+static void big_node_leaves(const rt_node *nodes, size_t i, const rt_bref *refs, uint32_t n, int *mixed)
+{
+    const rt_node *nd = &nodes[i];
+    if (nd->count) {
+        unsigned walls = 0;
+        for (size_t k = nd->index; k < nd->index + nd->count; k++) {
+            uint32_t it = rt__bref_item(&refs[k]);
+            if (it >= n)
+                walls |= 1u << ((it - n) / 2);
+        }
+        *mixed += walls != 0 && (walls & (walls - 1)) != 0;
+        return;
+    }
+    big_node_leaves(nodes, i + 1, refs, n, mixed);
+    big_node_leaves(nodes, nd->index, refs, n, mixed);
+}
+
+/* A node of RT_PK items or fewer whose box is large against the root's is
+ * split as SAH says (RT_BIG_NODE): the six walls of a room (two triangles
+ * each, as large as the room) around a cloud of small items end in leaves
+ * of one wall each, not in leaves whose box is most of the room, which
+ * nearly every ray inside the room would enter. With leaf_items 1 SAH
+ * splits them too. */
+static void bvh_binary_big_nodes_split(void **state)
+{
+    (void)state;
+    enum { N = 2000 };
+    rt_bref *refs = malloc((N + 12) * sizeof *refs);
+    assert_non_null(refs);
+    for (int pass = 0; pass < 2; pass++) {
+        rr_rng rng = rr_rng_make(12, 0);
+        for (uint32_t k = 0; k < N; k++) {
+            rr_vec3 c = rr_v3(0.3 + 0.4 * rr_rng_uniform(&rng), 0.3 * rr_rng_uniform(&rng),
+                              0.3 + 0.4 * rr_rng_uniform(&rng));
+            rr_vec3 h = rr_v3(0.001, 0.001, 0.001);
+            rt__bref_set(&refs[k], rr_v3_sub(c, h), rr_v3_add(c, h), k);
+        }
+        /* The walls of the room [0, 2] x [0, 1] x [0, 2]: x = 0, x = 2, y = 0, y = 1, z = 0, z = 2. */
+        for (uint32_t w = 0; w < 6; w++) {
+            int axis = (int)w / 2;
+            double at = (w & 1) ? (axis == 1 ? 1.0 : 2.0) : 0.0;
+            double lo[3] = {0, 0, 0}, hi[3] = {2, 1, 2};
+            lo[axis] = hi[axis] = at;
+            for (uint32_t k = 0; k < 2; k++)
+                rt__bref_set(&refs[N + 2 * w + k], rr_v3(lo[0], lo[1], lo[2]), rr_v3(hi[0], hi[1], hi[2]),
+                             N + 2 * w + k);
+        }
+        rt_node *nodes = NULL;
+        size_t nn = 0;
+        assert_int_equal(rt__bvh_build_binary(refs, N + 12, pass == 0 ? RT_PK : 1, 1, &nodes, &nn), 0);
+        int mixed = 0;
+        big_node_leaves(nodes, 0, refs, N, &mixed);
+        assert_int_equal(mixed, 0);
+        free(nodes);
+    }
+    free(refs);
+}
+
+/* An exact tie between a triangle and another primitive goes to the
+ * triangle, as in rt_ref_closest, whatever order the walk meets them in:
+ * spheres of radius 1 standing on a floor that faces down, rays from below
+ * up through each sphere's lowest point meet the floor and the sphere both
+ * at t = 1 exactly. Every width, single rays and packets. */
+static void bvh_triangle_wins_tie_with_primitive(void **state)
+{
+    (void)state;
+    enum { NS = 48 };
+    char *json = malloc(96 * NS + 512);
+    assert_non_null(json);
+    int at = sprintf(json, "{\"format\":\"radray-scene/1\",\"camera\":{\"type\":\"lecture\",\"E\":[0,0,5],"
+                           "\"O\":[0,0,4],\"U\":[0,1,0],\"s\":0.1,\"w\":2,\"h\":2},"
+                           "\"materials\":{\"a\":{\"diffuse\":[0.5,0.5,0.5]}},\"objects\":["
+                           "{\"type\": \"quad\", \"material\": \"a\", \"vertices\": [[-40, 0, -40], [40, 0, -40], "
+                           "[40, 0, 40], [-40, 0, 40]]}");
+    rr_ray rays[NS];
+    for (int i = 0; i < NS; i++) {
+        int x = -33 + 3 * (i % 8), z = 2 + 5 * (i / 8); /* x < 0 < z: off the quad's diagonal x = z */
+        at += sprintf(json + at, ", {\"type\": \"sphere\", \"material\": \"a\", \"center\": [%d, 1, %d], \"radius\": 1}", x, z);
+        rays[i] = (rr_ray){rr_v3(x, -1, z), rr_v3(0, 1, 0)};
+    }
+    sprintf(json + at, "]}");
+    scene *s = NULL;
+    rr_error err;
+    assert_int_equal(scene_load_string(json, "tie", "", NULL, &s, &err), RR_OK);
+    free(json);
+    int ws[3], nw = widths_available(ws);
+    for (int wi = 0; wi < nw; wi++) {
+        rt_accel *a = NULL;
+        assert_int_equal(rt__accel_build_width(s, ws[wi], &a, &err), RR_OK);
+        rt_hit hn[NS];
+        unsigned char found[NS];
+        assert_int_equal(rt_accel_closest_n(a, rays, NS, 0.0, INFINITY, hn, found), NS);
+        for (int i = 0; i < NS; i++) {
+            rt_hit h1, h2;
+            assert_true(rt_ref_closest(s, rays[i], 0.0, INFINITY, &h1));
+            assert_true(rt_accel_closest(a, rays[i], 0.0, INFINITY, &h2));
+            assert_true(h1.t == 1.0 && h2.t == 1.0 && hn[i].t == 1.0);
+            assert_int_equal(h1.object, 0);
+            assert_int_equal(h2.object, 0);
+            assert_int_equal(hn[i].object, 0);
+        }
+        rt_accel_destroy(a);
+    }
+    scene_destroy(s);
+}
+
 static void bvh_fast_path_large_and_watertight(void **state)
 {
     (void)state;
@@ -825,6 +933,8 @@ int main(void)
         cmocka_unit_test(bvh_fast_path_large_and_watertight),
         cmocka_unit_test(bvh_build_threads_same_tree),
         cmocka_unit_test(bvh_binary_leaf_items),
+        cmocka_unit_test(bvh_binary_big_nodes_split),
+        cmocka_unit_test(bvh_triangle_wins_tie_with_primitive),
         cmocka_unit_test(bvh_widths_agree),
         cmocka_unit_test(bvh_occluded_matches_walk),
         cmocka_unit_test(f_round_matches_nextafter),
