@@ -201,7 +201,7 @@ typedef struct rad_ff_opts {
     uint64_t seed;
     int threads;       /* rows in parallel; 0 = OpenMP default (the result does not depend on it) */
     int raw;           /* 1: keep the estimates as computed (for tests of reciprocity);
-                          0 (default): make them reciprocal, F_ij := (A_i F_ij + A_j F_ji) / (2 A_i),
+                          0 (default): make them reciprocal, F_ij := A_j (F_ij + F_ji) / (A_i + A_j),
                           so the solved system conserves energy exactly, and (Monte Carlo) rebalance
                           the rows, A_i F_ij := s_i s_j A_i F_ij, so that each effective row sum is
                           the raw row's again (rad_ff.c, "Row sums") */

@@ -52,8 +52,8 @@
  * Both run rows in parallel (OpenMP, dynamic), each row from its own RNG
  * stream rr_rng_make(seed, i): the result is bit-identical for any thread
  * count (the balancing is serial). Rows are sorted by column. Unless o->raw,
- * the estimates are then made reciprocal, F_ij := (A_i F_ij + A_j F_ji) /
- * (2 A_i), over the union of the two patterns, so A_i F_ij = A_j F_ji (to
+ * the estimates are then made reciprocal, F_ij := A_j (F_ij + F_ji) /
+ * (A_i + A_j), over the union of the two patterns, so A_i F_ij = A_j F_ji (to
  * rounding) and the solved system conserves energy; Monte Carlo ones are
  * then balanced as above.
  */
