@@ -217,6 +217,46 @@ static int closer_than_radii(const rview *rv, const hel *es)
     return rr_v3_len(rr_v3_sub(rv->ctr, es->ctr)) < rv->e->radius + es->radius;
 }
 
+/* Whether triangle t (centroid g, size: the largest distance from g to a
+ * corner) lies closer to s's plane (through yc, normal ny) than its size,
+ * and within its size of s (radius ys): where the point factor to s peaks
+ * (along an edge shared with s it grows as -log of the distance). */
+static int near_plane(const rr_vec3 t[3], rr_vec3 ny, rr_vec3 yc, double ys)
+{
+    rr_vec3 g = rr_v3_scale(rr_v3_add(rr_v3_add(t[0], t[1]), t[2]), 1.0 / 3.0);
+    double size = rr_max(rr_v3_len(rr_v3_sub(t[0], g)), rr_max(rr_v3_len(rr_v3_sub(t[1], g)), rr_v3_len(rr_v3_sub(t[2], g))));
+    return fabs(rr_v3_dot(ny, rr_v3_sub(g, yc))) < size && rr_v3_len(rr_v3_sub(g, yc)) < size + ys;
+}
+
+/* The mean over triangle t of the unoccluded point factor to poly (s's
+ * front part), by the 7-point rule on each of t's four children, or on
+ * their children where they lie near s's plane (near_plane), down `depth`
+ * levels. side_ff takes it for a near pair's children near s's plane, where
+ * the rule on the children alone read the peak short: interior.json's
+ * window pane, whose glazing bars stand 1 mm in front of it, took in 4 %
+ * more than the light tracer counts, a pane with its frame alone 3.2 % less
+ * (notes/radiosity.md, "Near pairs by a finer rule"). */
+static double finer_mean(const hctx *c, const rr_vec3 t[3], rr_vec3 nx, const rr_vec3 *poly, int nv, rr_vec3 ny,
+                         rr_vec3 yc, double ys, int depth)
+{
+    rr_vec3 m01 = rr_v3_scale(rr_v3_add(t[0], t[1]), 0.5), m12 = rr_v3_scale(rr_v3_add(t[1], t[2]), 0.5),
+            m20 = rr_v3_scale(rr_v3_add(t[2], t[0]), 0.5);
+    rr_vec3 ch[4][3] = {{t[0], m01, m20}, {m01, t[1], m12}, {m20, m12, t[2]}, {m12, m20, m01}};
+    double sum = 0.0;
+    for (int q = 0; q < 4; q++) {
+        if (depth > 1 && near_plane(ch[q], ny, yc, ys)) {
+            sum += 0.25 * finer_mean(c, ch[q], nx, poly, nv, ny, yc, ys, depth - 1);
+            continue;
+        }
+        for (int k = 0; k < 7; k++) {
+            rr_vec3 x = tri_at(ch[q], d7_b[k][0], d7_b[k][1], d7_b[k][2]);
+            sum += 0.25 * d7_w[k] *
+                   (rr_v3_dot(ny, rr_v3_sub(x, yc)) > c->plane_tol ? rad_ff_point_polygon(x, nx, poly, nv) : 0.0);
+        }
+    }
+    return sum;
+}
+
 static double side_ff(const hctx *c, const rview *rv, uint32_t yi, int near, rr_rng *rng, double *dF, vis_count *v,
                       double fk[4])
 {
@@ -275,6 +315,24 @@ static double side_ff(const hctx *c, const rview *rv, uint32_t yi, int near, rr_
     for (int q = 0; q < 4; q++)
         fk[q] = wk[q] > 0 ? fk[q] / wk[q] : 0.0;
     *dF = wsum > 0 ? hi - lo : 0.0;
+    if (near && rule == RULE_NEAR && ex->nbur == 0 && !rv->way && wsum > 0) {
+        /* every near point open: the children near s's plane again, finer
+         * (finer_mean); the others keep the rule's mean */
+        static const double ch[4][3][3] = {{{1, 0, 0}, {0.5, 0.5, 0}, {0.5, 0, 0.5}},
+                                           {{0.5, 0.5, 0}, {0, 1, 0}, {0, 0.5, 0.5}},
+                                           {{0.5, 0, 0.5}, {0, 0.5, 0.5}, {0, 0, 1}},
+                                           {{0, 0.5, 0.5}, {0.5, 0, 0.5}, {0.5, 0.5, 0}}};
+        double m = 0.0;
+        for (int q = 0; q < 4; q++) {
+            rr_vec3 t[3];
+            for (int k = 0; k < 3; k++)
+                t[k] = tri_at(rv->c, ch[q][k][0], ch[q][k][1], ch[q][k][2]);
+            if (near_plane(t, ny, ey->ctr, ey->radius))
+                fk[q] = finer_mean(c, t, nx, poly, nv, ny, ey->ctr, ey->radius, 1);
+            m += 0.25 * fk[q];
+        }
+        return m;
+    }
     return wsum > 0 ? sum / wsum : 0.0;
 }
 
