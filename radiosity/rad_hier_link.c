@@ -224,7 +224,8 @@ static int closer_than_radii(const rview *rv, const hel *es)
 static int near_plane(const rr_vec3 t[3], rr_vec3 ny, rr_vec3 yc, double ys)
 {
     rr_vec3 g = rr_v3_scale(rr_v3_add(rr_v3_add(t[0], t[1]), t[2]), 1.0 / 3.0);
-    double size = rr_max(rr_v3_len(rr_v3_sub(t[0], g)), rr_max(rr_v3_len(rr_v3_sub(t[1], g)), rr_v3_len(rr_v3_sub(t[2], g))));
+    double size = rr_max(rr_v3_len(rr_v3_sub(t[0], g)),
+                         rr_max(rr_v3_len(rr_v3_sub(t[1], g)), rr_v3_len(rr_v3_sub(t[2], g))));
     return fabs(rr_v3_dot(ny, rr_v3_sub(g, yc))) < size && rr_v3_len(rr_v3_sub(g, yc)) < size + ys;
 }
 

@@ -2,10 +2,10 @@
  * rt_internal.h): binned surface area heuristic (16 bins over the box-centre
  * bounds per axis, Wald 2007, "On fast construction of SAH-based BVHs"),
  * leaves of at most 8 items (nodes of at most leaf_items items are leaves
- * whatever SAH says, unless their box is large: RT_BIG_NODE), nodes in one array in depth-first order (left
- * child next, right child at `index`). The scene BVH collapses the tree into
- * wide nodes (rt_bvh.c); the solids' mesh leaves walk it as it is
- * (rt_solid_mesh.c). The top of the tree (nodes of RT_BUILD_TASK_MIN items
+ * whatever SAH says, unless their box is large: RT_BIG_NODE), nodes in one
+ * array in depth-first order (left child next, right child at `index`). The
+ * scene BVH collapses the tree into wide nodes (rt_bvh.c); the solids' mesh
+ * leaves walk it as it is (rt_solid_mesh.c). The top of the tree (nodes of RT_BUILD_TASK_MIN items
  * and more) is built as OpenMP tasks, the subtrees below it by a parallel
  * loop, each written where the serial build puts it: the same nodes for any
  * thread count.
@@ -583,7 +583,8 @@ static void build_par(builder *b, const span *sp, int depth, subtrees *f)
     make_node(b, sp, depth, &idx, &l, &r);
     if (l.count == 0)
         return;
-    builder L = {b->refs, b->nodes, idx + 1, b->leaf, b->big}, R = {b->refs, b->nodes, idx + 2 * l.count, b->leaf, b->big};
+    builder L = {b->refs, b->nodes, idx + 1, b->leaf, b->big};
+    builder R = {b->refs, b->nodes, idx + 2 * l.count, b->leaf, b->big};
     b->nodes[idx].index = (uint32_t)R.next;
 #pragma omp task shared(L, l) if (omp_in_parallel())
     build_par(&L, &l, depth + 1, f);

@@ -373,7 +373,8 @@ static void bvh_triangle_wins_tie_with_primitive(void **state)
     rr_ray rays[NS];
     for (int i = 0; i < NS; i++) {
         int x = -33 + 3 * (i % 8), z = 2 + 5 * (i / 8); /* x < 0 < z: off the quad's diagonal x = z */
-        at += sprintf(json + at, ", {\"type\": \"sphere\", \"material\": \"a\", \"center\": [%d, 1, %d], \"radius\": 1}", x, z);
+        at += sprintf(json + at,
+                      ", {\"type\": \"sphere\", \"material\": \"a\", \"center\": [%d, 1, %d], \"radius\": 1}", x, z);
         rays[i] = (rr_ray){rr_v3(x, -1, z), rr_v3(0, 1, 0)};
     }
     sprintf(json + at, "]}");
