@@ -37,6 +37,13 @@ static const double d7_b[7][3] = {{1.0 / 3, 1.0 / 3, 1.0 / 3},
 static const double d7_w[7] = {0.225,
                                0.132394152788506, 0.132394152788506, 0.132394152788506,
                                0.125939180544827, 0.125939180544827, 0.125939180544827};
+/* The children's corners in the parent's barycentrics (el_split's order):
+ * A, B, C, then the middle one (mBC, mCA, mAB). */
+static const double ch[4][3][3] = {{{1, 0, 0}, {0.5, 0.5, 0}, {0.5, 0, 0.5}},
+                                   {{0.5, 0.5, 0}, {0, 1, 0}, {0, 0.5, 0.5}},
+                                   {{0.5, 0, 0.5}, {0, 0.5, 0.5}, {0, 0, 1}},
+                                   {{0, 0.5, 0.5}, {0.5, 0, 0.5}, {0.5, 0.5, 0}}};
+
 static int quad_points(int rule, double (*b)[3], double *w)
 {
     if (rule == RULE_FIXED) {
@@ -50,12 +57,6 @@ static int quad_points(int rule, double (*b)[3], double *w)
         memcpy(w, d7_w, sizeof d7_w);
         return 7;
     }
-    /* the children's corners in the parent's barycentrics: A, B, C, then
-     * the middle one (mBC, mCA, mAB) */
-    static const double ch[4][3][3] = {{{1, 0, 0}, {0.5, 0.5, 0}, {0.5, 0, 0.5}},
-                                       {{0.5, 0.5, 0}, {0, 1, 0}, {0, 0.5, 0.5}},
-                                       {{0.5, 0, 0.5}, {0, 0.5, 0.5}, {0, 0, 1}},
-                                       {{0, 0.5, 0.5}, {0.5, 0, 0.5}, {0.5, 0.5, 0}}};
     int n = 0;
     for (int q = 0; q < 4; q++)
         for (int k = 0; k < 7; k++, n++) {
@@ -242,15 +243,15 @@ static double finer_mean(const hctx *c, const rr_vec3 t[3], rr_vec3 nx, const rr
 {
     rr_vec3 m01 = rr_v3_scale(rr_v3_add(t[0], t[1]), 0.5), m12 = rr_v3_scale(rr_v3_add(t[1], t[2]), 0.5),
             m20 = rr_v3_scale(rr_v3_add(t[2], t[0]), 0.5);
-    rr_vec3 ch[4][3] = {{t[0], m01, m20}, {m01, t[1], m12}, {m20, m12, t[2]}, {m12, m20, m01}};
+    rr_vec3 kid[4][3] = {{t[0], m01, m20}, {m01, t[1], m12}, {m20, m12, t[2]}, {m12, m20, m01}}; /* ch's order */
     double sum = 0.0;
     for (int q = 0; q < 4; q++) {
-        if (depth > 1 && near_plane(ch[q], ny, yc, ys)) {
-            sum += 0.25 * finer_mean(c, ch[q], nx, poly, nv, ny, yc, ys, depth - 1);
+        if (depth > 1 && near_plane(kid[q], ny, yc, ys)) {
+            sum += 0.25 * finer_mean(c, kid[q], nx, poly, nv, ny, yc, ys, depth - 1);
             continue;
         }
         for (int k = 0; k < 7; k++) {
-            rr_vec3 x = tri_at(ch[q], d7_b[k][0], d7_b[k][1], d7_b[k][2]);
+            rr_vec3 x = tri_at(kid[q], d7_b[k][0], d7_b[k][1], d7_b[k][2]);
             sum += 0.25 * d7_w[k] *
                    (rr_v3_dot(ny, rr_v3_sub(x, yc)) > c->plane_tol ? rad_ff_point_polygon(x, nx, poly, nv) : 0.0);
         }
@@ -319,10 +320,6 @@ static double side_ff(const hctx *c, const rview *rv, uint32_t yi, int near, rr_
     if (near && rule == RULE_NEAR && ex->nbur == 0 && !rv->way && wsum > 0) {
         /* every near point open: the children near s's plane again, finer
          * (finer_mean); the others keep the rule's mean */
-        static const double ch[4][3][3] = {{{1, 0, 0}, {0.5, 0.5, 0}, {0.5, 0, 0.5}},
-                                           {{0.5, 0.5, 0}, {0, 1, 0}, {0, 0.5, 0.5}},
-                                           {{0.5, 0, 0.5}, {0, 0.5, 0.5}, {0, 0, 1}},
-                                           {{0, 0.5, 0.5}, {0.5, 0, 0.5}, {0.5, 0.5, 0}}};
         double m = 0.0;
         for (int q = 0; q < 4; q++) {
             rr_vec3 t[3];
