@@ -662,9 +662,14 @@ rr_status rt__accel_build_width(const scene *s, int width, rt_accel **out, rr_er
     rt__prim_list(s, b.list);
 #pragma omp parallel for schedule(static) num_threads(threads) if (n >= RT_BUILD_TASK_MIN)
     for (size_t i = 0; i < n; i++) {
-        rr_vec3 lo, hi;
         if (i + RT_PF_NEAR < n) /* the triangles are read in order, their vertices are not */
             prefetch_verts(s, b.list[i + RT_PF_NEAR]);
+        if (b.list[i].kind == RT_PRIM_TRIANGLE) {
+            const scene_tri *t = &s->tris[b.list[i].index];
+            rt__bref_tri(&b.refs[i], &s->verts[t->v[0]], &s->verts[t->v[1]], &s->verts[t->v[2]], (uint32_t)i);
+            continue;
+        }
+        rr_vec3 lo, hi;
         rt__prim_bounds(s, b.list[i], &lo, &hi);
         rt__bref_set(&b.refs[i], lo, hi, (uint32_t)i);
     }

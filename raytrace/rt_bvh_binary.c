@@ -108,8 +108,8 @@ static fbox fbox_union(fbox a, fbox b)
 }
 /* Surface area, in double from the float corners (a float product of a
  * large scene's extents could overflow). 0 for an empty box. The SSE2
- * version does the same operations in the same order (the same bits); it
- * is most of the SAH sweep's time. */
+ * version does the same operations in the same order (the same bits).
+ * Once per node (RT_BIG_NODE); the SAH sweep uses fbox_harea_s. */
 #if defined(RT_SIMD) && RT_SIMD >= 1
 static inline double fbox_area(fbox b)
 {
@@ -136,8 +136,46 @@ static double fbox_area(fbox b)
 }
 #endif
 
-/* fmax(a, DBL_MIN) for an area (never NaN), without the libm call. */
-static inline double area_floor(double a) { return a > DBL_MIN ? a : DBL_MIN; }
+/* The SAH sweep's areas, in float: dx dy + dy dz + dz dx of a non-empty
+ * box scaled by s (per node: 1 / its largest extent, so that the products
+ * stay in float's range for any scene's coordinates), half the surface
+ * area of the scaled box, which is all a cost ratio needs; the sum in the
+ * order ((xy + zx) + yz) in both versions. The w lanes are masked before
+ * the subtraction: a hi corner's w holds a reference's number, mostly a
+ * denormal as a float, and arithmetic on denormals took this CPU's slow
+ * path (the build 25 % slower than with double areas, until masked). The
+ * sweep in double was a fifth of the build (notes/performance.md). */
+#if defined(RT_SIMD) && RT_SIMD >= 1
+static inline float fbox_harea_s(fbox b, v4 s)
+{
+    __m128 d = _mm_mul_ps(_mm_sub_ps(v4_xyz(b.hi), v4_xyz(b.lo)), s);
+    __m128 p = _mm_mul_ps(d, _mm_shuffle_ps(d, d, _MM_SHUFFLE(3, 0, 2, 1))); /* (xy, yz, zx, -) */
+    __m128 q = _mm_add_ss(p, _mm_movehl_ps(p, p));
+    return _mm_cvtss_f32(_mm_add_ss(q, _mm_shuffle_ps(p, p, _MM_SHUFFLE(1, 1, 1, 1))));
+}
+#else
+static inline float fbox_harea_s(fbox b, v4 s)
+{
+    v4 d = v4_mul(v4_sub(b.hi, b.lo), s);
+    float xy = d.f[0] * d.f[1], yz = d.f[1] * d.f[2], zx = d.f[2] * d.f[0];
+    return (xy + zx) + yz;
+}
+#endif
+
+/* The scale for fbox_harea_s of the boxes inside box b: 1 / its largest
+ * extent, at most 1e30 (1 for a box of no extent, whose sub-boxes' areas
+ * are all 0). */
+static inline v4 harea_scale(fbox b)
+{
+    float lo[4], hi[4];
+    v4_store(lo, b.lo);
+    v4_store(hi, b.hi);
+    double e = 0.0;
+    for (int a = 0; a < 3; a++)
+        e = (double)hi[a] - lo[a] > e ? (double)hi[a] - lo[a] : e;
+    float sc = e > 0.0 ? (float)(e > 1e-30 ? 1.0 / e : 1e30) : 1.0f;
+    return v4_set(sc, sc, sc, 0.0f);
+}
 
 static inline fbox ref_box(const rt_bref *r)
 {
@@ -392,9 +430,10 @@ static size_t sah_pair(rt_bref *all, const span *sp, int *axis_out, span *l, spa
     v4_store(ca, ref_c2(a));
     v4_store(cb, ref_c2(b));
     int swap = ca[axis] > cb[axis];
-    double inv_area = 1.0 / area_floor(fbox_area(sp->box));
-    double cost = 1.0 + (fbox_area(swap ? b : a) * 1.0 + fbox_area(swap ? a : b) * 1.0) * inv_area;
-    if (!(cost < 2.0))
+    v4 hs = harea_scale(sp->box);
+    float ha = fbox_harea_s(sp->box, hs), inv_area = 1.0f / (ha > FLT_MIN ? ha : FLT_MIN);
+    float cost = 1.0f + (fbox_harea_s(swap ? b : a, hs) * 1.0f + fbox_harea_s(swap ? a : b, hs) * 1.0f) * inv_area;
+    if (!(cost < 2.0f))
         return 0;
     if (swap) {
         rt_bref t = refs[0];
@@ -412,77 +451,20 @@ static size_t sah_pair(rt_bref *all, const span *sp, int *axis_out, span *l, spa
     return 1;
 }
 
-/* Chooses a split of the items of sp by binned SAH and partitions them;
- * returns the number put on the left (0 = make a leaf) with the two sides'
- * spans in *l and *r. A node of at most `leaf` items is a leaf when its
- * area is at most `big` (builder). */
-static size_t sah_partition(rt_bref *all, const span *sp, size_t leaf, double big, int *axis_out, span *l, span *r)
+/* Partitions refs[0, count) by the split: bin >= split of axis on grid g
+ * goes right. Returns the left side's count; the two sides' box and c2
+ * bounds in *l and *r (their first and count set by the caller). */
+static size_t partition(rt_bref *refs, size_t count, const grid *g, int best_axis, int best_split, span *l, span *r)
 {
-    rt_bref *refs = all + sp->first;
-    size_t count = sp->count;
-    if (count <= leaf && !(fbox_area(sp->box) > big))
-        return 0;
-    if (count <= 2) /* one item: no axis to split on */
-        return count == 2 ? sah_pair(all, sp, axis_out, l, r) : 0;
-    grid g;
-    grid_of(sp, &g);
-    bins3 bins;
-    bin_all(refs, count, &g, &bins);
-    double best_cost = (double)count; /* cost of a leaf, in intersection units */
-    int best_axis = -1, best_split = 0;
-    double inv_area = 1.0 / area_floor(fbox_area(sp->box));
-    for (int axis = 0; axis < 3; axis++) {
-        if (!(g.scale_a[axis] > 0.0f))
-            continue;
-        /* Sweep the used bins from the right, then from the left. A split
-         * after an empty bin has the cost of the split before it, which
-         * wins ties, so only splits right after a used bin are tried: the
-         * same choice as a sweep over every bin. */
-        int k_used[RT_BINS], m = 0;
-        for (unsigned u = bins.used[axis]; u; u &= u - 1)
-            k_used[m++] = __builtin_ctz(u);
-        double right_area[RT_BINS];
-        uint32_t right_cnt[RT_BINS];
-        fbox acc = fbox_empty();
-        uint32_t n = 0;
-        for (int j = m - 1; j > 0; j--) {
-            acc = fbox_union(acc, bins.box[axis][k_used[j]]);
-            n += bins.cnt[axis][k_used[j]];
-            right_area[j] = fbox_area(acc);
-            right_cnt[j] = n;
-        }
-        acc = fbox_empty();
-        n = 0;
-        for (int j = 0; j + 1 < m; j++) {
-            acc = fbox_union(acc, bins.box[axis][k_used[j]]);
-            n += bins.cnt[axis][k_used[j]];
-            /* Traversal cost 1 relative to one primitive test. */
-            double cost = 1.0 + (fbox_area(acc) * (double)n + right_area[j + 1] * (double)right_cnt[j + 1]) * inv_area;
-            if (cost < best_cost) {
-                best_cost = cost;
-                best_axis = axis;
-                best_split = k_used[j] + 1;
-            }
-        }
-    }
-    if (best_axis < 0) {
-        if (count <= RT_LEAF_MAX)
-            return 0;
-        /* All centroids coincide (or SAH prefers a leaf that is too big): split in the middle. */
-        *axis_out = 0;
-        span_of(all, sp->first, sp->first + count / 2, l);
-        span_of(all, sp->first + count / 2, sp->first + count, r);
-        return count / 2;
-    }
+    fbox lb = fbox_empty(), lc = fbox_empty(), rb = fbox_empty(), rc = fbox_empty();
     /* Partition from both ends (Hoare): an item already on its side is not
      * moved; the two sides' bounds are gathered on the way. */
-    fbox lb = fbox_empty(), lc = fbox_empty(), rb = fbox_empty(), rc = fbox_empty();
     size_t i = 0, j = count;
     /* Right of the split: bin >= best_split, which for a split in
      * [1, RT_BINS - 1] is t >= best_split for grid_bins' t (the clamps
      * and the truncation do not move t across an integer above 0), the
      * same float operations on one lane. */
-    float glo = g.lo_a[best_axis], gscale = g.scale_a[best_axis], gsplit = (float)best_split;
+    float glo = g->lo_a[best_axis], gscale = g->scale_a[best_axis], gsplit = (float)best_split;
 #define RT_RIGHT(ref) (((ref)->lo[best_axis] + (ref)->hi[best_axis] - glo) * gscale >= gsplit)
     for (;;) {
         for (; i < j && !RT_RIGHT(&refs[i]); i++)
@@ -501,8 +483,81 @@ static size_t sah_partition(rt_bref *all, const span *sp, size_t leaf, double bi
         j--;
     }
 #undef RT_RIGHT
-    *l = (span){sp->first, i, lb, lc};
-    *r = (span){sp->first + i, count - i, rb, rc};
+    l->box = lb;
+    l->cb = lc;
+    r->box = rb;
+    r->cb = rc;
+    return i;
+}
+
+/* Chooses a split of the items of sp by binned SAH and partitions them;
+ * returns the number put on the left (0 = make a leaf) with the two sides'
+ * spans in *l and *r. A node of at most `leaf` items is a leaf when its
+ * area is at most `big` (builder). */
+static size_t sah_partition(rt_bref *all, const span *sp, size_t leaf, double big, int *axis_out, span *l, span *r)
+{
+    rt_bref *refs = all + sp->first;
+    size_t count = sp->count;
+    if (count <= leaf && !(fbox_area(sp->box) > big))
+        return 0;
+    if (count <= 2) /* one item: no axis to split on */
+        return count == 2 ? sah_pair(all, sp, axis_out, l, r) : 0;
+    grid g;
+    grid_of(sp, &g);
+    bins3 bins;
+    bin_all(refs, count, &g, &bins);
+    float best_cost = (float)count; /* cost of a leaf, in intersection units */
+    int best_axis = -1, best_split = 0;
+    v4 hs = harea_scale(sp->box);
+    float ha = fbox_harea_s(sp->box, hs), inv_area = 1.0f / (ha > FLT_MIN ? ha : FLT_MIN);
+    for (int axis = 0; axis < 3; axis++) {
+        if (!(g.scale_a[axis] > 0.0f))
+            continue;
+        /* Sweep the used bins from the right, then from the left. A split
+         * after an empty bin has the cost of the split before it, which
+         * wins ties, so only splits right after a used bin are tried: the
+         * same choice as a sweep over every bin. */
+        int k_used[RT_BINS], m = 0;
+        for (unsigned u = bins.used[axis]; u; u &= u - 1)
+            k_used[m++] = __builtin_ctz(u);
+        float right_area[RT_BINS];
+        uint32_t right_cnt[RT_BINS];
+        fbox acc = fbox_empty();
+        uint32_t n = 0;
+        for (int j = m - 1; j > 0; j--) {
+            acc = fbox_union(acc, bins.box[axis][k_used[j]]);
+            n += bins.cnt[axis][k_used[j]];
+            right_area[j] = fbox_harea_s(acc, hs);
+            right_cnt[j] = n;
+        }
+        acc = fbox_empty();
+        n = 0;
+        for (int j = 0; j + 1 < m; j++) {
+            acc = fbox_union(acc, bins.box[axis][k_used[j]]);
+            n += bins.cnt[axis][k_used[j]];
+            /* Traversal cost 1 relative to one primitive test. */
+            float cost = 1.0f + (fbox_harea_s(acc, hs) * (float)n + right_area[j + 1] * (float)right_cnt[j + 1]) * inv_area;
+            if (cost < best_cost) {
+                best_cost = cost;
+                best_axis = axis;
+                best_split = k_used[j] + 1;
+            }
+        }
+    }
+    if (best_axis < 0) {
+        if (count <= RT_LEAF_MAX)
+            return 0;
+        /* All centroids coincide (or SAH prefers a leaf that is too big): split in the middle. */
+        *axis_out = 0;
+        span_of(all, sp->first, sp->first + count / 2, l);
+        span_of(all, sp->first + count / 2, sp->first + count, r);
+        return count / 2;
+    }
+    size_t i = partition(refs, count, &g, best_axis, best_split, l, r);
+    l->first = sp->first;
+    l->count = i;
+    r->first = sp->first + i;
+    r->count = count - i;
     *axis_out = best_axis;
     return i;
 }
@@ -637,6 +692,42 @@ void rt__bref_set(rt_bref *r, rr_vec3 lo, rr_vec3 hi, uint32_t item)
     r->hi[1] = rt__f_up(hi.y);
     r->hi[2] = rt__f_up(hi.z);
     memcpy(&r->hi[3], &item, sizeof item);
+}
+
+#if defined(RT_SIMD) && RT_SIMD >= 1
+/* (float)x per lane of (x01, x2), stepped one ulp where the rounding went
+ * below x (up != 0) or above it (up == 0): rt__f_up / rt__f_down on three
+ * lanes, the same bits (the step of rt__prepare_axes). Lane 3 is 0. */
+static inline __m128 round_out(__m128d x01, __m128d x2, int up)
+{
+    __m128 f = _mm_movelh_ps(_mm_cvtpd_ps(x01), _mm_cvtpd_ps(x2));
+    __m128d f01 = _mm_cvtps_pd(f), f2 = _mm_cvtps_pd(_mm_movehl_ps(f, f));
+    __m128d m01 = up ? _mm_cmplt_pd(f01, x01) : _mm_cmpgt_pd(f01, x01);
+    __m128d m2 = up ? _mm_cmplt_sd(f2, x2) : _mm_cmpgt_sd(f2, x2);
+    __m128i m = _mm_castps_si128(_mm_shuffle_ps(_mm_castpd_ps(m01), _mm_castpd_ps(m2), _MM_SHUFFLE(2, 0, 2, 0)));
+    __m128i u = _mm_castps_si128(f);
+    /* +1 for a float with the sign bit clear, -1 with it set: one ulp up in
+     * value for up, down for !up (lane 3's 0 never steps: its compare is
+     * with the 0 that _mm_load_sd put above x2). */
+    __m128i dir = _mm_or_si128(_mm_srai_epi32(u, 31), _mm_set1_epi32(1));
+    u = up ? _mm_add_epi32(u, _mm_and_si128(m, dir)) : _mm_sub_epi32(u, _mm_and_si128(m, dir));
+    return _mm_castsi128_ps(u);
+}
+#endif
+
+void rt__bref_tri(rt_bref *r, const rr_vec3 *a, const rr_vec3 *b, const rr_vec3 *c, uint32_t item)
+{
+#if defined(RT_SIMD) && RT_SIMD >= 1
+    __m128d a01 = _mm_loadu_pd(&a->x), b01 = _mm_loadu_pd(&b->x), c01 = _mm_loadu_pd(&c->x);
+    __m128d a2 = _mm_load_sd(&a->z), b2 = _mm_load_sd(&b->z), c2 = _mm_load_sd(&c->z);
+    __m128 lo = round_out(_mm_min_pd(_mm_min_pd(a01, b01), c01), _mm_min_sd(_mm_min_sd(a2, b2), c2), 0);
+    __m128 hi = round_out(_mm_max_pd(_mm_max_pd(a01, b01), c01), _mm_max_sd(_mm_max_sd(a2, b2), c2), 1);
+    hi = _mm_or_ps(hi, _mm_castsi128_ps(_mm_setr_epi32(0, 0, 0, (int)item)));
+    _mm_storeu_ps(r->lo, lo);
+    _mm_storeu_ps(r->hi, hi);
+#else
+    rt__bref_set(r, rr_v3_min(rr_v3_min(*a, *b), *c), rr_v3_max(rr_v3_max(*a, *b), *c), item);
+#endif
 }
 
 uint32_t rt__bref_item(const rt_bref *r)

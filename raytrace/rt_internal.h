@@ -25,6 +25,9 @@ typedef struct rt_bref {
     float lo[4], hi[4];
 } rt_bref;
 void rt__bref_set(rt_bref *r, rr_vec3 lo, rr_vec3 hi, uint32_t item);
+/* rt__bref_set of a triangle's box from its three vertices (SSE2 where the
+ * build has it: the same box values, a zero's sign aside). */
+void rt__bref_tri(rt_bref *r, const rr_vec3 *a, const rr_vec3 *b, const rr_vec3 *c, uint32_t item);
 uint32_t rt__bref_item(const rt_bref *r);
 
 /* 32 bytes: a node of the binary build tree (rt_bvh.c builds it, then collapses

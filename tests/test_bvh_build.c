@@ -8,6 +8,7 @@
 #include <stdint.h>
 #include <cmocka.h>
 
+#include <math.h>
 #include <omp.h>
 #include <stdlib.h>
 #include <string.h>
@@ -176,12 +177,55 @@ static void bvh_binary_big_nodes_split(void **state)
     free(refs);
 }
 
+/* rt__bref_tri (the build's triangle boxes, SSE2 where the build has it)
+ * against rt__bref_set of the vertices' min and max (the scalar reference,
+ * rt__f_up and rt__f_down): the same box values and item for coordinates of
+ * every magnitude and sign, floats exactly and between floats; and every
+ * box holds its vertices (in double) with corners at most one float step
+ * outside them. */
+static void bref_tri_matches_set(void **state)
+{
+    (void)state;
+    rr_rng g = rr_rng_make(17, 3);
+    const double scales[] = {1.0, 1e-30, 1e-42, 3e5, 1e30, 1e38};
+    for (int k = 0; k < 60000; k++) {
+        rr_vec3 v[3];
+        double sc = scales[k % 6];
+        for (int c = 0; c < 3; c++) {
+            double x[3];
+            for (int a = 0; a < 3; a++) {
+                double u = 2.0 * rr_rng_uniform(&g) - 1.0;
+                /* a third exact floats, some zeros, the rest doubles */
+                int how = (int)(rr_rng_u32(&g) % 7);
+                x[a] = how == 0 ? 0.0 : how == 1 ? -0.0 : how < 4 ? (double)(float)(u * sc) : u * sc;
+            }
+            v[c] = rr_v3(x[0], x[1], x[2]);
+        }
+        uint32_t item = rr_rng_u32(&g) % RT_REF_MAX;
+        rt_bref fast, ref;
+        rt__bref_tri(&fast, &v[0], &v[1], &v[2], item);
+        rr_vec3 lo = rr_v3_min(rr_v3_min(v[0], v[1]), v[2]), hi = rr_v3_max(rr_v3_max(v[0], v[1]), v[2]);
+        rt__bref_set(&ref, lo, hi, item);
+        double l[3] = {lo.x, lo.y, lo.z}, h[3] = {hi.x, hi.y, hi.z};
+        for (int a = 0; a < 3; a++) {
+            assert_true(fast.lo[a] == ref.lo[a]);
+            assert_true(fast.hi[a] == ref.hi[a]);
+            assert_true((double)fast.lo[a] <= l[a] && (double)fast.hi[a] >= h[a]);
+            assert_true(nextafterf(fast.lo[a], INFINITY) > l[a] || (double)fast.lo[a] == l[a]);
+            assert_true(nextafterf(fast.hi[a], -INFINITY) < h[a] || (double)fast.hi[a] == h[a]);
+        }
+        assert_true(fast.lo[3] == 0.0f);
+        assert_int_equal(rt__bref_item(&fast), item);
+    }
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(bvh_build_threads_same_tree),
         cmocka_unit_test(bvh_binary_leaf_items),
         cmocka_unit_test(bvh_binary_big_nodes_split),
+        cmocka_unit_test(bref_tri_matches_set),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
