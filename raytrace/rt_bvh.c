@@ -18,8 +18,10 @@
  *    The binary tree's leaves stay leaves; their primitives become leaf
  *    packets (rt_pk, RT_PK lanes SoA, rt_internal.h) in leaf order,
  *    triangles with a float copy of their vertices (exact, or for the float
- *    test only, with a double copy in rt_accel.dverts). The binary tree is
- *    then freed.
+ *    test only, with a double copy in rt_accel.dverts), written into the
+ *    pages of the binary tree and the collapse's table, dead by then (a
+ *    fresh page costs 1.5-2 us on the project's VM: a fifth of room-100k's
+ *    build, notes/performance.md).
  * Both steps run on render.threads threads for large scenes (subtrees of
  * RT_BUILD_TASK_MIN items and more as OpenMP tasks, written where the serial
  * build puts them): the same bytes for any thread count.
@@ -84,13 +86,37 @@ typedef struct collapse_table {
     size_t *off;
 } collapse_table;
 
-static void table_free(collapse_table *t)
+/* The collapse's scratch memory (its subtree counts and cost table): the
+ * part of the binary nodes' block past the nodes (rt__accel_build_width),
+ * so that the pages it touches are pages the leaf packets later fill (a
+ * fresh page costs 1.5-2 us on the project's VM), or malloc'd when the
+ * block has no room left. */
+typedef struct scratch {
+    unsigned char *p;
+    size_t left;
+    void *own[3];
+    int nown;
+} scratch;
+
+static void *scratch_take(scratch *s, size_t bytes)
 {
-    free(t->cost);
-    free(t->how);
-    free(t->node_k);
-    free(t->cap);
-    free(t->off);
+    bytes = (bytes + 63) / 64 * 64;
+    if (bytes <= s->left) {
+        void *r = s->p;
+        s->p += bytes;
+        s->left -= bytes;
+        return r;
+    }
+    if (s->nown == 3)
+        return NULL;
+    return s->own[s->nown++] = malloc(bytes ? bytes : 1);
+}
+
+static void scratch_free(scratch *s)
+{
+    for (int i = 0; i < s->nown; i++)
+        free(s->own[i]);
+    s->nown = 0;
 }
 
 typedef struct collapser {
@@ -382,11 +408,14 @@ static void collapse_at(collapser *c, uint32_t bi, size_t idx, const uint32_t *w
  * is a leaf gets a wide node with that one child. The same nodes for any
  * thread count. */
 static int collapse(const rt_node *bin, size_t nbin, size_t n, uint32_t *lcnt, uint32_t *lpk, int width, int threads,
-                    void **out, size_t *nout, size_t *npk)
+                    scratch *sc, void **out, size_t *nout, size_t *npk)
 {
-    uint32_t *cnt = malloc(3 * nbin * sizeof *cnt);
-    if (!cnt)
+    uint32_t *cnt = scratch_take(sc, 3 * nbin * sizeof *cnt);
+    unsigned char *tb = scratch_take(sc, nbin * (2 + sizeof(size_t)));
+    if (!cnt || !tb) {
+        scratch_free(sc);
         return -1;
+    }
     uint32_t *first = cnt + nbin, *wc = cnt + 2 * nbin;
     /* Children come after their parent (depth-first order), so one backward
      * pass sums the subtrees. */
@@ -399,12 +428,7 @@ static int collapse(const rt_node *bin, size_t nbin, size_t n, uint32_t *lcnt, u
             first[i] = first[i + 1];
         }
     }
-    collapse_table t = {NULL, NULL, malloc(nbin), malloc(nbin), malloc(nbin * sizeof(size_t))};
-    if (!t.node_k || !t.cap || !t.off) {
-        table_free(&t);
-        free(cnt);
-        return -1;
-    }
+    collapse_table t = {NULL, NULL, tb + nbin * sizeof(size_t), tb + nbin * sizeof(size_t) + nbin, (size_t *)tb};
     size_t nent = 0;
     for (size_t i = nbin; i-- > 0;) {
         unsigned cn = bin[i].count ? 1u : (unsigned)t.cap[i + 1] + t.cap[bin[i].index];
@@ -414,17 +438,15 @@ static int collapse(const rt_node *bin, size_t nbin, size_t n, uint32_t *lcnt, u
         t.off[i] = nent;
         nent += t.cap[i];
     }
-    t.cost = malloc(nent * sizeof *t.cost);
-    t.how = malloc(nent);
-    if (!t.cost || !t.how) {
-        table_free(&t);
-        free(cnt);
+    t.cost = scratch_take(sc, nent * (sizeof *t.cost + 1));
+    if (!t.cost) {
+        scratch_free(sc);
         return -1;
     }
+    t.how = (uint8_t *)(t.cost + nent);
     int par = threads > 1 && cnt[0] >= RT_BUILD_TASK_MIN;
     if (collapse_costs(bin, nbin, cnt, width, &t, threads) != 0) {
-        table_free(&t);
-        free(cnt);
+        scratch_free(sc);
         return -1;
     }
     collapser c = {bin, cnt, first, t, lcnt, lpk, width, rt__wnode_bytes(width), NULL, 0, 0};
@@ -447,8 +469,7 @@ static int collapse(const rt_node *bin, size_t nbin, size_t n, uint32_t *lcnt, u
      * and stores): malloc promises only 16. */
     c.w = aligned_alloc(64, total * c.nbytes);
     if (!c.w) {
-        table_free(&t);
-        free(cnt);
+        scratch_free(sc);
         return -1;
     }
     c.nw = c.cap = total;
@@ -466,8 +487,7 @@ static int collapse(const rt_node *bin, size_t nbin, size_t n, uint32_t *lcnt, u
 #pragma omp single
         collapse_at(&c, 0, 0, wc);
     }
-    table_free(&t);
-    free(cnt);
+    scratch_free(sc);
     *out = c.w;
     *nout = c.nw;
     return 0;
@@ -504,13 +524,29 @@ static double fill_lane(const scene *s, rt_prim pr, rt_pk *k, int i, int *dbl)
     return vm;
 }
 
+/* The primitives by item number, in rt__prim_list's order without the
+ * list: item i < ntris is triangle i, the rest (one per sphere or solid
+ * object, few) follow in `others` (a list of all n cost 8 bytes an item of
+ * fresh memory per build). */
+typedef struct prim_map {
+    size_t ntris;
+    const rt_prim *others;
+} prim_map;
+
+static inline rt_prim prim_at(const prim_map *m, uint32_t item)
+{
+    if (item < m->ntris) {
+        rt_prim p = {RT_PRIM_TRIANGLE, item};
+        return p;
+    }
+    return m->others[item - m->ntris];
+}
+
 /* The packets read their primitives in leaf order, not in the order of
- * the scene's arrays: the list entry, the triangle and its vertices are
- * each a cache miss that waits for the one before. So the lanes ahead are
- * fetched in three stages, each reading what the stage before brought in:
- * RT_PF_FAR lanes ahead the list entry, RT_PF_MID the triangle it names,
- * RT_PF_NEAR the triangle's vertices. */
-#define RT_PF_FAR 24
+ * the scene's arrays: the triangle and its vertices are each a cache miss
+ * that waits for the one before. So the lanes ahead are fetched in two
+ * stages, the second reading what the first brought in: RT_PF_MID lanes
+ * ahead the triangle, RT_PF_NEAR the triangle's vertices. */
 #define RT_PF_MID 16
 #define RT_PF_NEAR 8
 /* The vertices of primitive pr, if it is a triangle (its scene_tri read). */
@@ -522,29 +558,35 @@ static inline void prefetch_verts(const scene *s, rt_prim pr)
     for (int c = 0; c < 3; c++)
         __builtin_prefetch(&s->verts[t->v[c]]);
 }
-static inline void prefetch_lane(const scene *s, const rt_bref *refs, const rt_prim *prims, size_t p, size_t n)
+static inline void prefetch_lane(const scene *s, const rt_bref *refs, const prim_map *m, size_t p, size_t n)
 {
-    if (p + RT_PF_FAR < n)
-        __builtin_prefetch(&prims[rt__bref_item(&refs[p + RT_PF_FAR])]);
     if (p + RT_PF_MID < n) {
-        rt_prim pr = prims[rt__bref_item(&refs[p + RT_PF_MID])];
+        rt_prim pr = prim_at(m, rt__bref_item(&refs[p + RT_PF_MID]));
         if (pr.kind == RT_PRIM_TRIANGLE)
             __builtin_prefetch(&s->tris[pr.index]);
     }
     if (p + RT_PF_NEAR < n)
-        prefetch_verts(s, prims[rt__bref_item(&refs[p + RT_PF_NEAR])]);
+        prefetch_verts(s, prim_at(m, rt__bref_item(&refs[p + RT_PF_NEAR])));
 }
 
 /* The leaf packets (rt_internal.h) from the primitives in leaf order
- * (prims[rt__bref_item(&refs[j])], j = 0 .. n - 1) and the leaves collapse
+ * (prim_at(m, rt__bref_item(&refs[j])), j = 0 .. n - 1) and the leaves collapse
  * found (lcnt, lpk), the double copies of the triangles whose vertices are
- * not all floats, and rt_accel.vmax. 0, or -1 when out of memory. */
-static int fill_packets(const scene *s, const rt_bref *refs, const rt_prim *prims, size_t n, const uint32_t *lcnt,
-                        const uint32_t *lpk, size_t npk, int threads, rt_accel *a)
+ * not all floats, and rt_accel.vmax. The packets go into block (64-byte
+ * aligned, block_bytes, the binary nodes' pages, now dead) when they fit,
+ * else into memory of their own (block freed): either way the block is
+ * taken. 0, or -1 when out of memory. */
+static int fill_packets(const scene *s, const rt_bref *refs, const prim_map *m, size_t n, const uint32_t *lcnt,
+                        const uint32_t *lpk, size_t npk, int threads, void *block, size_t block_bytes, rt_accel *a)
 {
     size_t bytes = (npk * sizeof(rt_pk) + 63) / 64 * 64;
-    if (!(a->pks = aligned_alloc(64, bytes)))
-        return -1;
+    if (bytes <= block_bytes) {
+        a->pks = block;
+    } else {
+        free(block);
+        if (!(a->pks = aligned_alloc(64, bytes)))
+            return -1;
+    }
     /* Every packet belongs to one leaf and is zeroed with it below, by the
      * thread that fills it: its pages are first touched in parallel (a
      * fresh 4 KiB page costs 3-5 us on the project's VM, 40 MB of packets 25-50 ms). */
@@ -563,8 +605,8 @@ static int fill_packets(const scene *s, const rt_bref *refs, const rt_prim *prim
         rt_pk *k = a->pks + lpk[j];
         memset(k, 0, (lcnt[j] + RT_PK - 1) / RT_PK * sizeof *k);
         for (uint32_t q = 0; q < lcnt[j]; q++) {
-            prefetch_lane(s, refs, prims, j + q, n);
-            double vm = fill_lane(s, prims[rt__bref_item(&refs[j + q])], k + q / RT_PK, (int)(q % RT_PK), &dbl);
+            prefetch_lane(s, refs, m, j + q, n);
+            double vm = fill_lane(s, prim_at(m, rt__bref_item(&refs[j + q])), k + q / RT_PK, (int)(q % RT_PK), &dbl);
             vmax = vm > vmax ? vm : vmax;
         }
         k[(lcnt[j] - 1) / RT_PK].ref[0] |= RT_REF_LAST;
@@ -646,31 +688,41 @@ rr_status rt__accel_build_width(const scene *s, int width, rt_accel **out, rr_er
     /* The scene's render.threads (0: OpenMP's default, all cores). */
     int threads = s->settings.threads > 0 ? s->settings.threads : omp_get_max_threads();
     rt_accel *a = calloc(1, sizeof *a);
-    /* The binary tree over the primitives (refs: their boxes and numbers,
-     * in leaf order after the build; list: the primitives by number), freed
-     * once the packets are filled. */
+    /* refs: the primitives' boxes and numbers, in leaf order after the
+     * binary build; block: the binary nodes, then the collapse's scratch,
+     * then (the nodes and scratch dead) the leaf packets, in the same pages
+     * (scratch, fill_packets); lcnt, lpk: per item, the collapse's leaves
+     * for fill_packets. Freed (but for the packets) once they are filled. */
     struct {
         rt_bref *refs;
-        rt_prim *list;
-        rt_node *nodes;
-        size_t nnodes;
-    } b = {NULL, NULL, NULL, 0};
+        rt_prim *others;
+        void *block;
+        size_t block_bytes, nnodes;
+        uint32_t *lcnt;
+    } b = {NULL, NULL, NULL, 0, 0, NULL};
+    size_t nothers = n - s->ntris;
+    prim_map m = {s->ntris, NULL};
     b.refs = n ? malloc(n * sizeof *b.refs) : NULL;
-    b.list = n ? malloc(n * sizeof *b.list) : NULL;
-    if (!a || (n && (!b.refs || !b.list)))
+    b.others = malloc((nothers ? nothers : 1) * sizeof *b.others);
+    b.block_bytes = ((2 * n + 1) * sizeof(rt_node) + 63) / 64 * 64;
+    b.block = n ? aligned_alloc(64, b.block_bytes) : NULL;
+    b.lcnt = n ? calloc(2 * n, sizeof *b.lcnt) : NULL;
+    if (!a || !b.others || (n && (!b.refs || !b.block || !b.lcnt)))
         goto nomem;
-    rt__prim_list(s, b.list);
+    rt__prim_others(s, b.others);
+    m.others = b.others;
 #pragma omp parallel for schedule(static) num_threads(threads) if (n >= RT_BUILD_TASK_MIN)
     for (size_t i = 0; i < n; i++) {
         if (i + RT_PF_NEAR < n) /* the triangles are read in order, their vertices are not */
-            prefetch_verts(s, b.list[i + RT_PF_NEAR]);
-        if (b.list[i].kind == RT_PRIM_TRIANGLE) {
-            const scene_tri *t = &s->tris[b.list[i].index];
+            prefetch_verts(s, prim_at(&m, (uint32_t)(i + RT_PF_NEAR)));
+        rt_prim pr = prim_at(&m, (uint32_t)i);
+        if (pr.kind == RT_PRIM_TRIANGLE) {
+            const scene_tri *t = &s->tris[pr.index];
             rt__bref_tri(&b.refs[i], &s->verts[t->v[0]], &s->verts[t->v[1]], &s->verts[t->v[2]], (uint32_t)i);
             continue;
         }
         rr_vec3 lo, hi;
-        rt__prim_bounds(s, b.list[i], &lo, &hi);
+        rt__prim_bounds(s, pr, &lo, &hi);
         rt__bref_set(&b.refs[i], lo, hi, (uint32_t)i);
     }
     /* Nodes of at most RT_PK items are leaves: they fill one packet, and
@@ -678,28 +730,26 @@ rr_status rt__accel_build_width(const scene *s, int width, rt_accel **out, rr_er
      * by its packets, mostly kept them whole anyway. Not splitting them
      * takes 40-46 % of the binary tree's nodes away (notes/performance.md,
      * "Binary leaves of one packet"). */
-    if (n && rt__bvh_build_binary(b.refs, n, RT_PK, threads, &b.nodes, &b.nnodes))
+    rt_node *nodes = b.block;
+    if (n && rt__bvh_build_binary(b.refs, n, RT_PK, threads, &nodes, &b.nnodes))
         goto nomem;
     a->scene = s;
     a->width = width;
     if (n) {
-        uint32_t *lcnt = calloc(2 * n, sizeof *lcnt), *lpk = lcnt + n;
+        size_t used = (b.nnodes * sizeof(rt_node) + 63) / 64 * 64;
+        scratch sc = {(unsigned char *)b.block + used, b.block_bytes - used, {NULL, NULL, NULL}, 0};
+        uint32_t *lpk = b.lcnt + n;
         size_t npk = 0;
-        if (!lcnt)
+        if (collapse(nodes, b.nnodes, n, b.lcnt, lpk, width, threads, &sc, &a->wnodes, &a->nwnodes, &npk))
             goto nomem;
-        if (collapse(b.nodes, b.nnodes, n, lcnt, lpk, width, threads, &a->wnodes, &a->nwnodes, &npk) ||
-            fill_packets(s, b.refs, b.list, n, lcnt, lpk, npk, threads, a)) {
-            free(lcnt);
+        void *block = b.block;
+        b.block = NULL; /* fill_packets takes it */
+        if (fill_packets(s, b.refs, &m, n, b.lcnt, lpk, npk, threads, block, b.block_bytes, a))
             goto nomem;
-        }
-        free(lcnt);
     }
     free(b.refs);
-    free(b.list);
-    free(b.nodes);
-    b.refs = NULL;
-    b.list = NULL;
-    b.nodes = NULL;
+    free(b.others);
+    free(b.lcnt);
     rr_status st = rt__solids_build(s, &a->solids, err);
     if (st != RR_OK) {
         rt_accel_destroy(a);
@@ -709,8 +759,9 @@ rr_status rt__accel_build_width(const scene *s, int width, rt_accel **out, rr_er
     return RR_OK;
 nomem:
     free(b.refs);
-    free(b.list);
-    free(b.nodes);
+    free(b.others);
+    free(b.block);
+    free(b.lcnt);
     if (a) {
         free(a->pks);
         free(a->dverts);

@@ -739,7 +739,8 @@ uint32_t rt__bref_item(const rt_bref *r)
 
 int rt__bvh_build_binary(rt_bref *refs, size_t n, size_t leaf_items, int threads, rt_node **nodes, size_t *nnodes)
 {
-    builder b = {refs, malloc((2 * n - 1) * sizeof *b.nodes), 0, leaf_items, 0.0};
+    int own = *nodes == NULL;
+    builder b = {refs, own ? malloc((2 * n - 1) * sizeof *b.nodes) : *nodes, 0, leaf_items, 0.0};
     if (!b.nodes)
         return -1;
     if (threads <= 0)
@@ -757,7 +758,8 @@ int rt__bvh_build_binary(rt_bref *refs, size_t n, size_t leaf_items, int threads
         subtrees f = {NULL, 0, 2 * (n / RT_BUILD_TASK_MIN + 1) * RT_STACK};
         f.it = malloc(f.cap * sizeof *f.it);
         if (!f.it) {
-            free(b.nodes);
+            if (own)
+                free(b.nodes);
             return -1;
         }
 #pragma omp parallel num_threads(threads)
@@ -774,7 +776,7 @@ int rt__bvh_build_binary(rt_bref *refs, size_t n, size_t leaf_items, int threads
         free(f.it);
         count = compact(b.nodes);
     }
-    rt_node *shrunk = realloc(b.nodes, count * sizeof *b.nodes);
+    rt_node *shrunk = own ? realloc(b.nodes, count * sizeof *b.nodes) : NULL;
     *nodes = shrunk ? shrunk : b.nodes;
     *nnodes = count;
     return 0;

@@ -211,7 +211,10 @@ int rt__tri_hit(const rt_ray_pre *p, rr_vec3 A, rr_vec3 B, rr_vec3 C, int cull, 
  * that contain the refs' boxes; refs are reordered into leaf order (the
  * caller maps rt__bref_item back to its items). The scene BVH collapses it
  * into wide nodes; the solids' mesh leaves walk it as it is
- * (rt_solid_mesh.c). *nodes is malloc'd. 0, or -1 when out of memory.
+ * (rt_solid_mesh.c). *nodes: NULL on entry, then malloc'd (the caller
+ * frees it); or storage for 2 n - 1 nodes that the caller owns (the scene
+ * BVH's, whose leaf packets later go into the same pages, rt_bvh.c). 0, or
+ * -1 when out of memory.
  * Built by `threads` threads (0: OpenMP's default): the nodes of >= 65536
  * items as tasks, the subtrees below them by a parallel loop: the same
  * nodes for any count, bytes included. */
@@ -277,9 +280,12 @@ size_t rt__solids_bytes(const struct rt_solid_accel *sa); /* 0 for NULL */
 
 /* ---- rt_prim.c: the primitive table as the BVH reads it (rt.h: rt_prims) ---- */
 
-/* How many primitives the scene has, and the list of them (out has that many). */
+/* How many primitives the scene has: its triangles (primitives 0 ..
+ * ntris - 1, triangle i the i-th), then one per sphere or solid object,
+ * which rt__prim_others lists in object order (out has rt__prim_count -
+ * ntris entries). */
 size_t rt__prim_count(const scene *s);
-void rt__prim_list(const scene *s, rt_prim *out);
+void rt__prim_others(const scene *s, rt_prim *out);
 /* World-space bounds of one primitive (containing it exactly). */
 void rt__prim_bounds(const scene *s, rt_prim p, rr_vec3 *lo, rr_vec3 *hi);
 /* Intersects one primitive; on a hit with tmin < t < *tmax fills hit (when not

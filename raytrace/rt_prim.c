@@ -207,14 +207,10 @@ size_t rt_prim_total(const scene *s)
 
 size_t rt__prim_count(const scene *s) { return rt_prim_total(s); }
 
-void rt__prim_list(const scene *s, rt_prim *out)
+void rt__prim_others(const scene *s, rt_prim *out)
 {
-    size_t k = 0;
-    for (size_t i = 0; i < s->ntris; i++, k++) {
-        out[k].kind = RT_PRIM_TRIANGLE;
-        out[k].index = (uint32_t)i;
-    }
     /* Per-object kinds in object order. */
+    size_t k = 0;
     for (size_t i = 0; i < s->nobjects; i++) {
         rt_prim_kind kind = rt_prim_kind_of(s, (uint32_t)i);
         if (kind == RT_PRIM_TRIANGLE)
