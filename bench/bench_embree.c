@@ -398,9 +398,11 @@ static void run_scene(bench_scene *b, int res, uint64_t seed, const int *threads
     double t_embn = embree_build_time(dev, &m, &sc);
 
     printf("triangles %zu (vertices %zu)\n", s->ntris, s->nverts);
-    printf("BVH build (median of %d): radray %.0f ms (1 thread), %.0f ms (all threads); Embree %.0f ms (threads=1), "
-           "%.0f ms (all threads, TBB); float conversion %.0f ms (untimed)\n",
+    printf("BVH build (median of %d): radray %.1f ms (1 thread), %.1f ms (all threads); Embree %.1f ms (threads=1), "
+           "%.1f ms (all threads, TBB); float conversion %.0f ms (untimed)\n",
            BENCH_BUILD_REPS, 1e3 * t_radray, 1e3 * t_radray_at[1], 1e3 * t_emb1, 1e3 * t_embn, 1e3 * t_conv);
+    printf("build ratios: radray / Embree at 1 thread %.2fx; radray all threads over 1 thread %.2fx\n",
+           t_radray / t_emb1, t_radray / t_radray_at[1]);
 
     ray_set prim, diff, shad;
     bench_make_rays(s, a, b, seed, &prim, &diff, &shad);
