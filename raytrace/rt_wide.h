@@ -482,12 +482,11 @@ int RT_WALK(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_hit *hit
         p.box_double = 1;
     if (mode & RT_WALK_TWO_SIDED)
         p.cull_mask = 0;
-    /* The triangles' set-up (rt__ray_prepare_tri, the packets' operands) is
-     * made at the first leaf: a ray that meets none skips it. */
-    const int exact_only = p.box_double;
-    int tri_ready = 0;
+    /* The triangles' set-up (rt__ray_prepare_tri, the packets' operands) at
+     * once, as in RT_OCCL: its divisions overlap the box operands' chain. */
+    rt__ray_prepare_tri(&p);
     rt_pkray pr;
-    RT_PKRAY_UNSET(pr); /* set at the first leaf */
+    rt__pkray_init(&p, a->vmax, p.box_double, &pr);
     rt_boxray br;
     if (!rt__boxray_init(&p, &br))
         p.box_double = 1;
@@ -566,11 +565,6 @@ int RT_WALK(const rt_accel *a, rr_ray ray, double tmin, double tmax, rt_hit *hit
                 continue;
             }
         } else {
-            if (!tri_ready) {
-                rt__ray_prepare_tri(&p);
-                rt__pkray_init(&p, a->vmax, exact_only, &pr);
-                tri_ready = 1;
-            }
             if (rt__leaf_closest(a, &a->pks[cur & ~RT_LEAF], &p, &pr, tmin, any, two, &b, hit))
                 return 1;
         }
@@ -631,10 +625,13 @@ int RT_OCCL(const rt_accel *a, rr_ray ray, double tmin, double tmax)
     rt__ray_prepare_box(ray, &p, RT_BOX_SIMD != 3);
     if (!(tmin >= 0.0))
         p.box_double = 1;
-    const int exact_only = p.box_double; /* the triangles' set-up at the first leaf, as in RT_WALK */
-    int tri_ready = 0;
+    /* The triangles' set-up at once, not at the first leaf as in RT_WALK:
+     * nearly every shadow ray reaches a leaf, and begun here its divisions
+     * overlap the box operands' chain and the root's test instead of
+     * holding up the first leaf (notes/performance.md). */
+    rt__ray_prepare_tri(&p);
     rt_pkray pr;
-    RT_PKRAY_UNSET(pr); /* set at the first leaf */
+    rt__pkray_init(&p, a->vmax, p.box_double, &pr);
     rt_boxray br;
     if (!rt__boxray_init(&p, &br))
         p.box_double = 1;
@@ -651,11 +648,6 @@ int RT_OCCL(const rt_accel *a, rr_ray ray, double tmin, double tmax)
                                      : rt__box4_fast(n, &br, tmin_f, cull, dist);
         unsigned lm = rt__leaf_mask(n);
         unsigned leaves = mask & lm;
-        if (leaves && !tri_ready) {
-            rt__ray_prepare_tri(&p);
-            rt__pkray_init(&p, a->vmax, exact_only, &pr);
-            tri_ready = 1;
-        }
         for (; leaves; leaves &= leaves - 1) {
             const rt_pk *k = &a->pks[n->child[__builtin_ctz(leaves)] & ~RT_LEAF];
             for (;; k++) {
