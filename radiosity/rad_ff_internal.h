@@ -143,9 +143,15 @@ double rad__facet_scale(const struct rad_patches *P, const struct rad_patch *q);
  * the pass's elements cannot resolve the light in such a slot, which comes
  * in only a few gap widths from its rim, and spread the light of their open
  * part over it; notes/radiosity.md, "Thin gaps"). gap 0: no such test. */
-int rad__ff_buried(const scene *s, const rt_accel *a, rr_ray r, rr_vec3 n, const rt_hit *h, double bury, double gap);
+int rad__ff_buried(const scene *s, const rt_accel *a, rr_ray r, rr_vec3 n, const rt_hit *h, double bury, double gap,
+                   int sides);
+/* rad__ff_buried's answer for a point buried in a thin gap (else 1 for one
+ * under a cover, 0 for an open one). sides (the hierarchical pass): the
+ * point's own side of the slot must go on round it too (rad_ff.c
+ * own_side_goes_on). */
+#define RAD_BURIED_SLOT 2
 /* The same for a ray not yet traced (a probe): its two-sided closest hit,
  * then the rule; a ray that meets nothing is open. */
-int rad__ff_point_buried(const scene *s, const rt_accel *a, rr_ray r, rr_vec3 n, double bury, double gap);
+int rad__ff_point_buried(const scene *s, const rt_accel *a, rr_ray r, rr_vec3 n, double bury, double gap, int sides);
 
 #endif

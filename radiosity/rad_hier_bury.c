@@ -6,6 +6,7 @@
  * whether it sees a closed part of the scene ("Row sums") and how much of
  * it the backs of surfaces hide (the elements' exposures, read by the
  * refinement's unevenly_exposed). */
+#include <math.h>
 #include <omp.h>
 
 #include "rad_hier_ctx.h"
@@ -29,7 +30,18 @@ static double gap_of(const hctx *c, const hel *e)
 int rad__hier_buried(const hctx *c, const hel *e, rr_vec3 xs, rr_vec3 ns)
 {
     rr_ray r = {rt_offset_origin(c->ext, xs, ns, ns), ns};
-    return rad__ff_point_buried(c->s, c->a, r, ns, RAD_FF_BURY * sqrt(e->area), gap_of(c, e));
+    return rad__ff_point_buried(c->s, c->a, r, ns, RAD_FF_BURY * sqrt(e->area), gap_of(c, e), 1);
+}
+
+int rad__hier_in_slot(const hctx *c, const hel *e, rr_vec3 xs, rr_vec3 ns)
+{
+    double gap = gap_of(c, e);
+    if (!(gap > 0))
+        return 0;
+    rr_ray r = {rt_offset_origin(c->ext, xs, ns, ns), ns};
+    rt_hit h;
+    return rt_accel_closest_two_sided(c->a, r, 0.0, gap, &h) && h.front &&
+           !(rr_rgb_max(c->s->materials[h.material].emission) > 0);
 }
 
 int rad__hier_point_buried(const hctx *c, const hel *e, rr_vec3 x)
@@ -49,13 +61,14 @@ int rad__hier_point_buried(const hctx *c, const hel *e, rr_vec3 x)
 static void el_probe(hctx *c, uint32_t x)
 {
     hel *e = &c->el[x];
-    e->bur = 0;
+    e->kbur = 0;
     for (int k = 0; k < 4; k++)
         if (rad__hier_point_buried(c, e, tri_at(e->c, k_pts[k][0], k_pts[k][1], k_pts[k][2])))
-            e->bur |= 1u << k;
+            e->kbur |= 1u << k;
     rr_rng rng = rr_rng_make(c->seed ^ 0x5851f42d4c957f2dULL, x);
     double bury = RAD_FF_BURY * sqrt(e->area);
-    int open = 0;
+    int open = 0, covered = 0;
+    double ob[PROBES][2];
     for (uint32_t k = 0; k < PROBES; k++) {
         double u, v, u1, u2;
         rad_ff_tri_stratum(k, PROBES, &rng, &u, &v);
@@ -64,9 +77,24 @@ static void el_probe(hctx *c, uint32_t x)
         root_surface(c, e->root, tri_at(e->c, 1.0 - u - v, u, v), &xs, &ns);
         rr_vec3 d = rad_ff_cosine_dir(ns, u1, u2);
         rr_ray r = {rt_offset_origin(c->ext, xs, ns, ns), d};
-        open += !rad__ff_point_buried(c->s, c->a, r, ns, bury, gap_of(c, e));
+        int b = rad__ff_point_buried(c->s, c->a, r, ns, bury, gap_of(c, e), 1);
+        covered |= b && b != RAD_BURIED_SLOT;
+        if (!b) {
+            ob[open][0] = u;
+            ob[open][1] = v;
+            open++;
+        }
     }
     e->open = (double)open / PROBES;
+    /* Partly buried: its fixed points are 4 of the open probes' points
+     * (spread over the strata), all open (el_kpt). */
+    e->own = open > 0 && open < (int)PROBES && !covered;
+    e->bur = e->own ? 0 : e->kbur;
+    for (int q = 0; q < 4 && e->own; q++) {
+        const double *b = ob[q * open / 4];
+        e->kb[q][0] = (uint16_t)lrint(b[0] * 65535.0);
+        e->kb[q][1] = (uint16_t)lrint(fmin(b[1], 1.0 - b[0]) * 65535.0);
+    }
     e->nbur = e->open < 1.0 ? rad__hier_near_buried(c, e) : 0;
     e->probed = 1;
 }
@@ -102,8 +130,9 @@ static void leaf_data(const hctx *c, uint32_t x)
     double near_d = OCCL_NEAR * c->el[e->root].radius;
     for (int k = 0; k < CLOSED_RAYS && any; k++) {
         rr_vec3 xs, ns;
-        int q = open_pt(e, k);
-        root_surface(c, e->root, tri_at(e->c, k_pts[q][0], k_pts[q][1], k_pts[q][2]), &xs, &ns);
+        double b[3];
+        el_kpt(e, open_pt(e, k), b);
+        root_surface(c, e->root, tri_at(e->c, b[0], b[1], b[2]), &xs, &ns);
         double u1, u2;
         rad_ff_square_stratum((uint32_t)k, CLOSED_RAYS, &rng, &u1, &u2);
         rr_vec3 dir = rad_ff_cosine_dir(ns, u1, u2);

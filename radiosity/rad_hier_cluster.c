@@ -196,7 +196,7 @@ static int cl_dark(const hctx *c, uint32_t x)
 }
 
 /* A point on the surfaces of node x for a shadow ray: element points are the
- * fixed pattern (k_pts[k]) when fixed, else random. A cluster's come from a
+ * element's fixed points (el_kpt) when fixed, else random. A cluster's come from a
  * root drawn, level by level, by the power it sends towards u
  * (node_proj_power) when by_power, else by the area it shows that way
  * (node_proj_area; surfaces facing away, whose share the cluster's intensity
@@ -229,7 +229,10 @@ static int node_sample(const hctx *c, uint32_t x, int k, int fixed, int by_power
         x = rr_rng_uniform(rng) * (a0 + a1) < a0 ? q->child[0] : q->child[1];
     }
     const hel *e = &c->el[x];
-    rr_vec3 p = fixed ? tri_at(e->c, k_pts[k][0], k_pts[k][1], k_pts[k][2]) : tri_random(e->c, rng);
+    double b[3];
+    if (fixed)
+        el_kpt(e, k, b);
+    rr_vec3 p = fixed ? tri_at(e->c, b[0], b[1], b[2]) : tri_random(e->c, rng);
     root_surface(c, e->root, p, xs, ns);
     if (root)
         *root = e->root;
@@ -547,7 +550,9 @@ static void cluster_geo(const hctx *c, const rview *rv, uint32_t s, int area_too
     for (int q = 0; q < 4; q++) {
         if (rv->e->bur & (1u << q))
             continue; /* over r's open points */
-        rr_vec3 xq = tri_at(rv->c, k_pts[q][0], k_pts[q][1], k_pts[q][2]);
+        double bq[3];
+        el_kpt(rv->e, q, bq);
+        rr_vec3 xq = tri_at(rv->c, bq[0], bq[1], bq[2]);
         double gq = geo_term(xq, nr, k->pc, A);
         fk[q == 0 ? 3 : q - 1] = gq; /* k_pts[q]: the centroid of child q - 1, k_pts[0] of the middle one */
         mp += gq;
@@ -592,7 +597,7 @@ void rad__hier_eval_cluster(const hctx *c, hlink *l, rr_rng *rng)
     geo_a *= rho;
     l->f = (float)geo;
     l->fa = (float)geo_a;
-    if (c->el[l->r].bur == 0)
+    if (c->el[l->r].bur == 0 && !c->el[l->r].own)
         set_shape(l, fk);
     else
         link_clear_shape(l);
@@ -637,7 +642,7 @@ void rad__hier_regeo(hctx *c, double min_power)
         rview rv = rview_of(c, l->r, link_way(l));
         cluster_geo(c, &rv, l->s, 0, &geo, &geo_a, &spread, fk); /* the power's part only */
         l->f = (float)(geo * way_rho(c, rv.way));
-        if (c->el[l->r].bur == 0)
+        if (c->el[l->r].bur == 0 && !c->el[l->r].own)
             set_shape(l, fk);
     }
 }

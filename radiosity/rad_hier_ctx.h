@@ -21,7 +21,10 @@ typedef struct hel {
     int shut;       /* root: every closedness ray of its leaves landed on a front: k applies (roots_shut) */
     int probed;     /* its burial probes are done (open, bur) */
     double open;    /* the open share of its area: not buried under another surface (rad.h: buried parts) */
-    unsigned bur;   /* bit k: its fixed point k_pts[k] is buried */
+    unsigned bur;   /* bit k: its fixed point k (el_kpt) is buried */
+    unsigned kbur;  /* bit k: k_pts[k] is buried (bur, unless it has points of its own) */
+    int own;        /* its fixed points are open points of its own (kb), not k_pts: part of it lies in a slot */
+    uint16_t kb[4][2]; /* own: barycentrics b1, b2 of its fixed points, in 1 / 65535 */
     uint64_t nbur;  /* bit k: near-pair quadrature point k is buried (rad__hier_near_buried) */
     int fresh;      /* leaf data (first shot, closedness) still to compute */
     double spread;  /* leaf: the first shot's largest difference between its points */
@@ -541,6 +544,29 @@ static inline double node_uarea(const hctx *c, uint32_t x)
 static const double k_pts[4][3] = {
     {1. / 3, 1. / 3, 1. / 3}, {2. / 3, 1. / 6, 1. / 6}, {1. / 6, 2. / 3, 1. / 6}, {1. / 6, 1. / 6, 2. / 3}};
 
+/* Element e's fixed point q in barycentrics: k_pts[q], or, for an element
+ * partly buried in slots and under no cover (hel.own), one of the open
+ * points its burial probes found (hel.kb, rad_hier_bury.c el_probe). A slot
+ * a few millimetres wide (between books, behind glazing bars, over a lamp's
+ * body) takes in the light that falls on its mouth within a few widths of
+ * it; the fixed pattern's points seldom land there, and an element
+ * straddling the mouth read that open band from points deep inside it: 9 %
+ * of what the light tracer counts on a book's side in the slot beside a
+ * taller one (notes/radiosity.md, "Slots"). Open points drawn uniformly over
+ * the element read it without that bias. */
+static inline void el_kpt(const hel *e, int q, double b[3])
+{
+    if (!e->own) {
+        b[0] = k_pts[q][0];
+        b[1] = k_pts[q][1];
+        b[2] = k_pts[q][2];
+        return;
+    }
+    b[1] = e->kb[q][0] / 65535.0;
+    b[2] = e->kb[q][1] / 65535.0;
+    b[0] = 1.0 - b[1] - b[2];
+}
+
 /* Index of the k-th of element e's fixed points that is not buried (cyclic
  * in k), or -1 when all four are: receivers gather at open points only. */
 static inline int open_pt(const hel *e, int k)
@@ -612,6 +638,10 @@ int rad__hier_object_powers(hctx *c); /* rad_hier_rounds.c: hctx.objpow from the
 /* Whether surface point xs (normal ns) of element e lies under another
  * surface, by the flat pass's rule (rad__ff_buried) for a probe along ns. */
 int rad__hier_buried(const hctx *c, const hel *e, rr_vec3 xs, rr_vec3 ns);
+/* Whether the surface point xs (normal ns) of e faces the front of another
+ * surface that does not emit within e's thin-gap width: a point on one side
+ * of a slot, open or buried (rad__ff_buried). */
+int rad__hier_in_slot(const hctx *c, const hel *e, rr_vec3 xs, rr_vec3 ns);
 /* The same for point x of e's flat triangle (on the true surface first). */
 int rad__hier_point_buried(const hctx *c, const hel *e, rr_vec3 x);
 /* Probes every element not yet probed, in parallel: its fixed points'

@@ -44,12 +44,13 @@ static const double ch[4][3][3] = {{{1, 0, 0}, {0.5, 0.5, 0}, {0.5, 0, 0.5}},
                                    {{0.5, 0, 0.5}, {0, 0.5, 0.5}, {0, 0, 1}},
                                    {{0, 0.5, 0.5}, {0.5, 0, 0.5}, {0.5, 0.5, 0}}};
 
-static int quad_points(int rule, double (*b)[3], double *w)
+static int quad_points(int rule, const hel *e, double (*b)[3], double *w)
 {
-    if (rule == RULE_FIXED) {
-        memcpy(b, k_pts, sizeof k_pts);
-        for (int k = 0; k < 4; k++)
+    if (rule == RULE_FIXED) { /* e's fixed points (el_kpt) */
+        for (int k = 0; k < 4; k++) {
+            el_kpt(e, k, b[k]);
             w[k] = 0.25;
+        }
         return 4;
     }
     if (rule == RULE_SMOOTH) {
@@ -67,12 +68,15 @@ static int quad_points(int rule, double (*b)[3], double *w)
     return n;
 }
 
-int rad__hier_near_rule(int smooth, double (*b)[3], double *w) { return quad_points(smooth ? RULE_SMOOTH : RULE_NEAR, b, w); }
+int rad__hier_near_rule(int smooth, double (*b)[3], double *w)
+{
+    return quad_points(smooth ? RULE_SMOOTH : RULE_NEAR, NULL, b, w);
+}
 
 uint64_t rad__hier_near_buried(const hctx *c, const hel *e)
 {
     double b[NEAR_N][3], w[NEAR_N];
-    int np = quad_points(RULE_NEAR, b, w);
+    int np = quad_points(RULE_NEAR, NULL, b, w);
     uint64_t m = 0;
     for (int k = 0; k < np; k++)
         if (rad__hier_point_buried(c, e, tri_at(e->c, b[k][0], b[k][1], b[k][2])))
@@ -101,6 +105,14 @@ uint64_t rad__hier_near_buried(const hctx *c, const hel *e)
 typedef struct vis_count {
     int seen, pass, open;
     int rot; /* the strata's rotation, drawn with the link's first ray */
+    /* weigh: a near pair whose receiver reads points of its own (el_kpt) or
+     * whose source is partly buried: the rays' ends are drawn by the point
+     * factor's density (toward_s), not by area. By area, the 4 rays from a
+     * lamp body's top, 3 mm under a ceiling element of 0.8 m2, ended far
+     * off and left through the slot's mouth, and the link read the covered
+     * ceiling straight above as seen. */
+    int weigh;
+    int unit; /* weigh: the rays that passed, dark ends included (the B = 1 gather's visibility) */
 } vis_count;
 
 /* The sphere a root lies on, when its patch faces out of it (an analytic
@@ -158,6 +170,49 @@ void rad__hier_sphere_end(const hctx *c, uint32_t yr, rr_vec3 x, rr_vec3 *y, rr_
     }
 }
 
+/* Whether p (in the plane of the convex polygon poly, normal m) lies in it. */
+static int in_poly(const rr_vec3 *poly, int nv, rr_vec3 m, rr_vec3 p)
+{
+    for (int i = 0; i < nv; i++) {
+        rr_vec3 a = poly[i], b = poly[(i + 1) % nv];
+        if (rr_v3_dot(rr_v3_cross(rr_v3_sub(b, a), rr_v3_sub(p, a)), m) < 0.0)
+            return 0;
+    }
+    return 1;
+}
+
+/* A point of poly (s clipped to r's front) drawn from x by the point
+ * factor's density: a cosine-distributed direction about r's normal, met
+ * with s's plane inside poly (vis_count.weigh), into *y; up to 16 tries,
+ * else *y is left as it is (drawn by area: s then takes a small share of
+ * x's view, whose visibility matters little). */
+static void toward_s(const hctx *c, const rview *rv, const hel *ey, rr_vec3 x, const rr_vec3 *poly, int nv,
+                     rr_rng *rng, rr_vec3 *y)
+{
+    rr_vec3 m = rr_v3_cross(rr_v3_sub(poly[1], poly[0]), rr_v3_sub(poly[2], poly[0]));
+    double ml = rr_v3_len(m);
+    if (!(ml > 0))
+        return;
+    m = rr_v3_scale(m, 1.0 / ml);
+    for (int t = 0; t < 16; t++) {
+        double u1 = rr_rng_uniform(rng), u2 = rr_rng_uniform(rng);
+        rr_vec3 d = rad_ff_cosine_dir(rv->n, u1, u2);
+        double den = rr_v3_dot(m, d);
+        if (!(fabs(den) > 1e-12))
+            continue;
+        double h = rr_v3_dot(m, rr_v3_sub(poly[0], x)) / den;
+        if (!(h > 0))
+            continue;
+        rr_vec3 p = rr_v3_madd(x, d, h);
+        if (in_poly(poly, nv, m, p)) {
+            *y = p;
+            return;
+        }
+    }
+    (void)c;
+    (void)ey;
+}
+
 static int shadow_passes(const hctx *c, const rview *rv, const hel *ey, rr_vec3 x, const rr_vec3 *poly, int nv,
                          uint32_t k, rr_rng *rng, vis_count *v)
 {
@@ -179,10 +234,22 @@ static int shadow_passes(const hctx *c, const rview *rv, const hel *ey, rr_vec3 
     a = off[q][0] + sg * a;
     b = off[q][1] + sg * b;
     v->seen++;
-    root_surface(c, ey->root, rad__poly_point(poly, nv, a, b, k), &ys, &yn);
-    if (ey->open < 1.0 && rad__hier_buried(c, ey, ys, yn))
+    rr_vec3 y = rad__poly_point(poly, nv, a, b, k);
+    if (v->weigh)
+        toward_s(c, rv, ey, x, poly, nv, rng, &y);
+    root_surface(c, ey->root, y, &ys, &yn);
+    /* dark: the ray ends on a buried part of s, or (weigh) in a slot of an s
+     * that reads points of its own: such an s straddles the slot's mouth,
+     * and its radiosity, the mean over its open points, is mostly its light
+     * outside the slot. A dark end does not pass; with weigh the ray is
+     * traced all the same, for the B = 1 gather (unit), which must count
+     * the surface it ends on as seen: left out, the row-sum scale made up for
+     * the dark ceiling over a lamp body's top (notes/radiosity.md, "Slots"). */
+    int dark = (ey->open < 1.0 && rad__hier_buried(c, ey, ys, yn)) || (v->weigh && ey->own && rad__hier_in_slot(c, ey, ys, yn));
+    if (dark && !v->weigh)
         return 0;
-    v->open++;
+    if (!dark)
+        v->open++;
     /* x on r as the source sees it (its image by way of a mirror): the
      * surface point found on the real r */
     root_surface(c, rv->e->root, way_back(c, rv->way, x), &xs, &xn);
@@ -196,6 +263,9 @@ static int shadow_passes(const hctx *c, const rview *rv, const hel *ey, rr_vec3 
         rr_ray ray = {o, rr_v3_sub(t, o)};
         passed = !rt_accel_occluded(c->a, ray, 0.0, RT_SHADOW_END);
     }
+    v->unit += passed;
+    if (dark)
+        return 0;
     v->pass += passed;
     return passed;
 }
@@ -279,7 +349,7 @@ static double side_ff(const hctx *c, const rview *rv, uint32_t yi, int near, rr_
         rule = RULE_NEAR;
     }
     double b[NEAR_N][3], w[NEAR_N], wk[4] = {0, 0, 0, 0};
-    int np = quad_points(rule, b, w);
+    int np = quad_points(rule, ex, b, w);
     double sum = 0.0, wsum = 0.0, lo = INFINITY, hi = 0.0;
     for (int k = 0; k < np; k++) {
         rr_vec3 x = tri_at(rv->c, b[k][0], b[k][1], b[k][2]);
@@ -345,7 +415,7 @@ static void near_vis(const hctx *c, const rview *rv, uint32_t yi, rr_rng *rng, v
         return;
     if (open_pt(ex, 0) < 0) { /* no open fixed point: VIS_RAYS of the open near-pair points, spread */
         double b[NEAR_N][3], w[NEAR_N];
-        int np = quad_points(RULE_NEAR, b, w), idx[NEAR_N], m = 0;
+        int np = quad_points(RULE_NEAR, NULL, b, w), idx[NEAR_N], m = 0;
         for (int k = 0; k < np; k++)
             if (!((ex->nbur >> k) & 1))
                 idx[m++] = k;
@@ -359,7 +429,9 @@ static void near_vis(const hctx *c, const rview *rv, uint32_t yi, rr_rng *rng, v
         return;
     }
     for (int k = 0; k < VIS_RAYS; k++) {
-        rr_vec3 x = tri_at(rv->c, k_pts[k][0], k_pts[k][1], k_pts[k][2]);
+        double b[3];
+        el_kpt(ex, k, b);
+        rr_vec3 x = tri_at(rv->c, b[0], b[1], b[2]);
         if (!(ex->bur & (1u << k)) && rr_v3_dot(ny, rr_v3_sub(x, ey->ctr)) > c->plane_tol)
             shadow_passes(c, rv, ey, x, poly, nv, (uint32_t)k, rng, v);
     }
@@ -377,6 +449,8 @@ static void set_vis(hlink *l, int near, const vis_count *v)
      * rays that passed; far: each point's factor counted only if its ray
      * passed (l->f holds that). */
     l->v = l->va = near && v->seen ? vis_twelfths(v->pass, v->seen) : VIS_ONE;
+    if (near && v->weigh && v->seen)
+        l->va = vis_twelfths(v->unit, v->seen);
     l->vis = v->open ? vis_twelfths(v->pass, v->open) : (v->seen ? 0 : VIS_ONE);
     link_set_partial(l, v->pass > 0 && v->pass < v->open);
 }
@@ -393,7 +467,8 @@ void rad__hier_eval_ee(const hctx *c, hlink *l, rr_rng *rng)
 {
     rview rv = rview_of(c, l->r, link_way(l));
     int near = is_near(c, &rv, l);
-    vis_count v = {0, 0, 0, 0};
+    vis_count v = {0, 0, 0, 0, 0, 0};
+    v.weigh = near && (c->el[l->r].own || c->el[l->s].open < 1.0);
     double dF, fk[4], rho = way_rho(c, rv.way);
     double F = side_ff(c, &rv, l->s, near, rng, &dF, &v, fk) * facet_scale(c, l->s) * rho;
     dF *= rho;
@@ -402,7 +477,7 @@ void rad__hier_eval_ee(const hctx *c, hlink *l, rr_rng *rng)
     l->f = l->fa = (float)F;
     /* The factor without visibility shared among r's children as its points
      * fall in them (where none is buried). */
-    if (near ? c->el[l->r].nbur == 0 : c->el[l->r].bur == 0)
+    if ((near ? c->el[l->r].nbur == 0 : c->el[l->r].bur == 0) && !c->el[l->r].own)
         set_shape(l, fk);
     else
         link_clear_shape(l);
@@ -417,7 +492,8 @@ void rad__hier_revis_ee(const hctx *c, hlink *l, rr_rng *rng)
         rad__hier_eval_ee(c, l, rng);
         return;
     }
-    vis_count v = {0, 0, 0, 0};
+    vis_count v = {0, 0, 0, 0, 0, 0};
+    v.weigh = c->el[l->r].own || c->el[l->s].open < 1.0;
     if (l->f > 0.0f)
         near_vis(c, &rv, l->s, rng, &v);
     set_vis(l, 1, &v);

@@ -133,12 +133,12 @@ static int source_uneven(const hctx *c, const hlink *l)
            SOURCE_SHARE * receiver_eps(c, l->r);
 }
 
-/* Receiver r has an open part but all four of its fixed points, where it
- * gathers, are buried: it cannot stand for that part (which would gather
- * nothing), so its links go to its children. */
+/* Receiver r has an open part but all four points of k_pts are buried: its
+ * open part is a sliver along its edges, which it reads at points of its own
+ * (el_kpt) but its children resolve, so its links go to them. */
 static int unrepresented(const hctx *c, uint32_t r)
 {
-    return !(r & CLB) && c->el[r].open > 0 && open_pt(&c->el[r], 0) < 0 && splittable(c, r);
+    return !(r & CLB) && c->el[r].open > 0 && (c->el[r].kbur & 15u) == 15u && splittable(c, r);
 }
 
 /* Evaluates the links from c->first_new on, and computes the data of fresh
