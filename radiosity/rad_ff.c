@@ -418,15 +418,22 @@ static int cmp_u32(const void *a, const void *b)
  * With gap > 0 the probes must instead each meet a surface, either side,
  * less than gap above the tangent plane (so within gap / RAD_FF_PROBE_SIN:
  * short rays): the origin lies in a slot (rad__ff_buried's thin gaps). */
+/* The probes' azimuths: unit tangents of normal n's plane, t1 along r.d. */
+static void probe_axes(rr_ray r, rr_vec3 n, rr_vec3 *t1, rr_vec3 *t2)
+{
+    rr_vec3 t = rr_v3_madd(r.d, n, -rr_v3_dot(r.d, n));
+    if (rr_v3_len2(t) < 1e-12)
+        t = rr_v3_cross(n, fabs(n.x) < 0.9 ? rr_v3(1, 0, 0) : rr_v3(0, 1, 0));
+    *t1 = rr_v3_norm(t);
+    *t2 = rr_v3_cross(n, *t1);
+}
+
 #define RAD_FF_PROBE_SIN 0.25
 static int enclosed(const rt_accel *a, rr_ray r, rr_vec3 n, double gap)
 {
     const double sn = RAD_FF_PROBE_SIN;
-    rr_vec3 t1 = rr_v3_madd(r.d, n, -rr_v3_dot(r.d, n));
-    if (rr_v3_len2(t1) < 1e-12)
-        t1 = rr_v3_cross(n, fabs(n.x) < 0.9 ? rr_v3(1, 0, 0) : rr_v3(0, 1, 0));
-    t1 = rr_v3_norm(t1);
-    rr_vec3 t2 = rr_v3_cross(n, t1);
+    rr_vec3 t1, t2;
+    probe_axes(r, n, &t1, &t2);
     double cs = sqrt(1.0 - sn * sn);
     for (int k = 0; k < 4; k++) {
         rr_vec3 t = k < 2 ? t1 : t2;
@@ -441,23 +448,15 @@ static int enclosed(const rt_accel *a, rr_ray r, rr_vec3 n, double gap)
 }
 
 /* For a point at the bottom of a slot w wide (rad__ff_buried): whether its
- * own side of the slot goes on round it too: four probes from 0.9 w over
- * the point, sloping down to its tangent plane at a sine of
- * RAD_FF_PROBE_SIN, each meet a surface at least w / 2 below their start
- * (so within about 3.5 w of the point). enclosed() only finds that the
- * opposite side goes on. Where that side rises past the mouth and this one
- * ends there (a short book beside a tall one), the points along this
- * side's edge were buried though the mouth's light falls on them: with
- * points of its own (rad_hier_bury.c el_probe) the short book's slot wall
- * read 31 % of what the light tracer counts without this test, 70 % with
- * it (notes/radiosity.md, "Slots"). */
+ * own side goes on round it too (enclosed() finds that the other side
+ * does): four probes from 0.9 w over it, sloping down at RAD_FF_PROBE_SIN,
+ * each meet a surface w / 2 or more below their start. Beside a taller book
+ * a short one's side ends at the mouth, and its band was buried
+ * (notes/radiosity.md, "Slots"). */
 static int own_side_goes_on(const rt_accel *a, rr_ray r, rr_vec3 n, double w)
 {
-    rr_vec3 t1 = rr_v3_madd(r.d, n, -rr_v3_dot(r.d, n));
-    if (rr_v3_len2(t1) < 1e-12)
-        t1 = rr_v3_cross(n, fabs(n.x) < 0.9 ? rr_v3(1, 0, 0) : rr_v3(0, 1, 0));
-    t1 = rr_v3_norm(t1);
-    rr_vec3 t2 = rr_v3_cross(n, t1);
+    rr_vec3 t1, t2;
+    probe_axes(r, n, &t1, &t2);
     const double sn = RAD_FF_PROBE_SIN, cs = sqrt(1.0 - sn * sn);
     rr_vec3 o = rr_v3_madd(r.o, n, 0.9 * w);
     for (int k = 0; k < 4; k++) {
