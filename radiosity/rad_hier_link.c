@@ -186,8 +186,7 @@ static int in_poly(const rr_vec3 *poly, int nv, rr_vec3 m, rr_vec3 p)
  * with s's plane inside poly (vis_count.weigh), into *y; up to 16 tries,
  * else *y is left as it is (drawn by area: s then takes a small share of
  * x's view, whose visibility matters little). */
-static void toward_s(const hctx *c, const rview *rv, const hel *ey, rr_vec3 x, const rr_vec3 *poly, int nv,
-                     rr_rng *rng, rr_vec3 *y)
+static void toward_s(const rview *rv, rr_vec3 x, const rr_vec3 *poly, int nv, rr_rng *rng, rr_vec3 *y)
 {
     rr_vec3 m = rr_v3_cross(rr_v3_sub(poly[1], poly[0]), rr_v3_sub(poly[2], poly[0]));
     double ml = rr_v3_len(m);
@@ -209,8 +208,6 @@ static void toward_s(const hctx *c, const rview *rv, const hel *ey, rr_vec3 x, c
             return;
         }
     }
-    (void)c;
-    (void)ey;
 }
 
 static int shadow_passes(const hctx *c, const rview *rv, const hel *ey, rr_vec3 x, const rr_vec3 *poly, int nv,
@@ -236,7 +233,7 @@ static int shadow_passes(const hctx *c, const rview *rv, const hel *ey, rr_vec3 
     v->seen++;
     rr_vec3 y = rad__poly_point(poly, nv, a, b, k);
     if (v->weigh)
-        toward_s(c, rv, ey, x, poly, nv, rng, &y);
+        toward_s(rv, x, poly, nv, rng, &y);
     root_surface(c, ey->root, y, &ys, &yn);
     /* dark: the ray ends on a buried part of s, or (weigh) in a slot of an s
      * that reads points of its own: such an s straddles the slot's mouth,
@@ -245,7 +242,8 @@ static int shadow_passes(const hctx *c, const rview *rv, const hel *ey, rr_vec3 
      * traced all the same, for the B = 1 gather (unit), which must count
      * the surface it ends on as seen: left out, the row-sum scale made up for
      * the dark ceiling over a lamp body's top (notes/radiosity.md, "Slots"). */
-    int dark = (ey->open < 1.0 && rad__hier_buried(c, ey, ys, yn)) || (v->weigh && ey->own && rad__hier_in_slot(c, ey, ys, yn));
+    int dark = (ey->open < 1.0 && rad__hier_buried(c, ey, ys, yn)) ||
+               (v->weigh && ey->own && rad__hier_in_slot(c, ey, ys, yn));
     if (dark && !v->weigh)
         return 0;
     if (!dark)
