@@ -524,8 +524,8 @@ static double fill_lane(const scene *s, rt_prim pr, rt_pk *k, int i, int *dbl)
     return vm;
 }
 
-/* The primitives by item number, in rt__prim_list's order without the
- * list: item i < ntris is triangle i, the rest (one per sphere or solid
+/* The primitives by item number (rt__prim_count's order) without a list
+ * of them: item i < ntris is triangle i, the rest (one per sphere or solid
  * object, few) follow in `others` (a list of all n cost 8 bytes an item of
  * fresh memory per build). */
 typedef struct prim_map {

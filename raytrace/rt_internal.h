@@ -170,8 +170,8 @@ struct rt_accel {
 /* Per-ray constants of the watertight test (Woop et al. 2013, rt_kernel.h),
  * the solids' mesh-leaf crossings (rt_solid_mesh.c) and the slab tests
  * (rt_wide.h): every query prepares its ray once, with rt__ray_prepare, or
- * (the walks) its two halves from rt_kernel.h, rt__ray_prepare_box at the
- * start and rt__ray_prepare_tri at the first leaf. */
+ * (the walks) its two halves from rt_kernel.h, rt__ray_prepare_box and
+ * rt__ray_prepare_tri (the packet walks: at a ray's first leaf). */
 typedef struct rt_ray_pre {
     rr_ray ray;
     int kx, ky, kz;

@@ -146,8 +146,9 @@ static inline void rt__ray_prepare_box(rr_ray ray, rt_ray_pre *p, const int orig
 }
 
 /* The triangle test's part of rt__ray_prepare (after rt__ray_prepare_box:
- * it reads p->ray and p->inv): the walks call it at their first leaf, so a
- * ray that meets no leaf skips it. */
+ * it reads p->ray and p->inv): the single-ray walks call it at their start
+ * (its divisions overlap the box operands' chain), the packet walks at a
+ * ray's first leaf (rt_packet.h). */
 static inline void rt__ray_prepare_tri(rt_ray_pre *p)
 {
     const double d[3] = {p->ray.d.x, p->ray.d.y, p->ray.d.z};
@@ -347,12 +348,6 @@ typedef struct rt_pkray {
 #endif
     int kx, ky, kz;
 } rt_pkray;
-
-/* A walk's rt_pkray is set at its first leaf (rt__pkray_init), which gcc
- * cannot follow: it warned -Wmaybe-uninitialized, and a memset of the 144
- * bytes to quiet it was 1.2 % of rt__walk8's samples (perf, mesh-1m).
- * Touching one field through an empty asm leaves gcc nothing to warn of. */
-#define RT_PKRAY_UNSET(pr) __asm__("" : "=m"(pr))
 
 /* exact_only: every lane goes to the exact test (for the rays whose slab
  * test is the double one, rt_ray_pre.box_double). */

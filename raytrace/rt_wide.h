@@ -625,7 +625,7 @@ int RT_OCCL(const rt_accel *a, rr_ray ray, double tmin, double tmax)
     rt__ray_prepare_box(ray, &p, RT_BOX_SIMD != 3);
     if (!(tmin >= 0.0))
         p.box_double = 1;
-    /* The triangles' set-up at once, not at the first leaf as in RT_WALK:
+    /* The triangles' set-up at once, as in RT_WALK, not at the first leaf:
      * nearly every shadow ray reaches a leaf, and begun here its divisions
      * overlap the box operands' chain and the root's test instead of
      * holding up the first leaf (notes/performance.md). */
