@@ -86,8 +86,9 @@ static void el_probe(hctx *c, uint32_t x)
         }
     }
     e->open = (double)open / PROBES;
-    /* Partly buried: its fixed points are 4 of the open probes' points
-     * (spread over the strata), all open (el_kpt). */
+    /* Partly buried, and by slots alone (no probe under a cover): its fixed
+     * points are 4 of the open probes' points (spread over the strata), all
+     * open (el_kpt). */
     e->own = open > 0 && open < (int)PROBES && !covered;
     e->bur = e->own ? 0 : e->kbur;
     for (int q = 0; q < 4 && e->own; q++) {

@@ -134,8 +134,8 @@ static int source_uneven(const hctx *c, const hlink *l)
 }
 
 /* Receiver r has an open part but all four points of k_pts are buried: its
- * open part is a sliver along its edges, which it reads at points of its own
- * (el_kpt) but its children resolve, so its links go to them. */
+ * open part is a sliver along its edges, which its children resolve (it
+ * may read it at points of its own, el_kpt), so its links go to them. */
 static int unrepresented(const hctx *c, uint32_t r)
 {
     return !(r & CLB) && c->el[r].open > 0 && (c->el[r].kbur & 15u) == 15u && splittable(c, r);
