@@ -114,13 +114,22 @@ static int unevenly_exposed(const hctx *c, const hlink *l)
 }
 
 /* What source s sends varies over its open leaves (shi - slo, from
- * rad__hier_exposures) by more than SOURCE_SHARE of the receiver's eps, read
- * as that share of the link's power: the link carries s's mean, while r may
- * see mostly one part of s (the floor close under an object, in the
- * object's shadow, seen by its underside). Such a link goes to s's
- * children (rad__hier_split_link's source-first mode). notes/radiosity.md,
- * "Sources that vary". */
+ * rad__hier_exposures), and the link's error bound for that, its power
+ * times (shi - slo) / B_s, is over SOURCE_SHARE of the receiver's eps: the
+ * link carries s's mean, while r may see mostly one part of s (the floor
+ * close under an object, in the object's shadow, seen by its underside).
+ * Or, for a near pair (centres closer than twice their radii) whose source
+ * varies by more than SOURCE_VARY of its mean, the bound is over
+ * SOURCE_REL of r's own power (A_r B_r): each such link carries little
+ * (under a sofa raised 8 cm on its legs, a tenth of eps), but every link
+ * into the underside reads the bright floor beside the sofa, one way: the
+ * underside took in 3.1 times the light tracer's count. Such a link goes
+ * to s's children (rad__hier_split_link's source-first mode).
+ * notes/radiosity.md, "Sources that vary" and "Slivers and sources seen
+ * close". */
 #define SOURCE_SHARE 0.25
+#define SOURCE_REL 0.25
+#define SOURCE_VARY 0.5
 static int source_uneven(const hctx *c, const hlink *l)
 {
     if ((l->s & CLB) || c->el[l->s].child == NONE)
@@ -129,8 +138,12 @@ static int source_uneven(const hctx *c, const hlink *l)
     double B = node_B(c, l->s);
     if (!(B > 0) || !(e->shi > e->slo))
         return 0;
-    return rad__hier_link_power(c, l->r, l->s, link_way(l)) * (e->shi - e->slo) / B >
-           SOURCE_SHARE * receiver_eps(c, l->r);
+    double err = rad__hier_link_power(c, l->r, l->s, link_way(l)) * (e->shi - e->slo) / B;
+    if (err > SOURCE_SHARE * receiver_eps(c, l->r))
+        return 1;
+    double d = rr_v3_len(rr_v3_sub(node_ctr(c, l->s), way_point(c, link_way(l), node_ctr(c, l->r))));
+    return d < 2.0 * (node_radius(c, l->r) + e->radius) && e->shi - e->slo > SOURCE_VARY * B &&
+           err > SOURCE_REL * node_area(c, l->r) * node_B(c, l->r);
 }
 
 /* Receiver r has an open part but all four points of k_pts are buried: its
