@@ -5,6 +5,7 @@
 #ifndef RAD_HIER_CTX_H
 #define RAD_HIER_CTX_H
 
+#include <stdlib.h>
 #include <string.h>
 
 #include "rad.h"
@@ -483,14 +484,15 @@ static inline double link_eps(const hctx *c, uint32_t r)
  * min_area, or are still long for it: a sliver (a long thin triangle of a
  * mesh, which el_split cuts into slivers again) splits while its children's
  * radius is over sqrt(SLIVER_R2 min_area), so that its fixed points are not
- * a hand's width apart along it. The glazing bars' sides of
- * interior.json's window (triangles 3 cm x 30 cm, whose leaves at min_area
- * reached across the 0.5 mm slots where the bars meet, with a fixed point
- * in a slot for every link) took in 8-9 % less than the light tracer
- * counts (notes/radiosity.md, "Slivers and sources seen close"). A
- * well-shaped element (radius^2 about 0.8-1.9 times its area) never gets
- * here before min_area. */
-#define SLIVER_R2 2.0
+ * a hand's width apart along it. interior.json's glazing bars (long faces
+ * of triangles 3 cm x 30-70 cm, the horizontal bars 0.5 mm short of the
+ * vertical one's sides) had leaves at min_area reaching across those
+ * slots, with a fixed point in a slot for every link: the faces along the
+ * slots took in 9-10 % less than the light tracer counts (notes/radiosity.md,
+ * "Slivers and sources seen close"). A child under min_area reaches this
+ * radius only at about 5:1 and longer (radius^2 over 4 times its area; a
+ * well-shaped one has 0.8-1.9); at 8 the bars stayed as they were. */
+#define SLIVER_R2 4.0
 static inline int splittable(const hctx *c, uint32_t x)
 {
     if (x & CLB)
