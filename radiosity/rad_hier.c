@@ -1,7 +1,7 @@
 /* rad_hier.c - hierarchical radiosity with clustering, the radiosity pass's
- * method "hierarchical", the default (the flat one: radiosity.method "flat") (Hanrahan, Salzman & Aupperle 1991; clusters after
- * Smits, Arvo & Greenberg 1994 and Sillion 1995). notes/radiosity.md has the
- * design and the measurements.
+ * method "hierarchical", the default (the flat one: radiosity.method "flat")
+ * (Hanrahan, Salzman & Aupperle 1991; clusters after Smits, Arvo & Greenberg
+ * 1994 and Sillion 1995). notes/radiosity.md has the design and measurements.
  *
  * Elements. Every patch of a coarse patch set (the roots: the scene's
  * triangles at 16x the flat method's patch area, spheres and solids at that
@@ -18,8 +18,7 @@
  * axes. The six-direction split it replaces (power over the axes in the
  * proportions n_a / |n|_1) was 33 % low along the axes for a sphere and 29 %
  * off for a facet at 45 degrees: a sphere lamp in a closed box came out 10 %
- * dark. Clusters
- * only shoot: a cluster at the receiving end passes the link to its children,
+ * dark. Clusters only shoot: a cluster at the receiving end passes the link to its children,
  * so every receiver is an element and reads the link with its own normal
  * (as a Barnes-Hut walk does; links grow as N log N). Clusters that also
  * received (irradiance per axis direction, read with each element's normal)
@@ -32,8 +31,8 @@
  * s into the irradiance of r. It is refined while the power it may carry,
  * rho_max(r) A_r Fhat(r, s) B_s (Fhat an upper estimate of the form factor),
  * exceeds eps = tolerance x the power emitted in the scene, by splitting the
- * larger of the two (elements stop at min_area). Two tests split the
- * receiver first (a shadow's edge or a gradient lies on the receiver;
+ * larger of the two (elements stop at min_area; slivers: SLIVER_R2). Two
+ * tests split the receiver first (a shadow's edge or a gradient lies on it;
  * splitting the source there only shrinks the link's power until it passes):
  * a link whose rays see the source partly (0 < V < 1) while its power
  * exceeds eps / 8, and an uneven one, rho A_r (F_max - F_min) B_s > eps over
@@ -60,7 +59,8 @@
  * B_s) splits the source first (rad_hier_rounds.c source_uneven): the link
  * reads the source's mean, while its receiver may see mostly one part of it
  * (bunny.json's bunny, its underside over the floor in its shadow, +3.0 %
- * without it; notes/radiosity.md, "Sources that vary").
+ * without it; notes/radiosity.md, "Sources that vary"), or a near pair's
+ * over SOURCE_REL of r's own power ("Slivers and sources seen close").
  * Rounds: link with the emission, solve, re-link with the solved radiosity
  * (what was kept is re-tested, all three tests), solve again, twice.
  *
