@@ -24,8 +24,8 @@
 #include "rad_hier_ctx.h"
 
 typedef struct rlc_geo {
-    float d[6][3], m[6];
-    double take[6];
+    float d[RLC_BUCKETS][3], m[RLC_BUCKETS];
+    double take[RLC_BUCKETS];
 } rlc_geo;
 
 static double rlc_w(const rlc_geo *q, int b, rr_vec3 n)
@@ -111,7 +111,7 @@ int rad__hier_rlc_prepare(hctx *c, const size_t *grp, size_t ngrp)
 #pragma omp parallel for schedule(dynamic, 16)
     for (long g = (long)g0; g < (long)ngrp; g++) {
         rlc_geo *q = &c->rg[g - (long)g0];
-        double V[6][3] = {{0}}, S[6] = {0};
+        double V[RLC_BUCKETS][3] = {{0}}, S[RLC_BUCKETS] = {0};
         for (size_t j = grp[g]; j < grp[g + 1]; j++) {
             const hlink *l = &c->ln[j];
             rr_vec3 u = dir_unpack(l->dF);
@@ -126,7 +126,7 @@ int rad__hier_rlc_prepare(hctx *c, const size_t *grp, size_t ngrp)
             S[b] += w;
         }
         uint32_t x = c->ln[grp[g]].r;
-        for (int b = 0; b < 6; b++) {
+        for (int b = 0; b < RLC_BUCKETS; b++) {
             double L = sqrt(V[b][0] * V[b][0] + V[b][1] * V[b][1] + V[b][2] * V[b][2]);
             for (int k = 0; k < 3; k++)
                 q->d[b][k] = L > 0 ? (float)(V[b][k] / L) : 0.0f;
@@ -144,7 +144,7 @@ int rad__hier_rlc_prepare(hctx *c, const size_t *grp, size_t ngrp)
 #define RLC_DEPTH 64 /* receiving leaf clusters nested on one path, at most (a cluster tree's depth) */
 typedef struct rlc_step {
     const rlc_geo *q;
-    double S[6][3];
+    double S[RLC_BUCKETS][3];
 } rlc_step;
 
 static size_t rlc_push(hctx *c, uint32_t x, rlc_step *path, int np, const size_t *grp, size_t p)
@@ -155,7 +155,7 @@ static size_t rlc_push(hctx *c, uint32_t x, rlc_step *path, int np, const size_t
         rr_vec3 n = c->rn[p];
         double H[3] = {0, 0, 0};
         for (int k = 0; k < np; k++)
-            for (int b = 0; b < 6; b++) {
+            for (int b = 0; b < RLC_BUCKETS; b++) {
                 if (!(path[k].S[b][0] > 0 || path[k].S[b][1] > 0 || path[k].S[b][2] > 0))
                     continue;
                 double w = rlc_w(path[k].q, b, n);
