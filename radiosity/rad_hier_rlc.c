@@ -24,24 +24,26 @@
 #include "rad_hier_ctx.h"
 
 typedef struct rlc_geo {
-    float d[RLC_BUCKETS][3], m[RLC_BUCKETS];
+    float d[RLC_BUCKETS]; /* d_b, packed (dir_pack): the 1M room holds one per receiving cluster node */
+    float m[RLC_BUCKETS];
     double take[RLC_BUCKETS];
 } rlc_geo;
 
-static double rlc_w(const rlc_geo *q, int b, rr_vec3 n)
+static double rlc_w(const float d[3], double m, rr_vec3 n)
 {
-    double c = n.x * q->d[b][0] + n.y * q->d[b][1] + n.z * q->d[b][2], m = q->m[b];
+    double c = n.x * d[0] + n.y * d[1] + n.z * d[2];
     return m * (c > 0 ? c : 0.0) + 0.5 * (1.0 - m) * (1.0 - fabs(c));
 }
 
-/* What the roots under x take of bucket b's unit irradiance, as the ledger
- * counts it: by their open area (a root partly buried, the bottom of a
- * bunny standing in a thin gap over the floor, absorbs over that alone). */
-static double rlc_take(const hctx *c, uint32_t x, const rlc_geo *q, int b)
+/* What the roots under x take of a bucket's unit irradiance (direction d,
+ * spread m), as the ledger counts it: by their open area (a root partly
+ * buried, the bottom of a bunny standing in a thin gap over the floor,
+ * absorbs over that alone). */
+static double rlc_take(const hctx *c, uint32_t x, const float d[3], double m)
 {
     if (x & CLB)
-        return rlc_take(c, c->cl[CL(x)].child[0], q, b) + rlc_take(c, c->cl[CL(x)].child[1], q, b);
-    return node_uarea(c, x) * c->el[x].open * rlc_w(q, b, el_normal(c, x));
+        return rlc_take(c, c->cl[CL(x)].child[0], d, m) + rlc_take(c, c->cl[CL(x)].child[1], d, m);
+    return node_uarea(c, x) * c->el[x].open * rlc_w(d, m, el_normal(c, x));
 }
 
 /* c->rdfs, rpos, rn (hctx), and room for rH and rf: a walk down a
@@ -128,10 +130,12 @@ int rad__hier_rlc_prepare(hctx *c, const size_t *grp, size_t ngrp)
         uint32_t x = c->ln[grp[g]].r;
         for (int b = 0; b < RLC_BUCKETS; b++) {
             double L = sqrt(V[b][0] * V[b][0] + V[b][1] * V[b][1] + V[b][2] * V[b][2]);
-            for (int k = 0; k < 3; k++)
-                q->d[b][k] = L > 0 ? (float)(V[b][k] / L) : 0.0f;
+            rr_vec3 u = L > 0 ? rr_v3_scale(rr_v3(V[b][0], V[b][1], V[b][2]), 1.0 / L) : rr_v3(0, 0, 1);
+            q->d[b] = dir_pack(u);
             q->m[b] = S[b] > 0 ? (float)rr_min(1.0, L / S[b]) : 1.0f;
-            q->take[b] = S[b] > 0 ? rlc_take(c, x, q, b) : 0.0;
+            u = dir_unpack(q->d[b]); /* the gather reads it so */
+            const float d[3] = {(float)u.x, (float)u.y, (float)u.z};
+            q->take[b] = S[b] > 0 ? rlc_take(c, x, d, q->m[b]) : 0.0;
         }
     }
     return 0;
@@ -143,7 +147,8 @@ int rad__hier_rlc_prepare(hctx *c, const size_t *grp, size_t ngrp)
  * for any thread count. */
 #define RLC_DEPTH 64 /* receiving leaf clusters nested on one path, at most (a cluster tree's depth) */
 typedef struct rlc_step {
-    const rlc_geo *q;
+    int nb; /* the buckets that bring light, in order: their direction, spread and light */
+    float d[RLC_BUCKETS][3], m[RLC_BUCKETS];
     double S[RLC_BUCKETS][3];
 } rlc_step;
 
@@ -155,12 +160,10 @@ static size_t rlc_push(hctx *c, uint32_t x, rlc_step *path, int np, const size_t
         rr_vec3 n = c->rn[p];
         double H[3] = {0, 0, 0};
         for (int k = 0; k < np; k++)
-            for (int b = 0; b < RLC_BUCKETS; b++) {
-                if (!(path[k].S[b][0] > 0 || path[k].S[b][1] > 0 || path[k].S[b][2] > 0))
-                    continue;
-                double w = rlc_w(path[k].q, b, n);
+            for (int i = 0; i < path[k].nb; i++) {
+                double w = rlc_w(path[k].d[i], path[k].m[i], n);
                 for (int ch = 0; ch < 3; ch++)
-                    H[ch] += w * path[k].S[b][ch];
+                    H[ch] += w * path[k].S[i][ch];
             }
         c->rH[p] = rr_rgb_make(H[0], H[1], H[2]);
         c->rf[p] = 1;
@@ -171,15 +174,28 @@ static size_t rlc_push(hctx *c, uint32_t x, rlc_step *path, int np, const size_t
         size_t g = c->rg0 + gi;
         RR_CHECK(np < RLC_DEPTH);
         rlc_step *st = &path[np++];
-        st->q = &c->rg[gi];
-        memset(st->S, 0, sizeof st->S);
+        const rlc_geo *q = &c->rg[gi];
+        double S[RLC_BUCKETS][3];
+        memset(S, 0, sizeof S);
         for (size_t j = grp[g]; j < grp[g + 1]; j++) {
             const hlink *l = &c->ln[j];
             rr_rgb v = link_light(c, l);
             int b = rlc_bucket(l);
-            st->S[b][0] += v.r;
-            st->S[b][1] += v.g;
-            st->S[b][2] += v.b;
+            S[b][0] += v.r;
+            S[b][1] += v.g;
+            S[b][2] += v.b;
+        }
+        st->nb = 0;
+        for (int b = 0; b < RLC_BUCKETS; b++) {
+            if (!(S[b][0] > 0 || S[b][1] > 0 || S[b][2] > 0))
+                continue;
+            rr_vec3 u = dir_unpack(q->d[b]);
+            int i = st->nb++;
+            st->d[i][0] = (float)u.x;
+            st->d[i][1] = (float)u.y;
+            st->d[i][2] = (float)u.z;
+            st->m[i] = q->m[b];
+            memcpy(st->S[i], S[b], sizeof S[b]);
         }
     }
     const hcf *f = &c->cf[CL(x)];
