@@ -11,6 +11,11 @@ ceiling fixtures, with:
 - raised-box.glb / .json: the sofa's base, a rounded box 2 x 0.22 x 0.9 m
   standing 8 cm over the floor (on no legs) and 3 cm from the left wall;
   its underside is the node Box_Bottom, its back Box_Back, the rest Box.
+- table-rlc.glb / .json: the dining table (turned legs, rails), its faces
+  that look down (the top's underside, the rails' bottoms) the node
+  Table_Down, the rest Table, solved with receiving leaf clusters on
+  (radiosity.receiving_clusters 1: clusters of its small triangles receive
+  their links as one, as they do in the whole room).
 Run from anywhere: python3 tests/data/scenes/energy/interior_parts.py"""
 import json, os, sys
 
@@ -42,7 +47,7 @@ def axis_name(n, pre):
     return pre + "_" + "XYZ"[k] + ("P" if n[k] > 0 else "M")
 
 
-def write(name, nodes, desc):
+def write(name, nodes, desc, radiosity=None):
     rm, sky, _ = I.room()
     panel = I.ceiling_panel()
     shell = [I.Node("Room", rm), I.Node("Window_Sky", sky)] + \
@@ -53,7 +58,7 @@ def write(name, nodes, desc):
              "description": desc + " (written by interior_parts.py from scenes/gen/interior.py).",
              "camera": {"type": "lookat", "eye": [2.65, 1.5, 1.95], "target": [-0.41, 0.9, -0.62],
                         "up": [0, 1, 0], "fov": 60, "width": 32, "height": 20},
-             "radiosity": {"method": "hierarchical"},
+             "radiosity": dict({"method": "hierarchical"}, **(radiosity or {})),
              "objects": [{"type": "model", "name": "part", "file": name + ".glb"}]}
     with open(os.path.join(here, name + ".json"), "w") as f:
         json.dump(scene, f, indent=1)
@@ -85,3 +90,10 @@ write("raised-box", [I.Node("Sofa", None, t=[-I.X + 0.48, 0, 0.3], r=I.quat((0, 
       "scenes/interior.json's room, window pane and ceiling fixtures with its sofa's base, a rounded box 2 x 0.22 x "
       "0.9 m standing 8 cm over the floor and 3 cm from the left wall; its underside is the node Box_Bottom, its "
       "back Box_Back")
+
+# the table as interior.py's table() draws it, placed as its Table node is
+parts = by_normal(I.table(), lambda n: "Table_Down" if axis_name(n, "")[1:] == "YM" else "Table")
+write("table-rlc", [I.Node("Dining", None, t=[1.0, 0, 0], children=[I.Node(k, parts[k]) for k in sorted(parts)])],
+      "scenes/interior.json's room, window pane and ceiling fixtures with its dining table, its faces that look "
+      "down the node Table_Down, solved with receiving leaf clusters on",
+      {"receiving_clusters": 1})
