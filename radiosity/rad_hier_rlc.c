@@ -3,7 +3,8 @@
  * evaluation is rad_hier_cluster.c's rad__hier_eval_rlc).
  *
  * A receiving leaf cluster x's links in each direction bucket (the cube
- * face the direction to the source points to) are read by every root under
+ * face the direction to the source points to, in four by the signs of the
+ * other two components: rlc_dir_bucket, 24) are read by every root under
  * x as one source in the direction d_b of the sum of their light (sum v u /
  * |sum v u|, v = link_g times what the source sent as the solve started, by
  * geometry alone where the sources are dark), with the spread m_b = |sum v
