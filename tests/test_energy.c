@@ -697,33 +697,6 @@ static double book_rows(const char *from, const char *suffix, int col)
     return sum;
 }
 
-/* Slots between books (rad_hier_bury.c el_probe, rad_hier_link.c
- * toward_s): book-row.json's ten books stand 1.5 mm apart, and the light
- * that falls on a slot's mouth is taken in within a few widths of it, on
- * parts of the books' sides that straddle the mouth with elements far
- * wider than that. Read at the fixed pattern's points, the sides took in
- * 7.1 % less than the light tracer counts (8 M particles; 0.941 and 0.917
- * of it on the -x and +x sides); at open points of their own, 4.1 % less
- * (0.953, 0.965). The threshold, 0.945 of the light tracer's sum, is about
- * three of its standard errors from either (the sides' sum has an SE near
- * 0.4 % at 8 M particles). */
-static void slot_walls_read(void **state)
-{
-    (void)state;
-    const char *a[] = {"energy", data("book-row.json"), "--particles", "8000000", NULL};
-    assert_int_equal(run(a), 0);
-    const char *rad = strstr(g_out, "radiosity ledger"), *lt = rad ? strstr(rad, "\nlight-tracing ledger") : NULL;
-    if (!rad || !lt)
-        fail_msg("no ledgers\n%s", g_out);
-    /* columns after the name: radiosity area, emitted, incident, ...; the
-     * light tracer's emitted, incident, ... */
-    double pass = book_rows(rad, "_xm", 2) + book_rows(rad, "_xp", 2);
-    double trace = book_rows(lt + 1, "_xm", 1) + book_rows(lt + 1, "_xp", 1);
-    print_message("book sides: the pass %.5f, the light tracer %.5f: %.3f\n", pass, trace, pass / trace);
-    assert_true(trace > 0.1);
-    assert_true(pass / trace > 0.945 && pass / trace < 1.03);
-}
-
 /* The value in column col (after the name) of the ledger row named exactly
  * name, in the table that starts at from; NAN when there is none. */
 static double ledger_value(const char *from, const char *name, int col)
@@ -739,6 +712,55 @@ static double ledger_value(const char *from, const char *name, int col)
             return v[col];
     }
     return NAN;
+}
+
+/* Runs `energy SCENE --particles N` (no check) and finds its two ledgers:
+ * *rad, the radiosity ledger's table, *lt the light tracer's. */
+static void ledgers_of(const char *scene, const char *particles, const char **rad, const char **lt)
+{
+    const char *a[] = {"energy", scene, "--particles", particles, NULL};
+    assert_int_equal(run(a), 0);
+    *rad = strstr(g_out, "radiosity ledger");
+    *lt = *rad ? strstr(*rad, "\nlight-tracing ledger") : NULL;
+    if (!*rad || !*lt)
+        fail_msg("%s: no ledgers\n%s", scene, g_out);
+    *lt += 1;
+}
+
+/* The incident power of ledger row `name` by the pass over the light
+ * tracer's (columns after the name: the radiosity ledger's area, emitted,
+ * incident, ...; the light tracer's emitted, incident, ...), printed; the
+ * light tracer's must be over min_trace. */
+static double incident_ratio(const char *rad, const char *lt, const char *name, double min_trace)
+{
+    double pass = ledger_value(rad, name, 2), trace = ledger_value(lt, name, 1);
+    print_message("%s incident: the pass %.5f, the light tracer %.5f: %.3f\n", name, pass, trace, pass / trace);
+    assert_true(trace > min_trace);
+    return pass / trace;
+}
+
+/* Slots between books (rad_hier_bury.c el_probe, rad_hier_link.c
+ * toward_s): book-row.json's ten books stand 1.5 mm apart, and the light
+ * that falls on a slot's mouth is taken in within a few widths of it, on
+ * parts of the books' sides that straddle the mouth with elements far
+ * wider than that. Read at the fixed pattern's points, the sides took in
+ * 7.1 % less than the light tracer counts (8 M particles; 0.941 and 0.917
+ * of it on the -x and +x sides); at open points of their own, 4.1 % less
+ * (0.953, 0.965). The threshold, 0.945 of the light tracer's sum, is about
+ * three of its standard errors from either (the sides' sum has an SE near
+ * 0.4 % at 8 M particles). */
+static void slot_walls_read(void **state)
+{
+    (void)state;
+    const char *rad, *lt;
+    ledgers_of(data("book-row.json"), "8000000", &rad, &lt);
+    /* columns after the name: radiosity area, emitted, incident, ...; the
+     * light tracer's emitted, incident, ... */
+    double pass = book_rows(rad, "_xm", 2) + book_rows(rad, "_xp", 2);
+    double trace = book_rows(lt, "_xm", 1) + book_rows(lt, "_xp", 1);
+    print_message("book sides: the pass %.5f, the light tracer %.5f: %.3f\n", pass, trace, pass / trace);
+    assert_true(trace > 0.1);
+    assert_true(pass / trace > 0.945 && pass / trace < 1.03);
 }
 
 /* Slivers split while long (rad_hier_ctx.h splittable, SLIVER_R2):
@@ -775,18 +797,12 @@ static void slivers_split(void **state)
 static void near_sources_split(void **state)
 {
     (void)state;
-    const char *a[] = {"energy", data("raised-box.json"), "--particles", "4000000", NULL};
-    assert_int_equal(run(a), 0);
-    const char *rad = strstr(g_out, "radiosity ledger"), *lt = rad ? strstr(rad, "\nlight-tracing ledger") : NULL;
-    if (!rad || !lt)
-        fail_msg("no ledgers\n%s", g_out);
+    const char *rad, *lt;
+    ledgers_of(data("raised-box.json"), "4000000", &rad, &lt);
     const char *names[] = {"part/Box_Bottom", "part/Box_Back"};
     for (int k = 0; k < 2; k++) {
-        double pass = ledger_value(rad, names[k], 2), trace = ledger_value(lt + 1, names[k], 1);
-        print_message("%s incident: the pass %.5f, the light tracer %.5f: %.3f\n", names[k], pass, trace,
-                      pass / trace);
-        assert_true(trace > 0.05);
-        assert_true(pass / trace > 0.9 && pass / trace < 1.6);
+        double q = incident_ratio(rad, lt, names[k], 0.05);
+        assert_true(q > 0.9 && q < 1.6);
     }
 }
 
@@ -801,15 +817,12 @@ static void near_sources_split(void **state)
 static void clusters_read_by_direction(void **state)
 {
     (void)state;
-    const char *a[] = {"energy", data("table-rlc.json"), "--particles", "4000000", NULL};
-    assert_int_equal(run(a), 0);
-    const char *rad = strstr(g_out, "radiosity ledger"), *lt = rad ? strstr(rad, "\nlight-tracing ledger") : NULL;
-    if (!rad || !lt || !strstr(g_out, "receiving leaf clusters"))
-        fail_msg("no ledgers, or no receiving clusters\n%s", g_out);
-    double pass = ledger_value(rad, "part/Table_Down", 2), trace = ledger_value(lt + 1, "part/Table_Down", 1);
-    print_message("Table_Down incident: the pass %.5f, the light tracer %.5f: %.3f\n", pass, trace, pass / trace);
-    assert_true(trace > 0.1);
-    assert_true(pass / trace > 0.92 && pass / trace < 1.05);
+    const char *rad, *lt;
+    ledgers_of(data("table-rlc.json"), "4000000", &rad, &lt);
+    if (!strstr(g_out, "receiving leaf clusters"))
+        fail_msg("no receiving clusters\n%s", g_out);
+    double q = incident_ratio(rad, lt, "part/Table_Down", 0.1);
+    assert_true(q > 0.92 && q < 1.05);
 }
 
 int main(void)
