@@ -18,8 +18,8 @@
  * axes. The six-direction split it replaces (power over the axes in the
  * proportions n_a / |n|_1) was 33 % low along the axes for a sphere and 29 %
  * off for a facet at 45 degrees: a sphere lamp in a closed box came out 10 %
- * dark. Clusters only shoot: a cluster at the receiving end passes the link to its children,
- * so every receiver is an element and reads the link with its own normal
+ * dark. Clusters only shoot: a cluster at the receiving end passes the link
+ * to its children, so every receiver is an element and reads the link with its own normal
  * (as a Barnes-Hut walk does; links grow as N log N). Clusters that also
  * received (irradiance per axis direction, read with each element's normal)
  * lit the undersides of sphere-to-board's sphere from the lamp above:

@@ -5,7 +5,6 @@
 #ifndef RAD_HIER_CTX_H
 #define RAD_HIER_CTX_H
 
-#include <stdlib.h>
 #include <string.h>
 
 #include "rad.h"

@@ -36,15 +36,22 @@ static double rlc_w(const float d[3], double m, rr_vec3 n)
     return m * (c > 0 ? c : 0.0) + 0.5 * (1.0 - m) * (1.0 - fabs(c));
 }
 
-/* What the roots under x take of a bucket's unit irradiance (direction d,
- * spread m), as the ledger counts it: by their open area (a root partly
- * buried, the bottom of a bunny standing in a thin gap over the floor,
- * absorbs over that alone). */
-static double rlc_take(const hctx *c, uint32_t x, const float d[3], double m)
+/* What the roots under x take of the unit irradiance of each of the nb
+ * buckets (direction d[i], spread m[i]), added to take[i], as the ledger
+ * counts it: by their open area (a root partly buried, the bottom of a
+ * bunny standing in a thin gap over the floor, absorbs over that alone).
+ * One walk for all the buckets. */
+static void rlc_take(const hctx *c, uint32_t x, const float (*d)[3], const float *m, int nb, double *take)
 {
-    if (x & CLB)
-        return rlc_take(c, c->cl[CL(x)].child[0], d, m) + rlc_take(c, c->cl[CL(x)].child[1], d, m);
-    return node_uarea(c, x) * c->el[x].open * rlc_w(d, m, el_normal(c, x));
+    if (x & CLB) {
+        rlc_take(c, c->cl[CL(x)].child[0], d, m, nb, take);
+        rlc_take(c, c->cl[CL(x)].child[1], d, m, nb, take);
+        return;
+    }
+    double a = node_uarea(c, x) * c->el[x].open;
+    rr_vec3 n = el_normal(c, x);
+    for (int i = 0; i < nb; i++)
+        take[i] += a * rlc_w(d[i], m[i], n);
 }
 
 /* c->rdfs, rpos, rn (hctx), and room for rH and rf: a walk down a
@@ -128,16 +135,27 @@ int rad__hier_rlc_prepare(hctx *c, const size_t *grp, size_t ngrp)
             V[b][2] += w * u.z;
             S[b] += w;
         }
-        uint32_t x = c->ln[grp[g]].r;
+        float d[RLC_BUCKETS][3], m[RLC_BUCKETS];
+        double take[RLC_BUCKETS] = {0};
+        int used[RLC_BUCKETS], nb = 0;
         for (int b = 0; b < RLC_BUCKETS; b++) {
             double L = sqrt(V[b][0] * V[b][0] + V[b][1] * V[b][1] + V[b][2] * V[b][2]);
             rr_vec3 u = L > 0 ? rr_v3_scale(rr_v3(V[b][0], V[b][1], V[b][2]), 1.0 / L) : rr_v3(0, 0, 1);
             q->d[b] = dir_pack(u);
             q->m[b] = S[b] > 0 ? (float)rr_min(1.0, L / S[b]) : 1.0f;
+            q->take[b] = 0.0;
+            if (!(S[b] > 0))
+                continue;
             u = dir_unpack(q->d[b]); /* the gather reads it so */
-            const float d[3] = {(float)u.x, (float)u.y, (float)u.z};
-            q->take[b] = S[b] > 0 ? rlc_take(c, x, d, q->m[b]) : 0.0;
+            d[nb][0] = (float)u.x;
+            d[nb][1] = (float)u.y;
+            d[nb][2] = (float)u.z;
+            m[nb] = q->m[b];
+            used[nb++] = b;
         }
+        rlc_take(c, c->ln[grp[g]].r, (const float(*)[3])d, m, nb, take);
+        for (int i = 0; i < nb; i++)
+            q->take[used[i]] = take[i];
     }
     return 0;
 }
