@@ -118,7 +118,8 @@ static int unevenly_exposed(const hctx *c, const hlink *l)
  * times (shi - slo) / B_s, is over SOURCE_SHARE of the receiver's eps: the
  * link carries s's mean, while r may see mostly one part of s (the floor
  * close under an object, in the object's shadow, seen by its underside).
- * Or, for a near pair (centres closer than twice their radii) whose source
+ * Or, for a near pair (centres closer than twice the sum of their radii, as
+ * rad_hier_link.c reads near pairs) whose source
  * varies by more than SOURCE_VARY of its mean, the bound is over
  * SOURCE_REL of r's own power (A_r B_r): each such link carries little
  * (under a sofa raised 8 cm on its legs, a tenth of eps), but every link
