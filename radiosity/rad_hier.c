@@ -468,19 +468,19 @@ double rad__hier_bytes(double links, double elements, double clusters)
 }
 
 /* Whether the links have reached radiosity.max_links or the pass's bytes
- * BYTES_HEADROOM of max_bytes (--max-memory's share: then by_memory is set,
- * for the messages). The headroom is for the splits under way when the cap
- * is reached, which still link their children as admissibility needs:
- * Cornell and room.json went up to 8 % past a cap at max_bytes itself, and
- * Cornell with its relative tests (cornell.json's relative_tolerance 0.04)
- * 11 % past one at 0.9 of it (6 MiB: 6.31 MB held). */
+ * (receiving clusters' tables included) BYTES_HEADROOM of max_bytes
+ * (--max-memory's share: then by_memory is set, for the messages). The
+ * headroom is for the splits under way at the cap, which still link their
+ * children as admissibility needs: Cornell and room.json went up to 8 % past
+ * a cap at max_bytes itself, Cornell with its relative tests 11 % past one at
+ * 0.9 of it (6 MiB: 6.31 MB held). */
 #define BYTES_HEADROOM 0.85
 int rad__hier_past_cap(hctx *c)
 {
     if (c->nln >= c->max_links)
         return 1;
-    if (c->max_bytes > 0 &&
-        rad__hier_bytes((double)c->nln, (double)c->nel, (double)c->ncl) >= BYTES_HEADROOM * c->max_bytes) {
+    double held = rad__hier_bytes((double)c->nln, (double)c->nel, (double)c->ncl) + c->rlc_bytes;
+    if (c->max_bytes > 0 && held >= BYTES_HEADROOM * c->max_bytes) {
         c->by_memory = 1;
         return 1;
     }
@@ -860,7 +860,7 @@ static rr_status hier_run(const scene *s, const rt_accel *a, const rad_pass_opts
                           "radiosity.refine_tolerance asks",
                 s->path, cap);
     sol->memory_bound = c.by_memory && (c.eps > c.eps_asked || c.capped);
-    sol->pass_bytes = rad__hier_bytes((double)c.nln, (double)c.nel, (double)c.ncl);
+    sol->pass_bytes = rad__hier_bytes((double)c.nln, (double)c.nel, (double)c.ncl) + c.rlc_bytes;
     sol->ff_rays = c.rays;
     sol->links = c.nln;
     sol->receiving_clusters = c.nrlc;

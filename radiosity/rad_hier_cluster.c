@@ -721,6 +721,7 @@ int rad__hier_mark_rlc(hctx *c, double radius)
         free(c->rlc);
         c->rlc = NULL;
     }
+    c->rlc_bytes = rad__hier_rlc_bytes(c);
     return 0;
 }
 

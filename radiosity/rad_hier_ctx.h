@@ -310,16 +310,17 @@ typedef struct hctx {
      * start), NULL when there are none; nrlc counts the highest. */
     unsigned char *rlc;
     size_t nrlc;
+    double rlc_bytes; /* what their tables may hold (rad__hier_rlc_bytes), for the pass's count */
     double rlc_radius; /* their largest radius */
     struct rlc_geo *rg; /* per receiving leaf cluster's group of links, from rg0 on (rad__hier_groups) */
     uint32_t *rgi;      /* per cluster: its group's index in rg, NONE where it has no links */
     size_t rg0;
     /* The roots in the cluster tree's depth-first order, for rlc_push
-     * (rad_hier_rlc.c): rdfs[p] the root at position p, rn[p] its normal,
+     * (rad_hier_rlc.c): rdfs[p] the root at position p, rn[p] its normal and openness,
      * rpos[k] the position of cluster k's first root; rH[p] what rlc_push
      * gathered for it, rf[p] 1 where it read some links. */
     uint32_t *rdfs, *rpos;
-    rr_vec3 *rn;
+    struct rlc_root *rn;
     rr_rgb *rH;
     unsigned char *rf;
     int rlc_auto;      /* made only where the first walk does not fit without them (first_refine) */
@@ -762,6 +763,10 @@ int rad__hier_sort_links(hctx *c);
  * receiving leaf clusters (they sort after the elements'), their direction
  * buckets' geometry (c->rg, c->rgi); -1 when out of memory. */
 int rad__hier_rlc_prepare(hctx *c, const size_t *grp, size_t ngrp);
+/* The most the receiving leaf clusters' tables hold (a direction table for
+ * each marked cluster, the roots' order and light): the solve allocates
+ * them, so the count of what the pass holds adds this from the marking on. */
+double rad__hier_rlc_bytes(const hctx *c);
 /* Their links' light, read by every root under them (adds to hel.H), after
  * the elements' gather. */
 void rad__hier_rlc_gather(hctx *c, const size_t *grp);

@@ -16,6 +16,10 @@ ceiling fixtures, with:
   Table_Down, the rest Table, solved with receiving leaf clusters on
   (radiosity.receiving_clusters 1: clusters of its small triangles receive
   their links as one, as they do in the whole room).
+- vase-rlc.glb / .json: the table with the vase on it, the vase (a closed
+  thin-walled lathe) in two nodes: its inner wall Vase_In (which the room
+  sees through the neck alone), its outer wall and lip Vase_Out; receiving
+  leaf clusters on, as in table-rlc.
 Run from anywhere: python3 tests/data/scenes/energy/interior_parts.py"""
 import json, os, sys
 
@@ -96,4 +100,17 @@ parts = by_normal(I.table(), lambda n: "Table_Down" if axis_name(n, "")[1:] == "
 write("table-rlc", [I.Node("Dining", None, t=[1.0, 0, 0], children=[I.Node(k, parts[k]) for k in sorted(parts)])],
       "scenes/interior.json's room, window pane and ceiling fixtures with its dining table, its faces that look "
       "down the node Table_Down, solved with receiving leaf clusters on",
+      {"receiving_clusters": 1})
+
+# the vase as interior.py's vase() draws it (its profile cut where the lip's
+# top turns inwards), on the table as its Vase node stands
+P = I.VASE_PROFILE
+vase_out, vase_in = I.Mesh("Vase_Out"), I.Mesh("Vase_In")
+vase_out.add("Vase", I.lathe(P[:12], 96), closed=False)
+vase_in.add("Vase", I.lathe(P[11:], 96), closed=False)
+write("vase-rlc", [I.Node("Dining", I.table(), t=[1.0, 0, 0], children=[
+          I.Node("Vase", None, t=[0.33, 0.7605, -0.14], children=[I.Node("Vase_Out", vase_out),
+                                                                 I.Node("Vase_In", vase_in)])])],
+      "scenes/interior.json's room, window pane and ceiling fixtures with its dining table and the vase on it, the "
+      "vase's inner wall the node Vase_In, its outer wall and lip Vase_Out, solved with receiving leaf clusters on",
       {"receiving_clusters": 1})
