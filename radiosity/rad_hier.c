@@ -111,7 +111,7 @@
  * cluster's cluster_vec once at the receiver's area centroid; its size per
  * unit of the source, its direction kept in hlink.dF) and a shadow ray to
  * the source. Each root under the cluster reads the links of every
- * receiving ancestor by direction bucket (rad_hier_rlc.c, rlc_push):
+ * receiving ancestor by direction bucket and its openness (rad_hier_rlc.c):
  * linear in the sources, so the ledger balances. On the bunny rooms the
  * bunnies' light comes out closer to the light tracer than with element
  * receivers (27 bunnies: within 3.8 % against 8.0 %), with a fifth of the
