@@ -755,6 +755,10 @@ void rad__hier_eval_rlc(const hctx *c, hlink *l, rr_rng *rng, int mode);
 /* The unoccluded irradiance vector at point x from element s of unit
  * radiosity, s clipped to the front of x's plane for u (rad_hier_link.c). */
 rr_vec3 rad__hier_rlc_vec(const hctx *c, rr_vec3 x, rr_vec3 u, uint32_t s);
+/* The unoccluded point factor at x (normal n) from element s, its part in
+ * front of x's plane, as an element link reads it (side_ff): a cluster's
+ * frontier reads its roots so (rad_hier_cluster.c cluster_sums). */
+double rad__hier_root_ff(const hctx *c, rr_vec3 x, rr_vec3 n, uint32_t s);
 /* c->ln[0 .. nln) sorted by receiver (elements, then receiving leaf
  * clusters), then source, then way: the solve's fixed order (rad_hier_sort.c;
  * rad__hier_solve sorts them at its start). -1 when out of memory. */

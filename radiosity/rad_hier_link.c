@@ -497,6 +497,16 @@ void rad__hier_revis_ee(const hctx *c, hlink *l, rr_rng *rng)
     set_vis(l, 1, &v);
 }
 
+double rad__hier_root_ff(const hctx *c, rr_vec3 x, rr_vec3 n, uint32_t s)
+{
+    const hel *es = &c->el[s];
+    if (!(rr_v3_dot(el_normal(c, s), rr_v3_sub(x, es->ctr)) > c->plane_tol))
+        return 0.0;
+    rr_vec3 poly[4];
+    int nv = rad__clip_front(es->c, n, x, c->plane_tol, poly);
+    return nv < 3 ? 0.0 : rad_ff_point_polygon(x, n, poly, nv) * facet_scale(c, s);
+}
+
 rr_vec3 rad__hier_rlc_vec(const hctx *c, rr_vec3 x, rr_vec3 u, uint32_t s)
 {
     const hel *es = &c->el[s];

@@ -20,6 +20,11 @@ ceiling fixtures, with:
   thin-walled lathe) in two nodes: its inner wall Vase_In (which the room
   sees through the neck alone), its outer wall and lip Vase_Out; receiving
   leaf clusters on, as in table-rlc.
+- leaf-window.glb / .json: one of the plant's leaves (scenes/gen/interior.py
+  leaf()) 0.35 m in front of the back wall and 0.4 m left of the window, the
+  room's surfaces black and the ceiling fixtures dark: the window pane, seen
+  at a slant past its edge, is the only light and the leaf (node Leaf, black)
+  takes it in directly.
 Run from anywhere: python3 tests/data/scenes/energy/interior_parts.py"""
 import json, os, sys
 
@@ -114,3 +119,18 @@ write("vase-rlc", [I.Node("Dining", I.table(), t=[1.0, 0, 0], children=[
       "scenes/interior.json's room, window pane and ceiling fixtures with its dining table and the vase on it, the "
       "vase's inner wall the node Vase_In, its outer wall and lip Vase_Out, solved with receiving leaf clusters on",
       {"receiving_clusters": 1})
+
+# a leaf beside the window, lit by the pane alone: the room's surfaces black
+# and the fixtures dark in this file only
+saved = json.dumps(I.MATERIALS)
+for name in ("Wall_Paint", "Ceiling", "Floor_Wood", "Fixture", "Leaf"):
+    I.MATERIALS[I.MAT[name]]["pbrMetallicRoughness"]["baseColorFactor"][:3] = [0.0, 0.0, 0.0]
+for key in ("emissiveFactor", "extensions"):
+    I.MATERIALS[I.MAT["Ceiling_Panel"]].pop(key, None)
+leaf = I.Mesh("Leaf")
+leaf.add("Leaf", I.leaf(0.15, 0.06, 0.0025, 0.2, 0.3))
+write("leaf-window", [I.Node("Leaf", leaf, t=[-0.7, 1.4, -1.9])],
+      "scenes/interior.json's room with its surfaces black and its ceiling fixtures dark, lit by its window pane "
+      "alone, with one of its plant's leaves (black, the node Leaf) 0.35 m in front of the back wall and 0.4 m left "
+      "of the window")
+I.MATERIALS[:] = json.loads(saved)
