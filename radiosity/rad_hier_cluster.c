@@ -712,49 +712,6 @@ void rad__hier_cl_pack(hctx *c)
 
 /* ---- receiving leaf clusters (rad_hier.c, "Receiving leaf clusters") ---- */
 
-/* Whether every root under x is too small to split (and no mirror); marks
- * rlc[k] = 1 for the clusters of such roots within the radius. */
-static int rlc_small(hctx *c, uint32_t x, double radius)
-{
-    if (!(x & CLB))
-        return !splittable(c, x) && !(c->R->p[c->el[x].root].mirror > 0);
-    const hcl *k = &c->cl[CL(x)];
-    int a = rlc_small(c, k->child[0], radius), b = rlc_small(c, k->child[1], radius);
-    c->rlc[CL(x)] = a && b && k->radius <= radius;
-    return a && b;
-}
-
-/* The highest of them marked 2 (rlc_top: the gather's walks start there). */
-static void rlc_top(hctx *c, uint32_t x, int above)
-{
-    if (!(x & CLB))
-        return;
-    int here = c->rlc[CL(x)] != 0;
-    if (here && !above)
-        c->rlc[CL(x)] = 2;
-    rlc_top(c, c->cl[CL(x)].child[0], above || here);
-    rlc_top(c, c->cl[CL(x)].child[1], above || here);
-}
-
-int rad__hier_mark_rlc(hctx *c, double radius)
-{
-    free(c->rlc);
-    c->rlc = calloc(c->ncl ? c->ncl : 1, 1);
-    c->nrlc = 0;
-    if (!c->rlc)
-        return -1;
-    rlc_small(c, c->top, radius);
-    rlc_top(c, c->top, 0);
-    for (size_t i = 0; i < c->ncl; i++)
-        c->nrlc += c->rlc[i] == 2;
-    if (c->nrlc == 0) {
-        free(c->rlc);
-        c->rlc = NULL;
-    }
-    c->rlc_bytes = rad__hier_rlc_bytes(c);
-    return 0;
-}
-
 /* The direction from receiving leaf cluster r's area centroid towards s's
  * power centroid (s's centre for an element), unit: where its points are
  * drawn to face. */

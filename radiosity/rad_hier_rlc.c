@@ -1,6 +1,7 @@
-/* rad_hier_rlc.c - the receiving leaf clusters' side of the hierarchical
- * pass's solve (rad_hier.c, "Receiving leaf clusters"; their links'
- * evaluation is rad_hier_cluster.c's rad__hier_eval_rlc).
+/* rad_hier_rlc.c - the receiving leaf clusters: which they are
+ * (rad__hier_mark_rlc), what their tables hold, and their side of the
+ * hierarchical pass's solve (rad_hier.c, "Receiving leaf clusters"; their
+ * links' evaluation is rad_hier_cluster.c's rad__hier_eval_rlc).
  *
  * A receiving leaf cluster x's links in each direction bucket (the cube
  * face the direction to the source points to, in four by the signs of the
@@ -174,6 +175,49 @@ static int rlc_order(hctx *c)
     }
     free(rtop);
     return interrupted(c) ? 1 : 0;
+}
+
+/* Whether every root under x is too small to split (and no mirror); marks
+ * rlc[k] = 1 for the clusters of such roots within the radius. */
+static int rlc_small(hctx *c, uint32_t x, double radius)
+{
+    if (!(x & CLB))
+        return !splittable(c, x) && !(c->R->p[c->el[x].root].mirror > 0);
+    const hcl *k = &c->cl[CL(x)];
+    int a = rlc_small(c, k->child[0], radius), b = rlc_small(c, k->child[1], radius);
+    c->rlc[CL(x)] = a && b && k->radius <= radius;
+    return a && b;
+}
+
+/* The highest of them marked 2 (rlc_top: the gather's walks start there). */
+static void rlc_top(hctx *c, uint32_t x, int above)
+{
+    if (!(x & CLB))
+        return;
+    int here = c->rlc[CL(x)] != 0;
+    if (here && !above)
+        c->rlc[CL(x)] = 2;
+    rlc_top(c, c->cl[CL(x)].child[0], above || here);
+    rlc_top(c, c->cl[CL(x)].child[1], above || here);
+}
+
+int rad__hier_mark_rlc(hctx *c, double radius)
+{
+    free(c->rlc);
+    c->rlc = calloc(c->ncl ? c->ncl : 1, 1);
+    c->nrlc = 0;
+    if (!c->rlc)
+        return -1;
+    rlc_small(c, c->top, radius);
+    rlc_top(c, c->top, 0);
+    for (size_t i = 0; i < c->ncl; i++)
+        c->nrlc += c->rlc[i] == 2;
+    if (c->nrlc == 0) {
+        free(c->rlc);
+        c->rlc = NULL;
+    }
+    c->rlc_bytes = rad__hier_rlc_bytes(c);
+    return 0;
 }
 
 double rad__hier_rlc_bytes(const hctx *c)
