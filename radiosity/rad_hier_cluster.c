@@ -399,7 +399,9 @@ static inline double cl_term(const hcf *f, int area, rr_vec3 x, rr_vec3 nr, rr_v
  * part of the node is above it); deeper nodes, 0.9 % low; no disc on
  * clusters, 0.5 % low. A cluster's surfaces spread in depth, where reading
  * 1 / d^2 at the centroid is itself low by about (R / d)^2: the disc's
- * saturation, of the same order, counted it twice.
+ * saturation, of the same order, counted it twice. A root wide for its
+ * distance or crossing r's plane is read by its polygon's point factor
+ * instead (root_exact).
  * Read once at the centre of s's box instead, a lamp in a cluster with the
  * ceiling around it was read as if spread over the whole box, and moving
  * that one point within an admissible cluster moved a room's light by 10 %;
