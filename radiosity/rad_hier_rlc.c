@@ -69,10 +69,10 @@ static size_t rlc_take(const hctx *c, uint32_t x, const float (*d)[3], const flo
     return p + 1;
 }
 
-/* The openness of root x, under a receiving leaf cluster (rtop[y] is the
- * receiving cluster top over root y, NONE where there is none): the share of
- * RLC_OPEN_RAYS cosine-drawn directions from its centre that do not meet a
- * root under a receiving cluster within RLC_OPEN_REACH of their radius. A
+/* The openness of root x, under a receiving leaf cluster (under[y]: root y
+ * is under one): the share of RLC_OPEN_RAYS cosine-drawn directions from
+ * its centre that do not meet a root under a receiving cluster within
+ * RLC_OPEN_REACH of their radius. A
  * cluster's link reads its visibility at points of the roots that face the
  * source, averaged; its roots then share what it brings by their openness
  * as well as by their normals, so that the inside of a vase (its walls face
@@ -90,7 +90,7 @@ static size_t rlc_take(const hctx *c, uint32_t x, const float (*d)[3], const flo
 #define RLC_OPEN_REACH 2.0 /* x the receiving clusters' largest radius: how far a ray may meet a shade */
 #define RLC_OPEN_FIRST 8
 #define RLC_OPEN_RAYS 32
-static double rlc_open(const hctx *c, uint32_t x, const uint32_t *rtop)
+static double rlc_open(const hctx *c, uint32_t x, const unsigned char *under)
 {
     rr_vec3 xs, n;
     root_surface(c, x, c->rt[x].ctr, &xs, &n);
@@ -107,7 +107,7 @@ static double rlc_open(const hctx *c, uint32_t x, const uint32_t *rtop)
         int self = 0;
         if (rt_accel_closest_two_sided(c->a, ray, 0.0, reach, &h)) {
             uint32_t q = rad_patch_locate(c->R, c->s, h.tri, h.object, rr_ray_at(ray, h.t));
-            self = q < c->R->n && rtop[q] != NONE;
+            self = q < c->R->n && under[q];
         }
         open += !self;
     }
@@ -123,15 +123,16 @@ static double rlc_open(const hctx *c, uint32_t x, const uint32_t *rtop)
 static int rlc_order(hctx *c)
 {
     size_t nr = c->R->n, p = 0, top = 0;
-    uint32_t *stack = malloc((c->ncl + 2) * 2 * sizeof *stack), *rtop = malloc((nr ? nr : 1) * sizeof *rtop);
+    uint32_t *stack = malloc((c->ncl + 2) * 2 * sizeof *stack);
+    unsigned char *under = malloc(nr ? nr : 1);
     c->rdfs = malloc((nr ? nr : 1) * sizeof *c->rdfs);
     c->rpos = malloc((c->ncl ? c->ncl : 1) * sizeof *c->rpos);
     c->rn = malloc((nr ? nr : 1) * sizeof *c->rn);
     c->rH = malloc((nr ? nr : 1) * sizeof *c->rH);
     c->rf = malloc(nr ? nr : 1);
-    if (!stack || !rtop || !c->rdfs || !c->rpos || !c->rn || !c->rH || !c->rf) {
+    if (!stack || !under || !c->rdfs || !c->rpos || !c->rn || !c->rH || !c->rf) {
         free(stack);
-        free(rtop);
+        free(under);
         free(c->rdfs);
         free(c->rpos);
         free(c->rn);
@@ -143,18 +144,17 @@ static int rlc_order(hctx *c)
         c->rf = NULL;
         return -1;
     }
-    stack[top++] = c->top; /* pairs: the node, the receiving cluster top above it (NONE) */
-    stack[top++] = NONE;
+    stack[top++] = c->top; /* pairs: the node, 1 where a receiving cluster is above it or is it */
+    stack[top++] = 0;
     while (top > 0) {
         uint32_t t = stack[--top], x = stack[--top];
         if (!(x & CLB)) {
             c->rdfs[p] = x;
-            rtop[x] = t;
+            under[x] = (unsigned char)t;
             c->rn[p++].n = c->rt[x].n;
             continue;
         }
-        if (t == NONE && c->rlc[CL(x)] == 2)
-            t = CL(x);
+        t = t || c->rlc[CL(x)] == 2;
         c->rpos[CL(x)] = (uint32_t)p;
         stack[top++] = c->cf[CL(x)].child[1];
         stack[top++] = t;
@@ -169,11 +169,11 @@ static int rlc_order(hctx *c)
 #pragma omp for schedule(dynamic, 256)
         for (long q = 0; q < (long)nr; q++) {
             uint32_t x = c->rdfs[q];
-            c->rn[q].o = rtop[x] == NONE || interrupted(c) ? 1.0 : rlc_open(c, x, rtop);
+            c->rn[q].o = !under[x] || interrupted(c) ? 1.0 : rlc_open(c, x, under);
         }
         rt_ray_counts_add_since(&c->rays, before);
     }
-    free(rtop);
+    free(under);
     return interrupted(c) ? 1 : 0;
 }
 
@@ -228,7 +228,7 @@ double rad__hier_rlc_bytes(const hctx *c)
     for (size_t k = 0; k < c->ncl; k++)
         marked += c->rlc[k] != 0;
     double per_cluster = 1.0 + (double)(sizeof *c->rgi + sizeof *c->rpos);
-    double per_root = (double)(sizeof *c->rdfs + sizeof *c->rn + sizeof *c->rH + sizeof *c->rf + sizeof(uint32_t));
+    double per_root = (double)(sizeof *c->rdfs + sizeof *c->rn + sizeof *c->rH + sizeof *c->rf) + 1.0; /* + under */
     return (double)marked * (double)sizeof(rlc_geo) + (double)c->ncl * per_cluster + (double)c->R->n * per_root;
 }
 
