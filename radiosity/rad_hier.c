@@ -84,11 +84,9 @@
  * What was left were the last units beside the contact, under min_area:
  * there a leaf whose closedness rays meet a surface within its own radius
  * (a fifth of them: hel.touch) may split down to min_area / 16 for the
- * uneven test (contact_splittable). Cornell's hybrid at 256 px, 16 spp,
- * against a 4096-spp reference: 0.034 -> 0.0196 at 0.04, in 2.72 s (its pass
- * 0.74 -> 1.6 s). In a furnished room nearly every surface is dark by that
- * measure: room.json at 0.05 took 117 s and 51.5 M links instead of 9.9 s
- * and 4.4 M (before the contact splits), which is why it is not the default.
+ * uneven test (contact_splittable). Cornell's hybrid error 0.034 -> 0.0196
+ * at 0.04; not the default, as in a furnished room nearly every surface is
+ * dark by that measure (room.json: 12x the time; notes/radiosity.md).
  *
  * Receiving leaf clusters. A receiver is an element, so every root gets
  * links from a frontier of sources covering the scene, about 200 per root
@@ -115,27 +113,28 @@
  * linear in the sources, so the ledger balances. On the bunny rooms the
  * bunnies' light comes out closer to the light tracer than with element
  * receivers (27 bunnies: within 3.8 % against 8.0 %), with a fifth of the
- * links; the 1M-triangle room completes (notes/radiosity.md, "Receiving
- * leaf clusters").
+ * links; the 1M-triangle room completes (notes: "Receiving leaf clusters").
  *
  * Decide, then estimate. The partial-visibility split reads a link's own
  * shadow rays, so the links it keeps are those whose rays came out all
  * passing or all blocked: kept with those rays, their visibility leans
  * towards 0 or 1 (a link seen 70 % is kept at 1 with probability 0.7^4 and
  * split otherwise), and a room that is a closed furnace (every surface
- * E = 0.5, rho = 0.5, so B = 1 everywhere) came out 2.6 % dark on average,
- * 5 % at the 10th percentile of its pixels. Once the refinement has settled,
- * the links' visibility is drawn again (rad__hier_estimate, the stream seed ^
- * ESTIMATE_DRAW), and the last solve reads those: -1.4 %.
+ * E = 0.5, rho = 0.5, so B = 1 everywhere) came out 2.6 % dark on average.
+ * Once the refinement has settled, the links' visibility is drawn again
+ * (rad__hier_estimate, by the seed), and the last solve reads those: -1.4 %.
+ * The refinement's rays and the burial probes do not read the seed, so the
+ * tree is the scene's own (by the seed, a quarter of Cornell's back-wall
+ * leaves differed between two seeds), and the estimate casts 1 to 8 rays
+ * from each point of an element link by its power (estimate_per): 97.5 %
+ * of those leaves within 0.5 % between two seeds (82 % before; notes).
  * The split tests read nothing else of the rays: the uneven test reads the
  * factor's spread without visibility, the power test the power without it.
  * So a link that the partial test never found carrying VIS_SHARE eps
  * without visibility when it kept it was kept whatever its rays said, and
  * its draw is unbiased as it is: the estimate leaves it (LINK_READ, marked
- * by the tests that read the rays; 68 % of room.json's links). (When the
- * uneven test still read the rays, re-drawing only the links at the
- * threshold recovered two thirds of the bias; now the furnace room is the
- * same to 1e-4 either way: notes/radiosity.md, "The estimate's redraw".)
+ * by the tests that read the rays; 68 % of room.json's links; notes/radiosity.md,
+ * "The estimate's redraw").
  *
  * Transport of a link, per channel (w the unit direction from r to s, V the
  * visibility by 4 shadow rays, q = 1 / (d^2 + A / pi) the disc formula that
@@ -181,7 +180,8 @@
  * leaf down 10 % (the row sums counted that hidden ceiling). The kept links'
  * geometry is read again for the solved sources before each re-linking.
  * The shadow rays start at fixed points of the receiver and end at points
- * drawn from the link's own stream rr_rng_make(seed ^ draw, (r << 32) | s).
+ * drawn from the link's own stream rr_rng_make(key, (r << 32) | s), the key
+ * 0 while refining and the seed's in the estimate.
  *
  * Buried parts (rad.h; the flat pass's rule, rad__ff_buried). Where a
  * closed box stands on a surface, or a panel is mounted a hair in front of

@@ -68,7 +68,7 @@ static void el_probe(hctx *c, uint32_t x)
     for (int k = 0; k < 4; k++)
         if (rad__hier_point_buried(c, e, tri_at(e->c, k_pts[k][0], k_pts[k][1], k_pts[k][2])))
             e->kbur |= 1u << k;
-    rr_rng rng = rr_rng_make(c->seed ^ 0x5851f42d4c957f2dULL, x);
+    rr_rng rng = rr_rng_make(0x5851f42d4c957f2dULL, x);
     double bury = RAD_FF_BURY * sqrt(e->area);
     int open = 0, covered = 0, cov = 0;
     double ob[PROBES][2], pb[PROBES][2];
@@ -142,7 +142,7 @@ static void leaf_data(const hctx *c, uint32_t x)
     e->H0 = c->L ? rad__first_shot(c->s, c->a, c->L, c->R, e->root, e->c, NULL, 0.0, &e->spread)
                  : rr_rgb_make(0, 0, 0);
     e->E = rr_rgb_add(rp->emission, rr_rgb_mul(rp->rho, e->H0));
-    rr_rng rng = rr_rng_make(c->seed ^ 0x9e3779b97f4a7c15ULL, x);
+    rr_rng rng = rr_rng_make(0x9e3779b97f4a7c15ULL, x);
     int any = open_pt(e, 0) >= 0, landed = 0, back = 0, near = 0, touch = 0; /* from its open points */
     double touch_d = e->radius;
     double near_d = OCCL_NEAR * c->el[e->root].radius;

@@ -613,9 +613,9 @@ static void cluster_vis(const hctx *c, const rview *rv, hlink *l, rr_rng *rng)
     int pass[2] = {0, 0}, open_p = 0, pass_p = 0, partial = 0;
     if (l->f > 0.0f || l->fa > 0.0f)
         visibility(c, rv, l->r, l->s, rng, pass, &open_p, &pass_p, &partial);
-    l->v = vis_twelfths(pass[1], VIS_RAYS - 1);
-    l->va = vis_twelfths(pass[0], 1);
-    l->vis = vis_twelfths(pass_p, open_p);
+    l->v = vis_share(pass[1], VIS_RAYS - 1);
+    l->va = vis_share(pass[0], 1);
+    l->vis = vis_share(pass_p, open_p);
     link_set_partial(l, partial);
 }
 
@@ -870,7 +870,7 @@ void rad__hier_eval_rlc(const hctx *c, hlink *l, rr_rng *rng, int mode)
     }
     l->f = (float)f;
     l->fa = (float)fa;
-    l->v = l->va = l->vis = seen ? vis_twelfths(pass, seen) : VIS_ONE;
+    l->v = l->va = l->vis = seen ? vis_share(pass, seen) : VIS_ONE;
     link_set_partial(l, pass > 0 && pass < seen);
     link_clear_shape(l);
     rlc_set_dir(l, rr_v3_len2(dir) > 0 ? rr_v3_norm(dir) : u0);

@@ -163,17 +163,18 @@ typedef struct hroot {
     int flat; /* rad_patch.flat: its surface points are its own (rad_patch_surface) */
 } hroot;
 
-/* Visibilities are held in twelfths: every share of 1 to 4 shadow rays is
- * a whole number of them. */
-#define VIS_ONE 12
+/* Visibilities are held in 96ths: every share of 1 to 4 shadow rays, and
+ * of 4 or 8 rays from each of up to 4 points (the estimate's element links,
+ * ESTIMATE_PER), is a whole number of them. */
+#define VIS_ONE 96
 
 typedef struct hlink {
     uint32_t r, s;  /* receiver (an element), source (element or cluster) */
     float f;        /* the transport's geometry: g = f v / VIS_ONE (rad_hier.c, "Transport") */
     float fa;       /* the same for B = 1 with the visibility va (cluster sources: of the source's area) */
     float dF;       /* how much the factor varies over r, without visibility */
-    unsigned char v, va; /* the visibilities of g and of the B = 1 gather, in twelfths */
-    unsigned char vis;   /* share of the shadow rays to open parts that passed (the partial test), in twelfths */
+    unsigned char v, va; /* the visibilities of g and of the B = 1 gather, in VIS_ONE-ths */
+    unsigned char vis;   /* share of the shadow rays to open parts that passed (the partial test), in VIS_ONE-ths */
     unsigned char flags; /* bit 0: some of its shadow rays passed, some not; above: its way (link_way) */
     unsigned char sh[4];   /* how the factor is spread over r, a linear field (set_shape); all 0: evenly */
 } hlink;
@@ -240,8 +241,14 @@ static inline unsigned link_way(const hlink *l) { return l->flags >> 1; }
 /* The transport coefficient of a link, and the same for B = 1. */
 static inline float link_g(const hlink *l) { return l->f * (float)l->v * (1.0f / VIS_ONE); }
 static inline float link_ga(const hlink *l) { return l->fa * (float)l->va * (1.0f / VIS_ONE); }
-/* A share k / n of n <= 4 rays in twelfths. */
-static inline unsigned char vis_twelfths(int k, int n) { return (unsigned char)(n > 0 ? k * (VIS_ONE / n) : 0); }
+/* A share k / n of n rays in VIS_ONE-ths: exact where n divides VIS_ONE
+ * (1 to 4 rays, or 4 or 8 from each of up to 4 points: the transport's
+ * visibilities), rounded otherwise (the rays to open parts of s, which the
+ * partial test reads as all, none or some). */
+static inline unsigned char vis_share(int k, int n)
+{
+    return (unsigned char)(n > 0 ? (k * VIS_ONE + n / 2) / n : 0);
+}
 
 /* A mirror of a way: the light table's plane n . x = d, and a rectangle in
  * the plane (origin o, unit axes u, v) around its triangles. */
@@ -301,7 +308,7 @@ typedef struct hctx {
     int unit;       /* the sources are B = 1 (rad__hier_sources): gathers read hlink.ga */
     rr_rgb cs;      /* what the leaves send is their B times cs: the column scale (rad__hier_solve) */
     double ext, plane_tol;
-    uint64_t seed;
+    uint64_t seed;  /* the estimate's draws only (rad_hier.c, "Decide, then estimate") */
     uint64_t draw;  /* which shadow rays the links draw: 0 while refining, ESTIMATE_DRAW for the estimate */
     const volatile sig_atomic_t *interrupt;
     /* Receiving leaf clusters (radiosity.receiving_clusters; rad_hier.c,
@@ -720,12 +727,12 @@ uint64_t rad__hier_near_buried(const hctx *c, const hel *e);
 /* Element l->r <- element l->s: the factor (l->f, l->fa), visibility
  * (l->v, l->va, l->vis, l->partial) and the factor's spread over r (l->dF),
  * drawing the shadow rays' ends from rng. */
-void rad__hier_eval_ee(const hctx *c, hlink *l, rr_rng *rng);
+void rad__hier_eval_ee(const hctx *c, hlink *l, rr_rng *rng, int per);
 /* The same link's visibility drawn again from rng, the factor kept where it
  * is held without visibility (near pairs; a far pair's 4 points each count
  * only if their ray passes, so it is evaluated whole): the same rays and
  * values as rad__hier_eval_ee from that stream. */
-void rad__hier_revis_ee(const hctx *c, hlink *l, rr_rng *rng);
+void rad__hier_revis_ee(const hctx *c, hlink *l, rr_rng *rng, int per);
 
 /* ---- clusters (rad_hier_cluster.c) ---- */
 

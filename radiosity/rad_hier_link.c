@@ -113,6 +113,7 @@ typedef struct vis_count {
      * ceiling straight above as seen. */
     int weigh;
     int unit; /* weigh: the rays that passed, dark ends included (the B = 1 gather's visibility) */
+    int per;  /* rays from each point: 1 while refining, more in the estimate (rad_hier_rounds.c) */
 } vis_count;
 
 /* The sphere a root lies on, when its patch faces out of it (an analytic
@@ -268,6 +269,17 @@ static int shadow_passes(const hctx *c, const rview *rv, const hel *ey, rr_vec3 
     return passed;
 }
 
+/* The share of v->per shadow rays from x that pass (each through the
+ * next of the strata, so that 4 from one point cover s). */
+static double point_passes(const hctx *c, const rview *rv, const hel *ey, rr_vec3 x, const rr_vec3 *poly, int nv,
+                           uint32_t k, rr_rng *rng, vis_count *v)
+{
+    int n = 0;
+    for (int j = 0; j < v->per; j++)
+        n += shadow_passes(c, rv, ey, x, poly, nv, k, rng, v);
+    return (double)n / v->per;
+}
+
 /* Which child of an element (el_split's order: the corners A, B, C, then
  * the middle) holds the point of barycentrics b. */
 static int child_of(const double b[3]) { return b[0] > 0.5 ? 0 : b[1] > 0.5 ? 1 : b[2] > 0.5 ? 2 : 3; }
@@ -364,8 +376,8 @@ static double side_ff(const hctx *c, const rview *rv, uint32_t yi, int near, rr_
             fk[3] = f; /* the centroid, k_pts[0]: the middle child's */
             wk[3] = 1.0;
         }
-        if (!near && f > 0.0 && !shadow_passes(c, rv, ey, x, poly, nv, (uint32_t)k, rng, v))
-            f = 0.0;
+        if (!near && f > 0.0)
+            f *= point_passes(c, rv, ey, x, poly, nv, (uint32_t)k, rng, v);
         sum += w[k] * f;
         wsum += w[k];
     }
@@ -422,7 +434,7 @@ static void near_vis(const hctx *c, const rview *rv, uint32_t yi, rr_rng *rng, v
             int k = idx[j * m / n];
             rr_vec3 x = tri_at(rv->c, b[k][0], b[k][1], b[k][2]);
             if (rr_v3_dot(ny, rr_v3_sub(x, ey->ctr)) > c->plane_tol)
-                shadow_passes(c, rv, ey, x, poly, nv, (uint32_t)k, rng, v);
+                point_passes(c, rv, ey, x, poly, nv, (uint32_t)k, rng, v);
         }
         return;
     }
@@ -431,7 +443,7 @@ static void near_vis(const hctx *c, const rview *rv, uint32_t yi, rr_rng *rng, v
         el_kpt(ex, k, b);
         rr_vec3 x = tri_at(rv->c, b[0], b[1], b[2]);
         if (!(ex->bur & (1u << k)) && rr_v3_dot(ny, rr_v3_sub(x, ey->ctr)) > c->plane_tol)
-            shadow_passes(c, rv, ey, x, poly, nv, (uint32_t)k, rng, v);
+            point_passes(c, rv, ey, x, poly, nv, (uint32_t)k, rng, v);
     }
 }
 
@@ -446,10 +458,10 @@ static void set_vis(hlink *l, int near, const vis_count *v)
     /* near: the factor is held without visibility, times the share of the
      * rays that passed; far: each point's factor counted only if its ray
      * passed (l->f holds that). */
-    l->v = l->va = near && v->seen ? vis_twelfths(v->pass, v->seen) : VIS_ONE;
+    l->v = l->va = near && v->seen ? vis_share(v->pass, v->seen) : VIS_ONE;
     if (near && v->weigh && v->seen)
-        l->va = vis_twelfths(v->unit, v->seen);
-    l->vis = v->open ? vis_twelfths(v->pass, v->open) : (v->seen ? 0 : VIS_ONE);
+        l->va = vis_share(v->unit, v->seen);
+    l->vis = v->open ? vis_share(v->pass, v->open) : (v->seen ? 0 : VIS_ONE);
     link_set_partial(l, v->pass > 0 && v->pass < v->open);
 }
 
@@ -461,11 +473,11 @@ static void set_vis(hlink *l, int near, const vis_count *v)
  * (test_transport's sphere lamp with the hierarchical method). */
 static double facet_scale(const hctx *c, uint32_t e) { return rad__facet_scale(c->R, &c->R->p[c->el[e].root]); }
 
-void rad__hier_eval_ee(const hctx *c, hlink *l, rr_rng *rng)
+void rad__hier_eval_ee(const hctx *c, hlink *l, rr_rng *rng, int per)
 {
     rview rv = rview_of(c, l->r, link_way(l));
     int near = is_near(c, &rv, l);
-    vis_count v = {0, 0, 0, 0, 0, 0};
+    vis_count v = {0, 0, 0, 0, 0, 0, per};
     v.weigh = near && (c->el[l->r].own || c->el[l->s].open < 1.0);
     double dF, fk[4], rho = way_rho(c, rv.way);
     double F = side_ff(c, &rv, l->s, near, rng, &dF, &v, fk) * facet_scale(c, l->s) * rho;
@@ -483,14 +495,14 @@ void rad__hier_eval_ee(const hctx *c, hlink *l, rr_rng *rng)
     l->dF = (float)dF; /* how much the factor varies over r */
 }
 
-void rad__hier_revis_ee(const hctx *c, hlink *l, rr_rng *rng)
+void rad__hier_revis_ee(const hctx *c, hlink *l, rr_rng *rng, int per)
 {
     rview rv = rview_of(c, l->r, link_way(l));
     if (!is_near(c, &rv, l)) {
-        rad__hier_eval_ee(c, l, rng);
+        rad__hier_eval_ee(c, l, rng, per);
         return;
     }
-    vis_count v = {0, 0, 0, 0, 0, 0};
+    vis_count v = {0, 0, 0, 0, 0, 0, per};
     v.weigh = c->el[l->r].own || c->el[l->s].open < 1.0;
     if (l->f > 0.0f)
         near_vis(c, &rv, l->s, rng, &v);
