@@ -164,8 +164,8 @@ typedef struct hroot {
 } hroot;
 
 /* Visibilities are held in 96ths: every share of 1 to 4 shadow rays, and
- * of 4 or 8 rays from each of up to 4 points (the estimate's element links,
- * ESTIMATE_PER), is a whole number of them. */
+ * of 1, 2, 4 or 8 rays from each of up to 4 points (the estimate's element
+ * links, rad_hier_rounds.c estimate_per), is a whole number of them. */
 #define VIS_ONE 96
 
 typedef struct hlink {
@@ -242,7 +242,7 @@ static inline unsigned link_way(const hlink *l) { return l->flags >> 1; }
 static inline float link_g(const hlink *l) { return l->f * (float)l->v * (1.0f / VIS_ONE); }
 static inline float link_ga(const hlink *l) { return l->fa * (float)l->va * (1.0f / VIS_ONE); }
 /* A share k / n of n rays in VIS_ONE-ths: exact where n divides VIS_ONE
- * (1 to 4 rays, or 4 or 8 from each of up to 4 points: the transport's
+ * (1 to 4 rays, or 1 to 8 from each of up to 4 points: the transport's
  * visibilities), rounded otherwise (the rays to open parts of s, which the
  * partial test reads as all, none or some). */
 static inline unsigned char vis_share(int k, int n)
@@ -726,7 +726,7 @@ uint64_t rad__hier_near_buried(const hctx *c, const hel *e);
 
 /* Element l->r <- element l->s: the factor (l->f, l->fa), visibility
  * (l->v, l->va, l->vis, l->partial) and the factor's spread over r (l->dF),
- * drawing the shadow rays' ends from rng. */
+ * drawing the ends of per shadow rays from each point (1, 2, 4 or 8) from rng. */
 void rad__hier_eval_ee(const hctx *c, hlink *l, rr_rng *rng, int per);
 /* The same link's visibility drawn again from rng, the factor kept where it
  * is held without visibility (near pairs; a far pair's 4 points each count
