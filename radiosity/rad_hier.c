@@ -83,9 +83,9 @@
  * power as that spread carries. At 0.02 the floor is 4.7 % off on average.
  * What was left were the last units beside the contact, under min_area:
  * there a leaf whose closedness rays meet a surface within its own radius
- * (a fifth of them: hel.touch) may split down to min_area / 16 for the
- * uneven test (contact_splittable). Cornell's hybrid error 0.034 -> 0.0196
- * at 0.04; not the default, as in a furnished room nearly every surface is
+ * (3 of 16: hel.touch) may split down to min_area / 16 for the uneven
+ * test (contact_splittable). Cornell's hybrid error 0.034 -> 0.018 at 0.05
+ * (cornell.json's); not the default, as in a furnished room nearly every surface is
  * dark by that measure (room.json: 12x the time; notes/radiosity.md).
  *
  * Receiving leaf clusters. A receiver is an element, so every root gets

@@ -522,7 +522,15 @@ static inline int splittable(const hctx *c, uint32_t x)
     const hel *e = &c->el[x];
     return e->area * 0.25 >= c->min_area || e->radius * e->radius * 0.25 >= SLIVER_R2 * c->min_area;
 }
-#define CONTACT_SHARE 0.2 /* a leaf at a contact: more of its closedness rays than this meet a surface within its radius */
+/* A leaf at a contact: more of its closedness rays than this (3 of the 16)
+ * meet a surface within its radius. A leaf along a right-angle crease sends
+ * about a fifth of them there (its fixed points lie 1/6 to 1/2 of its size
+ * from the edge), so 0.2 (4 of 16) left about half such leaves whole:
+ * Cornell's short block kept 21-unit leaves along the floor where the lit
+ * and the shadowed floor meet, and its front face came out 1.3-2.7 times
+ * the final gather's light there, 65 % too bright in the hybrid's 4x4
+ * blocks (notes/radiosity.md, "Creases"). */
+#define CONTACT_SHARE 0.15
 #define CONTACT_AREA 16.0 /* such a leaf may split down to min_area / CONTACT_AREA (radiosity.relative_tolerance) */
 /* Under radiosity.relative_tolerance, a leaf at a contact may be split
  * below min_area for the uneven test (rad_hier.c, "Light near occluders"):
