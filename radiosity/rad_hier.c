@@ -85,8 +85,8 @@
  * there a leaf whose closedness rays meet a surface within its own radius
  * (3 of 16: hel.touch) may split down to min_area / 16 for the uneven
  * test (contact_splittable). Cornell's hybrid error 0.034 -> 0.018 at 0.05
- * (cornell.json's); not the default, as in a furnished room nearly every surface is
- * dark by that measure (room.json: 12x the time; notes/radiosity.md).
+ * (cornell.json's); not the default, as in a furnished room nearly every
+ * surface is dark by that measure (room.json: 12x the time; notes).
  *
  * Receiving leaf clusters. A receiver is an element, so every root gets
  * links from a frontier of sources covering the scene, about 200 per root
@@ -126,7 +126,7 @@
  * The refinement's rays and the burial probes do not read the seed, so the
  * tree is the scene's own (by the seed, a quarter of Cornell's back-wall
  * leaves differed between two seeds), and the estimate casts 1 to 8 rays
- * from each point of an element link by its power (estimate_per): 97.5 %
+ * from each point of an element link by its power (estimate_per): 98.3 %
  * of those leaves within 0.5 % between two seeds (82 % before; notes).
  * The split tests read nothing else of the rays: the uneven test reads the
  * factor's spread without visibility, the power test the power without it.
