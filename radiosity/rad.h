@@ -198,7 +198,8 @@ typedef enum rad_ff_method {
 typedef struct rad_ff_opts {
     rad_ff_method method;
     int samples;       /* Monte Carlo: rays per patch; quadrature: points per patch */
-    uint64_t seed;
+    uint64_t seed;     /* (the hierarchical method reads it in its estimate only: its tree is the
+                          same for every seed) */
     int threads;       /* rows in parallel; 0 = OpenMP default (the result does not depend on it) */
     int raw;           /* 1: keep the estimates as computed (for tests of reciprocity);
                           0 (default): make them reciprocal, F_ij := A_j (F_ij + F_ji) / (A_i + A_j),
