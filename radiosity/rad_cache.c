@@ -23,7 +23,7 @@
 #include "rad_pass_internal.h"
 
 #define CACHE_MAGIC "RADRAYRC"
-#define CACHE_VERSION 15u /* 2: mirrors in the key; 3: the key in named parts, culling, a payload checksum;
+#define CACHE_VERSION 16u /* 2: mirrors in the key; 3: the key in named parts, culling, a payload checksum;
                             4: the method in the key, hierarchical trees (split bits); 5: the
                             hierarchical pass's fixes of 2026-12-02 (version 4's hierarchical
                             solutions of room-like scenes were up to 36 % dark); 6: buried parts
@@ -39,7 +39,9 @@
                             receiving clusters kept, and objects that take in little refined
                             (2026-12-06); 14: solids' patches scaled to the true area (their
                             solutions were 3-5 % dark); 15: solids' mesh leaves as their own
-                            triangles, the area scaled per leaf (other patches) */
+                            triangles, the area scaled per leaf (other patches); 16: the
+                            hierarchical tree the same for every seed, the estimate's rays by
+                            power, and the hierarchical changes since 15 (2026-12-07) */
 
 typedef struct hasher {
     uint64_t h;
