@@ -238,15 +238,7 @@ static rad_solution *cornell_seed(unsigned seed, scene **out_s, rt_accel **out_a
     const char *over[1] = {sd};
     scene *s = test_shipped_scene("cornell.json", over, 1);
     rt_accel *a = NULL;
-    assert_int_equal(rt_accel_build(s, &a, NULL), RR_OK);
-    rad_pass_opts po;
-    memset(&po, 0, sizeof po);
-    po.use_scene_choices = 1;
-    po.ff.seed = s->settings.seed;
-    rad_solution *sol = NULL;
-    rr_error err;
-    if (rad_pass_run(s, a, &po, &sol, &err) != RR_OK)
-        fail_msg("%s", err.msg);
+    rad_solution *sol = pass_seed(s, &a, s->settings.seed);
     *out_s = s;
     *out_a = a;
     return sol;
