@@ -23,7 +23,7 @@
 #include "rad_pass_internal.h"
 
 #define CACHE_MAGIC "RADRAYRC"
-#define CACHE_VERSION 16u /* 2: mirrors in the key; 3: the key in named parts, culling, a payload checksum;
+#define CACHE_VERSION 17u /* 2: mirrors in the key; 3: the key in named parts, culling, a payload checksum;
                             4: the method in the key, hierarchical trees (split bits); 5: the
                             hierarchical pass's fixes of 2026-12-02 (version 4's hierarchical
                             solutions of room-like scenes were up to 36 % dark); 6: buried parts
@@ -41,7 +41,9 @@
                             solutions were 3-5 % dark); 15: solids' mesh leaves as their own
                             triangles, the area scaled per leaf (other patches); 16: the
                             hierarchical tree the same for every seed, the estimate's rays by
-                            power, and the hierarchical changes since 15 (2026-12-07) */
+                            power, and the hierarchical changes since 15 (2026-12-07); 17: the
+                            estimate's far element links between flat surfaces exact, its rays
+                            over finer strata */
 
 typedef struct hasher {
     uint64_t h;

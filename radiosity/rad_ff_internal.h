@@ -116,6 +116,16 @@ int rad__hier_near_rule(int smooth, double (*b)[3], double *w);
 /* Sutherland-Hodgman: the part of triangle tri on the front of the plane
  * (n, p0), vertices within tol of it kept; at most 4 vertices (rad_ff.c). */
 int rad__clip_front(const rr_vec3 tri[3], rr_vec3 n, rr_vec3 p0, double tol, rr_vec3 out[4]);
+/* The factor from x (unit normal nx) to the part of convex polygon poly
+ * (nv <= 4 vertices, in front of x's tangent plane) that x sees past the
+ * triangles occ[0 .. nocc) (cull[t] != 0: occ[t] is of an object that culls
+ * back faces, and does not occlude where x sees its back; cull may be
+ * NULL), surfaces within tol of x's tangent plane or of poly's plane not
+ * occluding (rad_vis.c). *hidden: some part of poly is hidden. Where
+ * nothing is, rad_ff_point_polygon(x, nx, poly, nv) exactly; -1 when the
+ * visible part has more pieces than it holds (the caller casts rays). */
+double rad__ff_visible(rr_vec3 x, rr_vec3 nx, const rr_vec3 *poly, int nv, const rr_vec3 (*occ)[3],
+                       const unsigned char *cull, int nocc, double tol, int *hidden);
 /* Point (u, v) of a clipped polygon of 3 or 4 vertices, the quad's triangle
  * picked by area with the golden-ratio sequence in k (rad_ff.c). */
 rr_vec3 rad__poly_point(const rr_vec3 *poly, int nv, double u, double v, uint32_t k);

@@ -125,9 +125,9 @@
  * (rad__hier_estimate, by the seed), and the last solve reads those: -1.4 %.
  * The refinement's rays and the burial probes do not read the seed, so the
  * tree is the scene's own (by the seed, a quarter of Cornell's back-wall
- * leaves differed between two seeds), and the estimate casts 1 to 8 rays
- * from each point of an element link by its power (estimate_per): 98.3 %
- * of those leaves within 0.5 % between two seeds (82 % before; notes).
+ * leaves differed between two seeds). The estimate takes far element links'
+ * visibility between flat surfaces exactly (rad_vis.c), and casts 1 to 8 rays
+ * a point on the others by power: all those leaves within 0.5 % (82 % before).
  * The split tests read nothing else of the rays: the uneven test reads the
  * factor's spread without visibility, the power test the power without it.
  * So a link that the partial test never found carrying VIS_SHARE eps

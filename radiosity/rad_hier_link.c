@@ -114,6 +114,12 @@ typedef struct vis_count {
     int weigh;
     int unit; /* weigh: the rays that passed, dark ends included (the B = 1 gather's visibility) */
     int per;  /* rays from each point: 1 while refining, more in the estimate (rad_hier_rounds.c) */
+    /* exact: a far link's visibility in the estimate, without rays: the
+     * triangles between r and s (exact_occluders), each point's visible
+     * factor (rad__ff_visible), its share counted as VIS_ONE rays */
+    const rr_vec3 (*occ)[3];
+    const unsigned char *cull;
+    int nocc, exact;
 } vis_count;
 
 /* The sphere a root lies on, when its patch faces out of it (an analytic
@@ -215,22 +221,33 @@ static int shadow_passes(const hctx *c, const rview *rv, const hel *ey, rr_vec3 
                          uint32_t k, rr_rng *rng, vis_count *v)
 {
     rr_vec3 xs, xn, ys, yn;
+    int m = 4; /* strata: 4^L, at least the link's 4 points' rays */
+    while (m < VIS_RAYS * v->per)
+        m *= 4;
     if (v->seen == 0)
-        v->rot = (int)(4.0 * rr_rng_uniform(rng)) & 3;
+        v->rot = (int)(m * rr_rng_uniform(rng)) & (m - 1);
     double a = rr_rng_uniform(rng), b = rr_rng_uniform(rng);
     if (a + b > 1.0) { /* fold the square onto the triangle */
         a = 1.0 - a;
         b = 1.0 - b;
     }
-    /* Stratified: the link's rays in turn take the four halved triangles of
-     * s (corners, then the middle one, turned over), starting at a random
-     * one, so that each ray's end is uniform on s and the four together
-     * cover it. */
+    /* Stratified: s cut into m triangles by halving L times (each into its
+     * corners, then the middle one, turned over); the link's rays in turn
+     * take stratum (seen + rot) mod m, whose base-4 digits, lowest first,
+     * pick the child at each level from the top: consecutive rays (one
+     * point's) fall in different quarters, then in different quarters of
+     * those, and each ray's end is uniform on s. With m = 4 (one ray a
+     * point) the four rays of a link cover the four quarters. */
     static const double off[4][2] = {{0.0, 0.0}, {0.5, 0.0}, {0.0, 0.5}, {0.5, 0.5}};
-    int q = (v->seen + v->rot) & 3;
-    double sg = q == 3 ? -0.5 : 0.5;
-    a = off[q][0] + sg * a;
-    b = off[q][1] + sg * b;
+    int idx = (v->seen + v->rot) & (m - 1), dig[8], nd = 0;
+    for (int t = m; t > 1; t /= 4, idx /= 4)
+        dig[nd++] = idx & 3;
+    for (int d = nd - 1; d >= 0; d--) { /* the deepest level first: into its parent's frame */
+        int q = dig[d];
+        double sg = q == 3 ? -0.5 : 0.5;
+        a = off[q][0] + sg * a;
+        b = off[q][1] + sg * b;
+    }
     v->seen++;
     rr_vec3 y = rad__poly_point(poly, nv, a, b, k);
     if (v->weigh)
@@ -278,6 +295,31 @@ static double point_passes(const hctx *c, const rview *rv, const hel *ey, rr_vec
     for (int j = 0; j < v->per; j++)
         n += shadow_passes(c, rv, ey, x, poly, nv, k, rng, v);
     return (double)n / v->per;
+}
+
+/* The share of the factor f from x to poly that x sees past v's
+ * occluders, exactly (rad__ff_visible), counted as VIS_ONE rays of which
+ * that share passed; by v->per rays where the visible part has too many
+ * pieces. */
+static double exact_share(const hctx *c, const rview *rv, const hel *ey, rr_vec3 x, const rr_vec3 *poly, int nv,
+                          double f, uint32_t k, rr_rng *rng, vis_count *v)
+{
+    int hidden;
+    double fv = rad__ff_visible(x, rv->n, poly, nv, v->occ, v->cull, v->nocc, c->plane_tol, &hidden);
+    double share;
+    if (fv < 0) {
+        vis_count w = *v;
+        w.seen = w.pass = w.open = 0;
+        share = point_passes(c, rv, ey, x, poly, nv, k, rng, &w);
+    } else {
+        share = hidden ? rr_min(1.0, fv / f) : 1.0;
+    }
+    int p = (int)lround(share * VIS_ONE);
+    v->seen += VIS_ONE;
+    v->open += VIS_ONE;
+    v->pass += p;
+    v->unit += p;
+    return share;
 }
 
 /* Which child of an element (el_split's order: the corners A, B, C, then
@@ -377,7 +419,8 @@ static double side_ff(const hctx *c, const rview *rv, uint32_t yi, int near, rr_
             wk[3] = 1.0;
         }
         if (!near && f > 0.0)
-            f *= point_passes(c, rv, ey, x, poly, nv, (uint32_t)k, rng, v);
+            f *= v->exact ? exact_share(c, rv, ey, x, poly, nv, f, (uint32_t)k, rng, v)
+                          : point_passes(c, rv, ey, x, poly, nv, (uint32_t)k, rng, v);
         sum += w[k] * f;
         wsum += w[k];
     }
@@ -473,11 +516,14 @@ static void set_vis(hlink *l, int near, const vis_count *v)
  * (test_transport's sphere lamp with the hierarchical method). */
 static double facet_scale(const hctx *c, uint32_t e) { return rad__facet_scale(c->R, &c->R->p[c->el[e].root]); }
 
-void rad__hier_eval_ee(const hctx *c, hlink *l, rr_rng *rng, int per)
+/* Link l evaluated whole; far, with occ (nocc >= 0): its visibility exact
+ * (exact_share) instead of by rays. */
+static void eval_ee(const hctx *c, hlink *l, rr_rng *rng, int per, const rr_vec3 (*occ)[3], const unsigned char *cull,
+                    int nocc)
 {
     rview rv = rview_of(c, l->r, link_way(l));
     int near = is_near(c, &rv, l);
-    vis_count v = {0, 0, 0, 0, 0, 0, per};
+    vis_count v = {0, 0, 0, 0, 0, 0, per, occ, cull, nocc, nocc >= 0 && !near};
     v.weigh = near && (c->el[l->r].own || c->el[l->s].open < 1.0);
     double dF, fk[4], rho = way_rho(c, rv.way);
     double F = side_ff(c, &rv, l->s, near, rng, &dF, &v, fk) * facet_scale(c, l->s) * rho;
@@ -495,14 +541,76 @@ void rad__hier_eval_ee(const hctx *c, hlink *l, rr_rng *rng, int per)
     l->dF = (float)dF; /* how much the factor varies over r */
 }
 
+void rad__hier_eval_ee(const hctx *c, hlink *l, rr_rng *rng, int per) { eval_ee(c, l, rng, per, NULL, NULL, -1); }
+
+/* The triangles that may stand between r and s (their box meets the box
+ * of both), into occ and cull (at most EXACT_MAX): their count, or -1 where
+ * the link's visibility is left to rays: a way by mirrors, a surface that
+ * is not flat (a sphere's or a solid's: the rays meet the true surface), a
+ * source with a buried part (its rays' ends there are dark), a sphere or a
+ * solid in the box, or more than EXACT_MAX triangles. */
+#define EXACT_MAX 64
+static int exact_occluders(const hctx *c, const hlink *l, rr_vec3 (*occ)[3], unsigned char *cull)
+{
+    const hel *er = &c->el[l->r], *es = &c->el[l->s];
+    if (link_way(l) || !c->rt[er->root].flat || !c->rt[es->root].flat)
+        return -1;
+    rr_vec3 lo = er->c[0], hi = er->c[0];
+    for (int k = 0; k < 6; k++) {
+        rr_vec3 p = k < 3 ? er->c[k] : es->c[k - 3];
+        lo = rr_v3(rr_min(lo.x, p.x), rr_min(lo.y, p.y), rr_min(lo.z, p.z));
+        hi = rr_v3(rr_max(hi.x, p.x), rr_max(hi.y, p.y), rr_max(hi.z, p.z));
+    }
+    uint32_t tri[EXACT_MAX];
+    int other;
+    size_t n = rt_accel_tris_in_box(c->a, lo, hi, tri, EXACT_MAX, &other);
+    if (other || n > EXACT_MAX)
+        return -1;
+    /* kept: the triangles with a corner in front of both r's and s's planes
+     * (beyond plane_tol; r and s are flat), and, of objects that cull back
+     * faces, whose front some corner of r sees */
+    const scene *s = c->s;
+    rr_vec3 nr = el_normal(c, l->r), ns = el_normal(c, l->s);
+    double dr = rr_v3_dot(nr, er->ctr) + c->plane_tol, ds = rr_v3_dot(ns, es->ctr) + c->plane_tol;
+    int m = 0;
+    for (size_t i = 0; i < n; i++) {
+        const scene_tri *t = &s->tris[tri[i]];
+        rr_vec3 A = s->verts[t->v[0]], B = s->verts[t->v[1]], C = s->verts[t->v[2]];
+        if (!(rr_v3_dot(nr, A) > dr || rr_v3_dot(nr, B) > dr || rr_v3_dot(nr, C) > dr) ||
+            !(rr_v3_dot(ns, A) > ds || rr_v3_dot(ns, B) > ds || rr_v3_dot(ns, C) > ds))
+            continue;
+        int culls = s->objects[t->object].cull_backfaces != 0;
+        if (culls) {
+            rr_vec3 tn = rr_v3_cross(rr_v3_sub(B, A), rr_v3_sub(C, A));
+            int front = 0;
+            for (int k = 0; k < 3 && !front; k++)
+                front = rr_v3_dot(tn, rr_v3_sub(er->c[k], A)) > 0;
+            if (!front)
+                continue;
+        }
+        occ[m][0] = A;
+        occ[m][1] = B;
+        occ[m][2] = C;
+        cull[m++] = (unsigned char)culls;
+    }
+    return m;
+}
+
 void rad__hier_revis_ee(const hctx *c, hlink *l, rr_rng *rng, int per)
 {
     rview rv = rview_of(c, l->r, link_way(l));
     if (!is_near(c, &rv, l)) {
-        rad__hier_eval_ee(c, l, rng, per);
+        rr_vec3 occ[EXACT_MAX][3];
+        unsigned char cull[EXACT_MAX];
+        int nocc = exact_occluders(c, l, occ, cull);
+        if (nocc < 0) {
+            rad__hier_eval_ee(c, l, rng, per);
+            return;
+        }
+        eval_ee(c, l, rng, per, (const rr_vec3(*)[3])occ, cull, nocc);
         return;
     }
-    vis_count v = {0, 0, 0, 0, 0, 0, per};
+    vis_count v = {0, 0, 0, 0, 0, 0, per, NULL, NULL, 0, 0};
     v.weigh = c->el[l->r].own || c->el[l->s].open < 1.0;
     if (l->f > 0.0f)
         near_vis(c, &rv, l->s, rng, &v);

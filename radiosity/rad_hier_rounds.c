@@ -18,9 +18,11 @@
 
 /* The links' shadow rays come from rr_rng_make(key ^ way, (r << 32) | s):
  * key 0 while refining, whatever the seed, so that the tree is the scene's
- * own; the seed ^ ESTIMATE_DRAW for the transport's estimate, where each
- * point of an element link casts ESTIMATE_PER rays (rad_hier.c, "Decide,
- * then estimate"). */
+ * own; the seed ^ ESTIMATE_DRAW for the transport's estimate, where a far
+ * element link between flat surfaces has its visibility exact instead
+ * (rad_hier_link.c exact_occluders) and each point of any other element
+ * link casts up to ESTIMATE_PER rays (rad_hier.c, "Decide, then
+ * estimate"). */
 #define ESTIMATE_DRAW 0xa0761d6478bd642fULL
 #define ESTIMATE_PER 8
 

@@ -237,6 +237,15 @@ int rt_accel_occluded(const rt_accel *a, rr_ray ray, double tmin, double tmax);
  * 1.1-1.3x there, and nothing on small scenes (notes/performance.md).
  * Returns the number occluded. */
 int rt_accel_occluded_n(const rt_accel *a, const rr_ray *rays, int n, double tmin, double tmax, unsigned char *occ);
+/* The scene triangles whose box meets the box [lo, hi] (the BVH's walk, no
+ * ray): their indices into scene->tris, in the BVH's leaf order (the same
+ * for any thread count), into tri[]. Returns how many there are, or cap + 1
+ * where there are more than cap (the walk stops there, tri[] holding cap of
+ * them); *other (when not NULL) is set to 1 where a sphere's or a solid's
+ * leaf box met the query's before that, else 0.
+ * For the radiosity pass's exact visibility (radiosity/rad_vis.c), which
+ * reads the triangles between two surfaces. */
+size_t rt_accel_tris_in_box(const rt_accel *a, rr_vec3 lo, rr_vec3 hi, uint32_t *tri, size_t cap, int *other);
 /* Rays traced through rt_accel_closest (camera, mirror, bounce and BSDF
  * rays, area-light shadow rays, which must meet the emitter, form-factor
  * rays) and rt_accel_occluded (any-hit: visibility towards point and

@@ -128,3 +128,64 @@ int rt_accel_occluded_n(const rt_accel *a, const rr_ray *rays, int n, double tmi
     }
     return nocc;
 }
+
+/* Whether the box [alo, ahi] meets [blo, bhi] (touching counts). */
+static int boxes_meet(rr_vec3 alo, rr_vec3 ahi, rr_vec3 blo, rr_vec3 bhi)
+{
+    return alo.x <= bhi.x && blo.x <= ahi.x && alo.y <= bhi.y && blo.y <= ahi.y && alo.z <= bhi.z && blo.z <= ahi.z;
+}
+
+size_t rt_accel_tris_in_box(const rt_accel *a, rr_vec3 lo, rr_vec3 hi, uint32_t *tri, size_t cap, int *other)
+{
+    if (other)
+        *other = 0;
+    if (a->nwnodes == 0)
+        return 0;
+    const scene *s = a->scene;
+    const int W = a->width;
+    const size_t bytes = rt__wnode_bytes(W);
+    size_t n = 0;
+    uint32_t stack[RT_STACK_SIZE];
+    int sp = 0;
+    stack[sp++] = 0; /* the root, an inner node */
+    while (sp > 0) {
+        const char *node = (const char *)a->wnodes + (size_t)stack[--sp] * bytes;
+        const float *b = (const float *)node; /* b[row][i] at row W + i: rows lo x, hi x, lo y, ... */
+        const uint32_t *child = (const uint32_t *)(node + 6 * (size_t)W * sizeof(float));
+        for (int i = 0; i < W; i++) {
+            /* an empty lane's box (lo +inf, hi -inf) meets nothing */
+            if (!(b[0 * W + i] <= hi.x && lo.x <= b[1 * W + i] && b[2 * W + i] <= hi.y && lo.y <= b[3 * W + i] &&
+                  b[4 * W + i] <= hi.z && lo.z <= b[5 * W + i]))
+                continue;
+            if (!(child[i] & RT_LEAF)) {
+                RR_CHECK(sp < RT_STACK_SIZE);
+                stack[sp++] = child[i];
+                continue;
+            }
+            for (const rt_pk *k = &a->pks[child[i] & ~RT_LEAF];; k++) {
+                for (int j = 0; j < RT_PK; j++) {
+                    uint32_t ref = k->ref[j], kind = ref & RT_REF_LANE;
+                    if (kind == RT_REF_PRIM) {
+                        if (other)
+                            *other = 1; /* the leaf's box meets the query's: enough to say so */
+                    } else if (kind != 0) {
+                        const scene_tri *t = &s->tris[ref >> RT_REF_SHIFT];
+                        rr_vec3 A = s->verts[t->v[0]], B = s->verts[t->v[1]], C = s->verts[t->v[2]];
+                        rr_vec3 tlo = rr_v3(rr_min(A.x, rr_min(B.x, C.x)), rr_min(A.y, rr_min(B.y, C.y)),
+                                            rr_min(A.z, rr_min(B.z, C.z)));
+                        rr_vec3 thi = rr_v3(rr_max(A.x, rr_max(B.x, C.x)), rr_max(A.y, rr_max(B.y, C.y)),
+                                            rr_max(A.z, rr_max(B.z, C.z)));
+                        if (boxes_meet(tlo, thi, lo, hi)) {
+                            if (n == cap)
+                                return cap + 1; /* more than cap: the walk stops */
+                            tri[n++] = ref >> RT_REF_SHIFT;
+                        }
+                    }
+                }
+                if (k->ref[0] & RT_REF_LAST)
+                    break;
+            }
+        }
+    }
+    return n;
+}

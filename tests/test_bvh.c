@@ -601,6 +601,70 @@ static void bvh_occluded_matches_walk(void **state)
     }
 }
 
+static int cmp_u32(const void *a, const void *b)
+{
+    uint32_t x = *(const uint32_t *)a, y = *(const uint32_t *)b;
+    return x < y ? -1 : x > y;
+}
+
+/* rt_accel_tris_in_box against every triangle's box, at every width: the
+ * same set of triangles (boxes from a point to larger than the scene), the
+ * count cap + 1 past cap, and *other set wherever a sphere's box meets the
+ * query's (it may also be set where only a leaf's box does). */
+static void bvh_tris_in_box_matches_brute_force(void **state)
+{
+    (void)state;
+    rr_error err;
+    int ws[3], nw = widths_available(ws);
+    rr_rng rng = rr_rng_make(78, 0);
+    char *json = random_scene(&rng, 500, 12);
+    scene *s = NULL;
+    assert_int_equal(scene_load_string(json, "box", "", NULL, &s, &err), RR_OK);
+    free(json);
+    uint32_t *got = malloc(s->ntris * sizeof *got), *want = malloc(s->ntris * sizeof *want);
+    assert_non_null(got);
+    assert_non_null(want);
+    for (int wi = 0; wi < nw; wi++) {
+        rt_accel *a = NULL;
+        assert_int_equal(rt__accel_build_width(s, ws[wi], &a, &err), RR_OK);
+        for (int q = 0; q < 300; q++) {
+            rr_vec3 c = random_point(&rng, 1.2), h = random_point(&rng, q % 3 == 0 ? 0.02 : q % 3 == 1 ? 0.3 : 1.5);
+            rr_vec3 lo = rr_v3_sub(c, rr_v3(fabs(h.x), fabs(h.y), fabs(h.z))), hi = rr_v3_add(c, rr_v3(fabs(h.x), fabs(h.y), fabs(h.z)));
+            size_t nwant = 0;
+            for (size_t t = 0; t < s->ntris; t++) {
+                rr_vec3 A = s->verts[s->tris[t].v[0]], B = s->verts[s->tris[t].v[1]], C = s->verts[s->tris[t].v[2]];
+                if (fmin(A.x, fmin(B.x, C.x)) <= hi.x && lo.x <= fmax(A.x, fmax(B.x, C.x)) &&
+                    fmin(A.y, fmin(B.y, C.y)) <= hi.y && lo.y <= fmax(A.y, fmax(B.y, C.y)) &&
+                    fmin(A.z, fmin(B.z, C.z)) <= hi.z && lo.z <= fmax(A.z, fmax(B.z, C.z)))
+                    want[nwant++] = (uint32_t)t;
+            }
+            int sphere = 0;
+            for (size_t o = 0; o < s->nobjects; o++) {
+                const scene_object *ob = &s->objects[o];
+                if (ob->kind == SCENE_OBJ_SPHERE && ob->center.x - ob->radius <= hi.x && lo.x <= ob->center.x + ob->radius &&
+                    ob->center.y - ob->radius <= hi.y && lo.y <= ob->center.y + ob->radius &&
+                    ob->center.z - ob->radius <= hi.z && lo.z <= ob->center.z + ob->radius)
+                    sphere = 1;
+            }
+            int other = -1;
+            size_t n = rt_accel_tris_in_box(a, lo, hi, got, s->ntris, &other);
+            assert_int_equal(n, nwant);
+            qsort(got, n, sizeof *got, cmp_u32);
+            for (size_t i = 0; i < n; i++)
+                assert_int_equal(got[i], want[i]);
+            assert_true(other == 0 || other == 1);
+            if (sphere)
+                assert_int_equal(other, 1);
+            if (nwant > 3) /* past a cap: cap + 1, cap of them held */
+                assert_int_equal(rt_accel_tris_in_box(a, lo, hi, got, 3, NULL), 4);
+        }
+        rt_accel_destroy(a);
+    }
+    free(got);
+    free(want);
+    scene_destroy(s);
+}
+
 /* ---- the packets' float test (rt_kernel.h rt__pk_cand) ---- */
 
 /* A double in [-1, 1). */
@@ -778,6 +842,7 @@ int main(void)
         cmocka_unit_test(bvh_triangle_wins_tie_with_primitive),
         cmocka_unit_test(bvh_widths_agree),
         cmocka_unit_test(bvh_occluded_matches_walk),
+        cmocka_unit_test(bvh_tris_in_box_matches_brute_force),
         cmocka_unit_test(f_round_matches_nextafter),
         cmocka_unit_test(pk_float_test_conservative),
     };
