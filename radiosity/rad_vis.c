@@ -64,7 +64,7 @@ static double area2(const double *u, const double *v, int n)
     return s;
 }
 
-/* Triangle t (as a polygon of up to 6 corners after the cuts) cut to the
+/* Polygon in (up to 10 corners after the cuts of a triangle) cut to the
  * side n . p >= d of a plane; returns the corner count. */
 static int cut_plane(const rr_vec3 *in, int n, rr_vec3 nrm, double d, rr_vec3 *out)
 {
@@ -117,7 +117,7 @@ double rad__ff_visible(rr_vec3 x, rr_vec3 nx, const rr_vec3 *poly, int nv, const
             pc[0].u[nv - 1 - i] = tu;
             pc[0].v[nv - 1 - i] = tv;
         }
-    double full = fabs(area2(pc[0].u, pc[0].v, nv)), tiny = 1e-12 * full;
+    double full = fabs(area2(pc[0].u, pc[0].v, nv)), tiny = 1e-12 * full, merge = 1e-9 * sqrt(full);
     /* the pyramid from x over P: a triangle wholly outside one of its sides
      * (the plane through x and an edge of P) casts nothing on P */
     rr_vec3 side[4];
@@ -135,21 +135,41 @@ double rad__ff_visible(rr_vec3 x, rr_vec3 nx, const rr_vec3 *poly, int nv, const
                       rr_v3_dot(side[i], rr_v3_sub(T[2], x)) <= 0;
         if (outside)
             continue;
-        /* the slab the segments from x to P cross */
-        rr_vec3 a[8], b[8];
+        /* the part of T in the pyramid from x over P (its shadow on P's
+         * plane is then the shadow's part on P: projected points stay
+         * within P, where a part near x's tangent plane would project
+         * towards infinity) and between P's plane and x's height over it */
+        rr_vec3 a[16], b[16];
         int k = cut_plane(T, 3, nx, rr_v3_dot(nx, x) + tol, a);
+        for (int i = 0; i < nv && k >= 3; i++) {
+            k = cut_plane(a, k, side[i], rr_v3_dot(side[i], x), b);
+            memcpy(a, b, (size_t)k * sizeof *a);
+        }
         k = k >= 3 ? cut_plane(a, k, m, rr_v3_dot(m, p0) + tol, b) : 0;
         k = k >= 3 ? cut_plane(b, k, rr_v3_neg(m), -(rr_v3_dot(m, p0) + h - tol), a) : 0;
         if (k < 3)
             continue;
-        /* projected from x onto P's plane */
-        double qu[8], qv[8], ulo = INFINITY, uhi = -INFINITY, vlo = INFINITY, vhi = -INFINITY;
+        /* projected from x onto P's plane, corners that coincide there
+         * merged (a cut through a corner repeats it: a zero-length edge
+         * would read as a line that P lies wholly outside) */
+        double qu[16], qv[16], ulo = INFINITY, uhi = -INFINITY, vlo = INFINITY, vhi = -INFINITY;
+        int kq = 0;
         for (int i = 0; i < k; i++) {
             double hv = rr_v3_dot(m, rr_v3_sub(a[i], p0));
             rr_vec3 y = rr_v3_madd(x, rr_v3_sub(a[i], x), h / (h - hv));
             rr_vec3 d = rr_v3_sub(y, p0);
-            qu[i] = rr_v3_dot(d, e1);
-            qv[i] = rr_v3_dot(d, e2);
+            double u = rr_v3_dot(d, e1), v = rr_v3_dot(d, e2);
+            if (kq > 0 && fabs(u - qu[kq - 1]) <= merge && fabs(v - qv[kq - 1]) <= merge)
+                continue;
+            qu[kq] = u;
+            qv[kq++] = v;
+        }
+        while (kq > 1 && fabs(qu[kq - 1] - qu[0]) <= merge && fabs(qv[kq - 1] - qv[0]) <= merge)
+            kq--;
+        k = kq;
+        if (k < 3)
+            continue;
+        for (int i = 0; i < k; i++) {
             ulo = fmin(ulo, qu[i]);
             uhi = fmax(uhi, qu[i]);
             vlo = fmin(vlo, qv[i]);

@@ -339,6 +339,28 @@ static void visible_closed_forms(void **state)
     rr_vec3 wall[2][3] = {{w0, w1, w2}, {w0, w2, w3}};
     assert_near(rad__ff_visible(x, n, src, 4, (const rr_vec3(*)[3])wall, NULL, 2, tol, &hidden), rect_ff(0, 0.25, 0, 2),
                 1e-8);
+    /* a wall y = 0.5 standing on the point's tangent plane, between it and
+     * the square [0, 2] x [1, 2]: every segment meets it (at z <= 0.5), so
+     * nothing is seen. Its foot projects to infinity from the point (the
+     * Cornell box's tall block from the floor once hid nothing this way);
+     * the same with a triangle whose corner alone touches the plane. */
+    rr_vec3 far[4] = {rr_v3(0, 1, 1), rr_v3(2, 1, 1), rr_v3(2, 2, 1), rr_v3(0, 2, 1)};
+    rr_vec3 v0 = rr_v3(-5, 0.5, 0), v1 = rr_v3(5, 0.5, 0), v2 = rr_v3(5, 0.5, 2), v3 = rr_v3(-5, 0.5, 2);
+    rr_vec3 foot[2][3] = {{v0, v1, v2}, {v0, v2, v3}};
+    assert_true(rad__ff_visible(x, n, far, 4, (const rr_vec3(*)[3])foot, NULL, 2, tol, &hidden) == 0.0 && hidden == 1);
+    rr_vec3 tip[1][3] = {{rr_v3(1, 0.5, 0), rr_v3(-40, 0.5, 3), rr_v3(40, 0.5, 3)}};
+    assert_true(rad__ff_visible(x, n, far, 4, (const rr_vec3(*)[3])tip, NULL, 1, tol, &hidden) == 0.0 && hidden == 1);
+    /* Cornell's floor under the ceiling past the tall block's front face
+     * (one corner on the floor, the planes parallel; numbers of the
+     * scene's OBJ, which are floats): a cut through that corner repeated
+     * it, and the zero-length edge read as a line with the source wholly
+     * outside it, so the face hid nothing; it hides it all */
+    rr_vec3 cx = rr_v3(368.5333251953125, 0, 93.200002034505204), cn = rr_v3(0, 1, 0);
+    rr_vec3 cp[3] = {rr_v3(208.5, 548.79998779296875, 559.20001220703125),
+                     rr_v3(208.5, 548.79998779296875, 489.30001068115234),
+                     rr_v3(278, 548.79998779296875, 489.30001068115234)};
+    rr_vec3 face[1][3] = {{rr_v3(265, 0, 296), rr_v3(265, 330, 296), rr_v3(423, 330, 247)}};
+    assert_true(rad__ff_visible(cx, cn, cp, 3, (const rr_vec3(*)[3])face, NULL, 1, 1e-6, &hidden) == 0.0 && hidden == 1);
     /* a triangle source (the first half of the square), half of it behind
      * the first square: the part x < 1, y < 1 of the triangle y < x is
      * the triangle (0,0) (1,0) (1,1) */
@@ -373,8 +395,11 @@ static void visible_against_rays(void **state)
     int partly = 0;
     for (int trial = 0; trial < 60; trial++) {
         rr_vec3 x = rr_v3(0, 0, 0), n = rr_v3(0, 0, 1), src[3];
+        /* every other source parallel to the point's plane (z = 1.1) */
+        double zs = 1 + rr_rng_uniform(&rng);
         for (int k = 0; k < 3; k++)
-            src[k] = rr_v3(4 * rr_rng_uniform(&rng) - 2, 4 * rr_rng_uniform(&rng) - 2, 1 + rr_rng_uniform(&rng));
+            src[k] = rr_v3(4 * rr_rng_uniform(&rng) - 2, 4 * rr_rng_uniform(&rng) - 2,
+                           trial % 2 ? zs + 0.1 : 1 + rr_rng_uniform(&rng));
         rr_vec3 m = rr_v3_norm(rr_v3_cross(rr_v3_sub(src[1], src[0]), rr_v3_sub(src[2], src[0])));
         if (rr_v3_dot(m, rr_v3_sub(x, src[0])) < 0) { /* face the point */
             rr_vec3 t = src[1];
@@ -388,6 +413,8 @@ static void visible_against_rays(void **state)
             for (int k = 0; k < 3; k++)
                 occ[t][k] = rr_v3_add(c, rr_v3(rr_rng_uniform(&rng) - 0.5, rr_rng_uniform(&rng) - 0.5,
                                                0.6 * (rr_rng_uniform(&rng) - 0.5)));
+            if (trial % 4 == 1) /* a corner on the point's plane, as a block on a floor (not binary fractions) */
+                occ[t][0].z = 0.0;
         }
         int hidden;
         double got = rad__ff_visible(x, n, src, 3, (const rr_vec3(*)[3])occ, NULL, 3, 1e-9, &hidden);
