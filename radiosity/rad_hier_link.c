@@ -248,8 +248,16 @@ static int shadow_passes(const hctx *c, const rview *rv, const hel *ey, rr_vec3 
         a = off[q][0] + sg * a;
         b = off[q][1] + sg * b;
     }
+    /* A quad (s cut by r's tangent plane) is two triangles, of which
+     * rad__poly_point takes one by a golden-ratio sequence in its last
+     * argument: with one ray a point (the refinement, whose draws grew the
+     * tree) the point's index; in the estimate the ray's, so that a point's
+     * rays go to both halves by area (by the point's index they all fell on
+     * one half, its share read over half of s: notes/radiosity.md, "Exact
+     * visibility in the estimate"). */
+    uint32_t seq = v->per > 1 ? (uint32_t)v->seen : k;
     v->seen++;
-    rr_vec3 y = rad__poly_point(poly, nv, a, b, k);
+    rr_vec3 y = rad__poly_point(poly, nv, a, b, seq);
     if (v->weigh)
         toward_s(rv, x, poly, nv, rng, &y);
     root_surface(c, ey->root, y, &ys, &yn);
