@@ -555,8 +555,11 @@ void rad__hier_eval_ee(const hctx *c, hlink *l, rr_rng *rng, int per) { eval_ee(
  * of both), into occ and cull (at most EXACT_MAX): their count, or -1 where
  * the link's visibility is left to rays: a way by mirrors, a surface that
  * is not flat (a sphere's or a solid's: the rays meet the true surface), a
- * source with a buried part (its rays' ends there are dark), a sphere or a
- * solid in the box, or more than EXACT_MAX triangles. */
+ * sphere or a solid in the box, or more than EXACT_MAX triangles. A
+ * source's buried parts, dark to its rays, are hidden exactly by what
+ * buries them (a closed object's faces, a covering above it); one coplanar
+ * with it within plane_tol would count as seen (notes/radiosity.md, "Exact
+ * visibility in the estimate"). */
 #define EXACT_MAX 64
 static int exact_occluders(const hctx *c, const hlink *l, rr_vec3 (*occ)[3], unsigned char *cull)
 {

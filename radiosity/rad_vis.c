@@ -2,11 +2,12 @@
  * triangles (rad_ff_internal.h, rad__ff_visible).
  *
  * The light that reaches x from polygon P is the factor of the part of P
- * that x sees. Each occluding triangle is cut to the slab the segments from
- * x to P cross (in front of x's tangent plane, above P's plane and below
- * x's height over it), projected from x onto P's plane (a convex polygon:
- * every point of the cut triangle lies nearer the plane than x), and cut
- * out of what is left of P, which stays a set of convex pieces (a convex
+ * that x sees. Each occluding triangle is cut to the pyramid from x over P
+ * and to the slab the segments from x to P cross (in front of x's tangent
+ * plane, above P's plane and below x's height over it), projected from x
+ * onto P's plane (a convex polygon on P: every point of the cut triangle
+ * lies nearer the plane than x; corners that coincide there merged), and
+ * cut out of what is left of P, which stays a set of convex pieces (a convex
  * piece minus a convex polygon is the piece's parts outside each of the
  * polygon's edges in turn). The factor is the sum of the pieces' contour
  * integrals (rad_ff_point_polygon): where nothing is cut out, P's own,
