@@ -242,9 +242,9 @@ int rt_accel_occluded_n(const rt_accel *a, const rr_ray *rays, int n, double tmi
  * for any thread count), into tri[]. Returns how many there are, or cap + 1
  * where there are more than cap (the walk stops there, tri[] holding cap of
  * them); *other (when not NULL) is set to 1 where a sphere's or a solid's
- * leaf box met the query's before that, else 0.
- * For the radiosity pass's exact visibility (radiosity/rad_vis.c), which
- * reads the triangles between two surfaces. */
+ * leaf box met the query's before that, else 0. For the radiosity pass's
+ * exact visibility (radiosity/rad_hier_link.c exact_occluders, rad_vis.c),
+ * which reads the triangles between two surfaces. */
 size_t rt_accel_tris_in_box(const rt_accel *a, rr_vec3 lo, rr_vec3 hi, uint32_t *tri, size_t cap, int *other);
 /* Rays traced through rt_accel_closest (camera, mirror, bounce and BSDF
  * rays, area-light shadow rays, which must meet the emitter, form-factor
