@@ -65,6 +65,28 @@ static double area2(const double *u, const double *v, int n)
     return s;
 }
 
+/* Reverses the order of a 2-D polygon's corners (to counter-clockwise). */
+static void reverse(double *u, double *v, int n)
+{
+    for (int i = 0; i < n / 2; i++) {
+        double tu = u[i], tv = v[i];
+        u[i] = u[n - 1 - i];
+        v[i] = v[n - 1 - i];
+        u[n - 1 - i] = tu;
+        v[n - 1 - i] = tv;
+    }
+}
+
+/* The line through edge i of a counter-clockwise polygon (u, v, n) as
+ * l[0] u + l[1] v + l[2], positive on its inside (to the edge's left). */
+static void edge_line(const double *u, const double *v, int n, int i, double l[3])
+{
+    int j = (i + 1) % n;
+    l[0] = -(v[j] - v[i]);
+    l[1] = u[j] - u[i];
+    l[2] = -(l[0] * u[i] + l[1] * v[i]);
+}
+
 /* Polygon in (up to 10 corners after the cuts of a triangle) cut to the
  * side n . p >= d of a plane; returns the corner count. */
 static int cut_plane(const rr_vec3 *in, int n, rr_vec3 nrm, double d, rr_vec3 *out)
@@ -102,7 +124,7 @@ double rad__ff_visible(rr_vec3 x, rr_vec3 nx, const rr_vec3 *poly, int nv, const
         return 0.0;
     rr_vec3 e1 = rr_v3_norm(rr_v3_sub(poly[1], p0)), e2 = rr_v3_cross(m, e1);
     enum { MAX_PIECES = 48 };
-    piece pc[MAX_PIECES], next[MAX_PIECES];
+    piece buf[2][MAX_PIECES], *pc = buf[0], *next = buf[1];
     int np = 1;
     pc[0].n = nv;
     for (int i = 0; i < nv; i++) {
@@ -111,13 +133,7 @@ double rad__ff_visible(rr_vec3 x, rr_vec3 nx, const rr_vec3 *poly, int nv, const
         pc[0].v[i] = rr_v3_dot(d, e2);
     }
     if (area2(pc[0].u, pc[0].v, nv) < 0) /* counter-clockwise about m */
-        for (int i = 0; i < nv / 2; i++) {
-            double tu = pc[0].u[i], tv = pc[0].v[i];
-            pc[0].u[i] = pc[0].u[nv - 1 - i];
-            pc[0].v[i] = pc[0].v[nv - 1 - i];
-            pc[0].u[nv - 1 - i] = tu;
-            pc[0].v[nv - 1 - i] = tv;
-        }
+        reverse(pc[0].u, pc[0].v, nv);
     double full = fabs(area2(pc[0].u, pc[0].v, nv)), tiny = 1e-12 * full, merge = 1e-9 * sqrt(full);
     /* the pyramid from x over P: a triangle wholly outside one of its sides
      * (the plane through x and an edge of P) casts nothing on P */
@@ -180,14 +196,8 @@ double rad__ff_visible(rr_vec3 x, rr_vec3 nx, const rr_vec3 *poly, int nv, const
         if (!(fabs(qa) > tiny))
             continue;
         if (qa < 0)
-            for (int i = 0; i < k / 2; i++) {
-                double tu = qu[i], tv = qv[i];
-                qu[i] = qu[k - 1 - i];
-                qv[i] = qv[k - 1 - i];
-                qu[k - 1 - i] = tu;
-                qv[k - 1 - i] = tv;
-            }
-        /* each piece minus the projection, into nx_pc */
+            reverse(qu, qv, k);
+        /* each piece minus the projection, into next */
         int nn = 0;
         for (int p = 0; p < np; p++) {
             const piece *cur = &pc[p];
@@ -202,11 +212,11 @@ double rad__ff_visible(rr_vec3 x, rr_vec3 nx, const rr_vec3 *poly, int nv, const
             /* or wholly outside one of the projection's edges (its inside
              * to the left: counter-clockwise) */
             for (int i = 0; i < k && !apart; i++) {
-                int j = (i + 1) % k;
-                double la = -(qv[j] - qv[i]), lb = qu[j] - qu[i], lc = -(la * qu[i] + lb * qv[i]);
+                double l[3];
+                edge_line(qu, qv, k, i, l);
                 int all = 1;
                 for (int q = 0; q < cur->n && all; q++)
-                    all = la * cur->u[q] + lb * cur->v[q] + lc <= 0;
+                    all = l[0] * cur->u[q] + l[1] * cur->v[q] + l[2] <= 0;
                 apart = all;
             }
             if (apart) {
@@ -218,10 +228,10 @@ double rad__ff_visible(rr_vec3 x, rr_vec3 nx, const rr_vec3 *poly, int nv, const
             *hidden = 1;
             piece rest = *cur, in, outp;
             for (int i = 0; i < k && rest.n >= 3; i++) {
-                int j = (i + 1) % k;
-                double la = -(qv[j] - qv[i]), lb = qu[j] - qu[i], lc = -(la * qu[i] + lb * qv[i]);
-                if (cut_line(rest.u, rest.v, rest.n, -la, -lb, -lc, &outp) < 0 ||
-                    cut_line(rest.u, rest.v, rest.n, la, lb, lc, &in) < 0)
+                double l[3];
+                edge_line(qu, qv, k, i, l);
+                if (cut_line(rest.u, rest.v, rest.n, -l[0], -l[1], -l[2], &outp) < 0 ||
+                    cut_line(rest.u, rest.v, rest.n, l[0], l[1], l[2], &in) < 0)
                     return -1.0;
                 if (outp.n >= 3 && fabs(area2(outp.u, outp.v, outp.n)) > tiny) {
                     if (nn >= MAX_PIECES)
@@ -231,7 +241,9 @@ double rad__ff_visible(rr_vec3 x, rr_vec3 nx, const rr_vec3 *poly, int nv, const
                 rest = in;
             }
         }
-        memcpy(pc, next, (size_t)nn * sizeof *pc);
+        piece *t_ = pc; /* next holds what is left of P */
+        pc = next;
+        next = t_;
         np = nn;
     }
     if (!*hidden)
